@@ -1,0 +1,141 @@
+//! `.binvox` (Patrick Min's format): a text header (`#binvox 1`, `dim D D D`, `translate x y z`,
+//! `scale s`, `data`) then (value, count ≤ 255) byte pairs. Voxels run with y fastest, then z,
+//! then x: index `x·D·D + z·D + y`. `scale` is the edge length of the whole cube, so the format is
+//! cubic: a grid that is not is padded with empty voxels on its high sides up to the longest axis.
+
+use super::{CodecError, malformed};
+use crate::grid::Grid;
+use crate::volume::{BitVolume, Volume};
+
+pub fn encode(v: &Volume) -> Result<Vec<u8>, CodecError> {
+    let Volume::Bits(b) = v else {
+        return Err(CodecError::Unsupported {
+            format: "binvox",
+            detail: "it stores one bit per voxel; use vxl or npy for density".into(),
+        });
+    };
+    let g = b.grid();
+    let n = *g.dims.iter().max().unwrap();
+    let mut out = format!(
+        "#binvox 1\ndim {n} {n} {n}\ntranslate {} {} {}\nscale {}\ndata\n",
+        g.origin[0],
+        g.origin[1],
+        g.origin[2],
+        n as f64 * g.voxel_size
+    )
+    .into_bytes();
+    let mut run: Option<(u8, u8)> = None;
+    let mut push = |val: u8, out: &mut Vec<u8>| match &mut run {
+        Some((v, c)) if *v == val && *c < 255 => *c += 1,
+        _ => {
+            if let Some((v, c)) = run.replace((val, 1)) {
+                out.extend_from_slice(&[v, c]);
+            }
+        }
+    };
+    let [dx, dy, dz] = g.dims;
+    for x in 0..n {
+        for z in 0..n {
+            for y in 0..n {
+                let bit = x < dx && y < dy && z < dz && b.get(x, y, z);
+                push(bit as u8, &mut out);
+            }
+        }
+    }
+    if let Some((v, c)) = run {
+        out.extend_from_slice(&[v, c]);
+    }
+    Ok(out)
+}
+
+pub fn decode(bytes: &[u8]) -> Result<BitVolume, CodecError> {
+    let mut pos = 0;
+    let mut line = || -> Result<String, CodecError> {
+        let end = bytes[pos..]
+            .iter()
+            .position(|&c| c == b'\n')
+            .ok_or_else(|| malformed("binvox", "truncated header"))?;
+        let l = String::from_utf8_lossy(&bytes[pos..pos + end])
+            .trim()
+            .to_string();
+        pos += end + 1;
+        Ok(l)
+    };
+    if !line()?.starts_with("#binvox") {
+        return Err(malformed("binvox", "not a .binvox file (no #binvox line)"));
+    }
+    let (mut dims, mut translate, mut scale) = (None, [0.0; 3], 1.0);
+    loop {
+        let l = line()?;
+        let t: Vec<&str> = l.split_whitespace().collect();
+        match t.as_slice() {
+            ["data"] => break,
+            ["dim", a, b, c] => {
+                let d: Result<Vec<u32>, _> = [a, b, c].iter().map(|s| s.parse::<u32>()).collect();
+                dims = Some(d.map_err(|_| malformed("binvox", format!("bad dim line {l:?}")))?);
+            }
+            ["translate", a, b, c] => {
+                for (o, s) in translate.iter_mut().zip([a, b, c]) {
+                    *o = s
+                        .parse()
+                        .map_err(|_| malformed("binvox", format!("bad translate line {l:?}")))?;
+                }
+            }
+            ["scale", s] => {
+                scale = s
+                    .parse()
+                    .map_err(|_| malformed("binvox", format!("bad scale line {l:?}")))?
+            }
+            _ => return Err(malformed("binvox", format!("unknown header line {l:?}"))),
+        }
+    }
+    let d = dims.ok_or_else(|| malformed("binvox", "no dim line"))?;
+    let (d, h, w) = (d[0], d[1], d[2]);
+    if d == 0 || h == 0 || w == 0 || (d as u64 * h as u64 * w as u64) > (1u64 << 36) {
+        return Err(malformed("binvox", "dims out of range"));
+    }
+    let n = d.max(h).max(w);
+    let vs = scale / n as f64;
+    if !(vs.is_finite() && vs > 0.0) || translate.iter().any(|t: &f64| !t.is_finite()) {
+        return Err(malformed("binvox", "bad scale or translate"));
+    }
+    // Index order x·(w·h) + z·w + y: the first dim is x, the second z, the third y.
+    let grid = Grid {
+        origin: translate,
+        voxel_size: vs,
+        dims: [d, w, h],
+    };
+    let mut v = BitVolume::new(grid);
+    let total = d as u64 * h as u64 * w as u64;
+    let mut i = 0u64;
+    let data = &bytes[pos..];
+    for pair in data.chunks(2) {
+        let [val, count] = pair else {
+            return Err(malformed("binvox", "odd number of data bytes"));
+        };
+        if i + *count as u64 > total {
+            return Err(malformed(
+                "binvox",
+                "run-length data runs past the end of the grid",
+            ));
+        }
+        if *val != 0 {
+            for j in i..i + *count as u64 {
+                let (x, rest) = (
+                    (j / (w as u64 * h as u64)) as u32,
+                    j % (w as u64 * h as u64),
+                );
+                let (z, y) = ((rest / w as u64) as u32, (rest % w as u64) as u32);
+                v.set(x, y, z, true);
+            }
+        }
+        i += *count as u64;
+    }
+    if i != total {
+        return Err(malformed(
+            "binvox",
+            format!("truncated: data covers {i} of {total} voxels"),
+        ));
+    }
+    Ok(v)
+}

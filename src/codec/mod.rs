@@ -1,0 +1,87 @@
+//! Volumes to bytes and back: the native `.vxl` (zstd), `.binvox` and `.npy`. Nothing here knows
+//! about meshes or engines; every format states its axis and bit order in its own module docs.
+
+pub mod binvox;
+pub mod npy;
+pub mod vxl;
+
+use std::path::Path;
+
+use crate::volume::Volume;
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum CodecError {
+    #[error("{format}: {detail}")]
+    Malformed {
+        format: &'static str,
+        detail: String,
+    },
+    #[error("{format} cannot hold this volume: {detail}")]
+    Unsupported {
+        format: &'static str,
+        detail: String,
+    },
+}
+
+pub(crate) fn malformed(format: &'static str, detail: impl Into<String>) -> CodecError {
+    CodecError::Malformed {
+        format,
+        detail: detail.into(),
+    }
+}
+
+/// Volume file formats.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VolumeFormat {
+    Vxl,
+    Binvox,
+    Npy,
+}
+
+impl VolumeFormat {
+    pub const ALL: [VolumeFormat; 3] = [VolumeFormat::Vxl, VolumeFormat::Binvox, VolumeFormat::Npy];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            VolumeFormat::Vxl => "vxl",
+            VolumeFormat::Binvox => "binvox",
+            VolumeFormat::Npy => "npy",
+        }
+    }
+    pub fn from_name(s: &str) -> Option<VolumeFormat> {
+        VolumeFormat::ALL
+            .into_iter()
+            .find(|f| f.name().eq_ignore_ascii_case(s))
+    }
+    pub fn from_path(p: &Path) -> Option<VolumeFormat> {
+        VolumeFormat::from_name(p.extension()?.to_str()?)
+    }
+    /// From the first bytes of a file.
+    pub fn sniff(bytes: &[u8]) -> Option<VolumeFormat> {
+        if bytes.starts_with(vxl::MAGIC) {
+            Some(VolumeFormat::Vxl)
+        } else if bytes.starts_with(b"#binvox") {
+            Some(VolumeFormat::Binvox)
+        } else if bytes.starts_with(npy::MAGIC) {
+            Some(VolumeFormat::Npy)
+        } else {
+            None
+        }
+    }
+
+    pub fn encode(self, v: &Volume) -> Result<Vec<u8>, CodecError> {
+        match self {
+            VolumeFormat::Vxl => vxl::encode(v, &serde_json::Map::new()),
+            VolumeFormat::Binvox => binvox::encode(v),
+            VolumeFormat::Npy => Ok(npy::encode(v)),
+        }
+    }
+
+    pub fn decode(self, bytes: &[u8]) -> Result<Volume, CodecError> {
+        match self {
+            VolumeFormat::Vxl => vxl::decode(bytes).map(|(v, _)| v),
+            VolumeFormat::Binvox => binvox::decode(bytes).map(Volume::Bits),
+            VolumeFormat::Npy => npy::decode(bytes),
+        }
+    }
+}

@@ -1,0 +1,136 @@
+//! NumPy `.npy` (format 1.0): dtype `|u1`, shape (X, Y, Z), C order, so `np.load` gives
+//! `a[x, y, z]`. Bit volumes hold 0/1, density volumes their occupancy. The file carries no grid:
+//! decoding gives origin 0 and voxel size 1. A decoded array holding only 0 and 1 is a bit volume;
+//! any larger value makes it a density volume (maximum 8, or 64 when a value exceeds 8).
+
+use super::{CodecError, malformed};
+use crate::grid::Grid;
+use crate::volume::{BitVolume, DensityVolume, Volume};
+
+pub const MAGIC: &[u8; 6] = b"\x93NUMPY";
+
+pub fn encode(v: &Volume) -> Vec<u8> {
+    let mut out = Vec::with_capacity(128 + v.grid().voxel_count() as usize);
+    write(v, &mut out).expect("writing to memory");
+    out
+}
+
+/// Streams the `.npy` to `out` (a 2048³ volume is 8 GiB as bytes: no need to hold it).
+pub fn write(v: &Volume, out: &mut impl std::io::Write) -> std::io::Result<()> {
+    let d = v.grid().dims;
+    let mut header = format!(
+        "{{'descr': '|u1', 'fortran_order': False, 'shape': ({}, {}, {}), }}",
+        d[0], d[1], d[2]
+    );
+    // Magic (6) + version (2) + length (2) + header + '\n' must be a multiple of 64.
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(' ');
+    }
+    header.push('\n');
+    out.write_all(MAGIC)?;
+    out.write_all(&[1, 0])?;
+    out.write_all(&(header.len() as u16).to_le_bytes())?;
+    out.write_all(header.as_bytes())?;
+    match v {
+        Volume::Density(dv) => out.write_all(dv.data()),
+        Volume::Bits(b) => {
+            let z = d[2] as usize;
+            let mut buf = vec![0u8; z];
+            for col in b.words().chunks_exact(b.words_per_column()) {
+                for (k, o) in buf.iter_mut().enumerate() {
+                    *o = (col[k / 64] >> (k % 64) & 1) as u8;
+                }
+                out.write_all(&buf)?;
+            }
+            Ok(())
+        }
+    }
+}
+
+pub fn decode(bytes: &[u8]) -> Result<Volume, CodecError> {
+    if bytes.len() < 10 || &bytes[..6] != MAGIC {
+        return Err(malformed("npy", "not a .npy file (bad magic)"));
+    }
+    let (hlen, start) = match bytes[6] {
+        1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
+        2 | 3 if bytes.len() >= 12 => (
+            u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize,
+            12,
+        ),
+        v => return Err(malformed("npy", format!("unsupported format version {v}"))),
+    };
+    let header = bytes
+        .get(start..start + hlen)
+        .ok_or_else(|| malformed("npy", "truncated header"))?;
+    let header = std::str::from_utf8(header).map_err(|_| malformed("npy", "header is not text"))?;
+    let compact: String = header.chars().filter(|c| !c.is_whitespace()).collect();
+    if ![
+        "'descr':'|u1'",
+        "'descr':'<u1'",
+        "'descr':'u1'",
+        "'descr':'|b1'",
+    ]
+    .iter()
+    .any(|d| compact.contains(d))
+    {
+        return Err(malformed(
+            "npy",
+            format!("dtype must be uint8 or bool, header is {header:?}"),
+        ));
+    }
+    if !compact.contains("'fortran_order':False") {
+        return Err(malformed("npy", "only C-order arrays are supported"));
+    }
+    let shape = compact
+        .split("'shape':(")
+        .nth(1)
+        .and_then(|s| s.split(')').next())
+        .ok_or_else(|| malformed("npy", "header has no shape"))?;
+    let dims: Vec<u32> = shape
+        .split(',')
+        .filter(|s| !s.is_empty())
+        .map(|s| s.parse::<u32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| malformed("npy", format!("bad shape ({shape})")))?;
+    let [x, y, z] = dims[..] else {
+        return Err(malformed(
+            "npy",
+            format!("shape must have 3 axes, got ({shape})"),
+        ));
+    };
+    let grid = Grid {
+        origin: [0.0; 3],
+        voxel_size: 1.0,
+        dims: [x, y, z],
+    };
+    let data = &bytes[start + hlen..];
+    if (data.len() as u64) != grid.voxel_count() || grid.voxel_count() == 0 {
+        return Err(malformed(
+            "npy",
+            format!(
+                "expected {} data bytes for shape ({shape}), got {}",
+                grid.voxel_count(),
+                data.len()
+            ),
+        ));
+    }
+    let max = data.iter().copied().max().unwrap_or(0);
+    if max > 1 {
+        let m = if max <= 8 { 8 } else { 64 };
+        return DensityVolume::from_data(grid, m, data.to_vec())
+            .map(Volume::Density)
+            .map_err(|e| malformed("npy", e));
+    }
+    let mut v = BitVolume::new(grid);
+    let wpc = v.words_per_column();
+    for (col, vals) in v
+        .words_mut()
+        .chunks_exact_mut(wpc)
+        .zip(data.chunks_exact(z as usize))
+    {
+        for (k, &b) in vals.iter().enumerate() {
+            col[k / 64] |= (b as u64) << (k % 64);
+        }
+    }
+    Ok(Volume::Bits(v))
+}

@@ -1,0 +1,134 @@
+//! The CPU engine: the reference implementation of every method and the fallback when there is no
+//! GPU. Work is split into bands of x-rows; each band owns a contiguous slice of the volume's
+//! words, so threads never share a word. Triangles are binned to the bands their columns touch.
+
+mod solid;
+mod surface;
+
+use std::ops::Range;
+
+use rayon::prelude::*;
+
+use super::{Engine, EngineError, GridMesh, Method};
+use crate::volume::BitVolume;
+
+pub use solid::crossing_voxel;
+pub use surface::triangle_overlaps_voxel;
+
+#[derive(Clone, Copy, Debug, Default)]
+pub struct CpuEngine;
+
+impl Engine for CpuEngine {
+    fn name(&self) -> &'static str {
+        "cpu"
+    }
+
+    fn voxelize(&self, mesh: &GridMesh, method: Method) -> Result<BitVolume, EngineError> {
+        Ok(match method {
+            Method::Solid => solid::voxelize(mesh),
+            Method::Surface => surface::voxelize(mesh),
+            Method::Conservative | Method::Interior => {
+                let (mut solid, surface) =
+                    rayon::join(|| solid::voxelize(mesh), || surface::voxelize(mesh));
+                if method == Method::Conservative {
+                    solid.union_with(&surface);
+                } else {
+                    solid.subtract(&surface);
+                }
+                solid
+            }
+        })
+    }
+}
+
+/// Runs `work(band, triangle indices, band words)` for every band of x-rows in parallel.
+/// `x_range(t)` gives the inclusive x-range of columns triangle `t` can touch, or `None`.
+fn for_each_band<F>(
+    mesh: &GridMesh,
+    vol: &mut BitVolume,
+    x_range: impl Fn(&[[i64; 3]; 3]) -> Option<(u32, u32)> + Sync,
+    work: F,
+) where
+    F: Fn(Range<u32>, &[u32], &mut [u64]) + Sync,
+{
+    let [nx, ny, _] = mesh.grid.dims;
+    let threads = rayon::current_num_threads().max(1) as u32;
+    let band_len = nx.div_ceil(threads * 8).max(1);
+    let nbands = nx.div_ceil(band_len) as usize;
+    let ranges: Vec<Option<(u32, u32)>> = mesh
+        .triangles
+        .par_iter()
+        .map(|t| x_range(&widen(t)))
+        .collect();
+    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); nbands];
+    for (t, r) in ranges.iter().enumerate() {
+        if let Some((x0, x1)) = *r {
+            for b in (x0 / band_len)..=(x1 / band_len) {
+                bins[b as usize].push(t as u32);
+            }
+        }
+    }
+    let chunk = band_len as usize * ny as usize * vol.words_per_column();
+    vol.words_mut()
+        .par_chunks_mut(chunk)
+        .zip(bins.par_iter())
+        .enumerate()
+        .for_each(|(b, (words, tris))| {
+            let start = b as u32 * band_len;
+            work(start..(start + band_len).min(nx), tris, words)
+        });
+}
+
+/// Triangle vertices as i64 for arithmetic.
+fn widen(t: &[[i32; 3]; 3]) -> [[i64; 3]; 3] {
+    t.map(|p| p.map(i64::from))
+}
+
+/// Inclusive range of cells `i` (clamped to `0..n`) whose centre `256 i + 128` lies in `[lo, hi]`.
+fn centre_range(lo: i64, hi: i64, n: u32) -> Option<(u32, u32)> {
+    use super::{FIXED_HALF, FIXED_ONE};
+    let a = (lo - FIXED_HALF).div_euclid(FIXED_ONE)
+        + i64::from((lo - FIXED_HALF).rem_euclid(FIXED_ONE) != 0);
+    let b = (hi - FIXED_HALF).div_euclid(FIXED_ONE);
+    clamp_range(a, b, n)
+}
+
+/// Inclusive range of cells `i` (clamped to `0..n`) whose closed extent `[256 i, 256 i + 256]`
+/// meets `[lo, hi]`.
+fn box_range(lo: i64, hi: i64, n: u32) -> Option<(u32, u32)> {
+    use super::FIXED_ONE;
+    let a = (lo - FIXED_ONE).div_euclid(FIXED_ONE)
+        + i64::from((lo - FIXED_ONE).rem_euclid(FIXED_ONE) != 0);
+    let b = hi.div_euclid(FIXED_ONE);
+    clamp_range(a, b, n)
+}
+
+fn clamp_range(a: i64, b: i64, n: u32) -> Option<(u32, u32)> {
+    let (a, b) = (a.max(0), b.min(n as i64 - 1));
+    (a <= b).then_some((a as u32, b as u32))
+}
+
+fn axis_bounds(v: &[[i64; 3]; 3], a: usize) -> (i64, i64) {
+    (
+        v[0][a].min(v[1][a]).min(v[2][a]),
+        v[0][a].max(v[1][a]).max(v[2][a]),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ranges() {
+        // Centres at 128, 384, 640, ...
+        assert_eq!(centre_range(128, 384, 10), Some((0, 1)));
+        assert_eq!(centre_range(129, 383, 10), None);
+        assert_eq!(centre_range(-1000, 129, 10), Some((0, 0)));
+        // Closed boxes [0,256], [256,512], ...: a value on a face touches both.
+        assert_eq!(box_range(256, 256, 10), Some((0, 1)));
+        assert_eq!(box_range(257, 511, 10), Some((1, 1)));
+        assert_eq!(box_range(-300, -1, 10), None);
+        assert_eq!(box_range(2560, 3000, 10), Some((9, 9)));
+    }
+}

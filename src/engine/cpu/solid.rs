@@ -1,0 +1,215 @@
+//! `solid`: voxel (x, y, k) is set iff the ray from its centre towards −z crosses the mesh an odd
+//! number of times.
+//!
+//! For each triangle and each column (x, y) whose centre lies inside the triangle's xy projection,
+//! the crossing depth z(x, y) is found and one bit is toggled at the lowest voxel whose centre is
+//! strictly above it; a prefix XOR up each column then turns toggles into parity.
+//!
+//! Tie rules (all integer, on the 1/256-voxel lattice of [`crate::engine::GridMesh`]):
+//! - Triangles with zero projected area are skipped.
+//! - Column in triangle: the triangle is oriented counter-clockwise in xy; with edge functions
+//!   `w = (b − a) × (p − a)` a centre is inside iff every `w > 0`, or `w == 0` on an edge whose
+//!   direction d has `d.y > 0 || (d.y == 0 && d.x < 0)`. This equals testing the point pushed by
+//!   an infinitesimal (−1, −δ), so a centre on an edge or vertex shared by triangles on both sides
+//!   counts exactly once.
+//! - Depth: voxel k is flipped iff its centre is strictly above the plane,
+//!   `(2k + 1) · 128 · A > w0 z0 + w1 z1 + w2 z2` with `A = w0 + w1 + w2` (twice the area).
+
+use std::ops::Range;
+
+use super::{axis_bounds, centre_range, for_each_band, widen};
+use crate::engine::{FIXED_HALF, FIXED_ONE, GridMesh};
+use crate::volume::{BitVolume, tail_mask};
+
+pub(super) fn voxelize(mesh: &GridMesh) -> BitVolume {
+    let mut vol = BitVolume::new(mesh.grid);
+    let [nx, ny, nz] = mesh.grid.dims;
+    let wpc = vol.words_per_column();
+    let x_range = |v: &[[i64; 3]; 3]| {
+        let (lo, hi) = axis_bounds(v, 0);
+        let (ylo, yhi) = axis_bounds(v, 1);
+        centre_range(ylo, yhi, ny)?;
+        centre_range(lo, hi, nx)
+    };
+    for_each_band(mesh, &mut vol, x_range, |band, tris, words| {
+        for &t in tris {
+            toggle_crossings(
+                &widen(&mesh.triangles[t as usize]),
+                band.clone(),
+                [ny, nz],
+                wpc,
+                words,
+            );
+        }
+        let tail = tail_mask(nz);
+        for col in words.chunks_exact_mut(wpc) {
+            prefix_xor_column(col, tail);
+        }
+    });
+    vol
+}
+
+/// Edge function pieces of a CCW triangle: `w(p) = ex · (p.y − a.y) − ey · (p.x − a.x)`, and the
+/// bias that makes `w >= bias` the inside test with the tie rule.
+struct Edge {
+    a: [i64; 3],
+    ex: i64,
+    ey: i64,
+    bias: i64,
+}
+
+impl Edge {
+    fn new(a: [i64; 3], b: [i64; 3]) -> Edge {
+        let (ex, ey) = (b[0] - a[0], b[1] - a[1]);
+        let included = ey > 0 || (ey == 0 && ex < 0);
+        Edge {
+            a,
+            ex,
+            ey,
+            bias: if included { 0 } else { 1 },
+        }
+    }
+    fn at(&self, px: i64, py: i64) -> i64 {
+        self.ex * (py - self.a[1]) - self.ey * (px - self.a[0])
+    }
+}
+
+/// Orients the triangle counter-clockwise in xy; `None` for zero projected area.
+fn oriented(mut v: [[i64; 3]; 3]) -> Option<([[i64; 3]; 3], i64)> {
+    let area2 =
+        (v[1][0] - v[0][0]) * (v[2][1] - v[0][1]) - (v[1][1] - v[0][1]) * (v[2][0] - v[0][0]);
+    match area2 {
+        0 => None,
+        a if a < 0 => {
+            v.swap(1, 2);
+            Some((v, -a))
+        }
+        a => Some((v, a)),
+    }
+}
+
+/// Lowest voxel index whose centre is strictly above the plane through the (oriented) triangle
+/// at a column centre with barycentric edge values `w` (`w[i]` weighs vertex i): the toggle
+/// position. May be negative (the whole column) or ≥ Z (nothing).
+fn first_voxel_above(v: &[[i64; 3]; 3], w: [i64; 3], area2: i64) -> i64 {
+    let num: i128 = (0..3).map(|i| w[i] as i128 * v[i][2] as i128).sum();
+    // (2k+1)·128·A > num  ⇔  2k+1 > m' where m = floor(num / (128·A))  ⇔  k ≥ ceil(m / 2).
+    let m = num.div_euclid(FIXED_HALF as i128 * area2 as i128);
+    (m + 1).div_euclid(2) as i64
+}
+
+fn toggle_crossings(
+    v: &[[i64; 3]; 3],
+    band: Range<u32>,
+    [ny, nz]: [u32; 2],
+    wpc: usize,
+    words: &mut [u64],
+) {
+    let Some((v, area2)) = oriented(*v) else {
+        return;
+    };
+    let (xlo, xhi) = axis_bounds(&v, 0);
+    let (ylo, yhi) = axis_bounds(&v, 1);
+    let (Some((x0, x1)), Some((y0, y1))) =
+        (centre_range(xlo, xhi, u32::MAX), centre_range(ylo, yhi, ny))
+    else {
+        return;
+    };
+    let (x0, x1) = (x0.max(band.start), x1.min(band.end - 1));
+    if x0 > x1 {
+        return;
+    }
+    // Edge i is opposite vertex i, so its function is vertex i's barycentric weight × A.
+    let edges = [
+        Edge::new(v[1], v[2]),
+        Edge::new(v[2], v[0]),
+        Edge::new(v[0], v[1]),
+    ];
+    let py0 = y0 as i64 * FIXED_ONE + FIXED_HALF;
+    for x in x0..=x1 {
+        let px = x as i64 * FIXED_ONE + FIXED_HALF;
+        let mut w = [0, 1, 2].map(|i| edges[i].at(px, py0));
+        let col0 = (x - band.start) as usize * ny as usize;
+        for y in y0..=y1 {
+            if (0..3).all(|i| w[i] >= edges[i].bias) {
+                let k = first_voxel_above(&v, w, area2);
+                if k < nz as i64 {
+                    let k = k.max(0) as usize;
+                    words[(col0 + y as usize) * wpc + k / 64] ^= 1 << (k % 64);
+                }
+            }
+            for i in 0..3 {
+                w[i] += edges[i].ex * FIXED_ONE;
+            }
+        }
+    }
+}
+
+/// Turns toggles into parity: bit k becomes the XOR of toggles at 0..=k. Bits above Z are cleared.
+fn prefix_xor_column(col: &mut [u64], tail: u64) {
+    let mut carry = 0u64;
+    for w in col.iter_mut() {
+        let mut x = *w;
+        x ^= x << 1;
+        x ^= x << 2;
+        x ^= x << 4;
+        x ^= x << 8;
+        x ^= x << 16;
+        x ^= x << 32;
+        x ^= carry;
+        carry = if x >> 63 == 1 { u64::MAX } else { 0 };
+        *w = x;
+    }
+    if let Some(last) = col.last_mut() {
+        *last &= tail;
+    }
+}
+
+/// The crossing test of one column centre with one triangle, for oracles and other engines'
+/// tests: `Some(k)` with the first voxel above the triangle when the column centre (x, y) is
+/// inside its projection under the tie rule, else `None`.
+pub fn crossing_voxel(tri: &[[i32; 3]; 3], x: u32, y: u32) -> Option<i64> {
+    let (v, area2) = oriented(widen(tri))?;
+    let edges = [
+        Edge::new(v[1], v[2]),
+        Edge::new(v[2], v[0]),
+        Edge::new(v[0], v[1]),
+    ];
+    let (px, py) = (
+        x as i64 * FIXED_ONE + FIXED_HALF,
+        y as i64 * FIXED_ONE + FIXED_HALF,
+    );
+    let w = [0, 1, 2].map(|i| edges[i].at(px, py));
+    (0..3)
+        .all(|i| w[i] >= edges[i].bias)
+        .then(|| first_voxel_above(&v, w, area2))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn prefix_xor_carries_across_words() {
+        let mut col = [1u64 << 3, 1u64 << 1, 0];
+        prefix_xor_column(&mut col, (1 << 10) - 1);
+        assert_eq!(col[0], !0u64 << 3);
+        assert_eq!(col[1], 1); // bits 64 (set) then toggled off from bit 65
+        assert_eq!(col[2], 0);
+        let mut col = [1u64 << 63, 0];
+        prefix_xor_column(&mut col, (1 << 5) - 1);
+        assert_eq!(col, [1 << 63, 0b11111]);
+    }
+
+    #[test]
+    fn depth_rounding() {
+        // Flat triangle at z = 1.5 voxels (384): centres 0.5 and 1.5 are not above, 2.5 is.
+        let z = 384;
+        let tri = [[0, 0, z], [2560, 0, z], [0, 2560, z]];
+        assert_eq!(crossing_voxel(&tri, 0, 0), Some(2));
+        let tri = [[0, 0, 383], [2560, 0, 383], [0, 2560, 383]];
+        assert_eq!(crossing_voxel(&tri, 0, 0), Some(1));
+        let tri = [[0, 0, -1000], [2560, 0, -1000], [0, 2560, -1000]];
+        assert_eq!(crossing_voxel(&tri, 1, 1), Some(-4));
+    }
+}

@@ -1,0 +1,76 @@
+//! Engines turn a mesh on a grid into a volume. Every engine consumes the same [`GridMesh`]
+//! (vertices snapped to a fixed-point lattice by [`GridMesh::new`]) and must produce the same bits:
+//! the rules in `docs/methods.md` are implemented once here and in `cpu/`, which is the oracle the
+//! GPU engine is tested against. Engines know nothing of files or HTTP.
+
+pub mod cpu;
+mod snap;
+
+use std::str::FromStr;
+
+pub use snap::{FIXED_HALF, FIXED_ONE, FIXED_SHIFT, GridMesh, MAX_FIXED};
+
+use crate::volume::BitVolume;
+
+/// What a voxel being set means.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Method {
+    /// The voxel centre is inside (odd number of crossings on the ray towards −z).
+    Solid,
+    /// The closed voxel box touches the surface.
+    Surface,
+    /// `solid ∪ surface`.
+    Conservative,
+    /// `solid − surface`.
+    Interior,
+}
+
+impl Method {
+    pub const ALL: [Method; 4] = [
+        Method::Solid,
+        Method::Surface,
+        Method::Conservative,
+        Method::Interior,
+    ];
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Solid => "solid",
+            Method::Surface => "surface",
+            Method::Conservative => "conservative",
+            Method::Interior => "interior",
+        }
+    }
+}
+
+impl FromStr for Method {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Method, String> {
+        Method::ALL
+            .into_iter()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| {
+                format!(
+                    "unknown method {s:?}; expected one of solid, surface, conservative, interior"
+                )
+            })
+    }
+}
+
+impl std::fmt::Display for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum EngineError {
+    #[error("mesh vertex {vertex} lies {voxels:.0} voxels from the grid; at most {max} are supported (crop the mesh or use a coarser or larger grid)", max = MAX_FIXED >> FIXED_SHIFT)]
+    OutOfRange { vertex: usize, voxels: f64 },
+}
+
+/// A voxelization engine.
+pub trait Engine: Send + Sync {
+    /// Short name for logs and summaries (`cpu`, `gpu`).
+    fn name(&self) -> &'static str;
+    fn voxelize(&self, mesh: &GridMesh, method: Method) -> Result<BitVolume, EngineError>;
+}

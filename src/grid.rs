@@ -1,0 +1,382 @@
+//! The voxel grid: a world origin, a cubic voxel size and integer dims, and the one set of rules
+//! (`docs/methods.md`, "Grid") that fits a grid to a mesh. Every engine and codec takes its grid
+//! from here; nothing else decides where a voxel is.
+
+use serde::{Deserialize, Serialize};
+
+/// Largest dimension along one axis. Keeps snapped fixed-point coordinates inside `i32`
+/// (see [`crate::engine::snap`]).
+pub const MAX_DIM: u32 = 1 << 20;
+
+/// Default voxel budget of one grid: 2048³.
+pub const DEFAULT_MAX_VOXELS: u64 = 2048 * 2048 * 2048;
+
+/// A grid: voxel (i, j, k) is the closed box `origin + [i, i+1] × [j, j+1] × [k, k+1] · voxel_size`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Grid {
+    pub origin: [f64; 3],
+    pub voxel_size: f64,
+    pub dims: [u32; 3],
+}
+
+/// How the caller chose the grid.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum GridSpec {
+    /// `voxel_size = longest bbox edge / n`, origin at the bbox minimum, dims fitted per axis
+    /// (or `(n, n, n)` when `cubic`).
+    Resolution { n: u32, cubic: bool },
+    /// The same fit with a given voxel size; `cubic` makes every axis as long as the longest.
+    VoxelSize { size: f64, cubic: bool },
+    /// A fixed grid, so volumes of different meshes line up.
+    Explicit {
+        origin: [f64; 3],
+        voxel_size: f64,
+        dims: [u32; 3],
+    },
+}
+
+/// Limits a grid must respect.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GridLimits {
+    pub max_voxels: u64,
+}
+
+impl Default for GridLimits {
+    fn default() -> Self {
+        GridLimits {
+            max_voxels: DEFAULT_MAX_VOXELS,
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum GridError {
+    #[error("resolution must be at least 1")]
+    ZeroResolution,
+    #[error("voxel size must be a positive finite number, got {0}")]
+    BadVoxelSize(f64),
+    #[error("grid origin must be finite, got {0:?}")]
+    BadOrigin([f64; 3]),
+    #[error("grid dims must be at least 1 on every axis, got {0:?}")]
+    ZeroDims([u32; 3]),
+    #[error(
+        "the mesh has no extent (all vertices coincide), so a resolution cannot set the voxel size; give a voxel size or an explicit grid"
+    )]
+    NoExtent,
+    #[error(
+        "grid {dims:?} has {voxels} voxels, over the limit of {limit} ({limit_desc}); lower the resolution or raise the voxel size"
+    )]
+    TooManyVoxels {
+        dims: [u64; 3],
+        voxels: u128,
+        limit: u64,
+        limit_desc: String,
+    },
+    #[error("grid {dims:?} is longer than {max} voxels along one axis; lower the resolution or raise the voxel size", max = MAX_DIM)]
+    AxisTooLong { dims: [u64; 3] },
+}
+
+impl Grid {
+    /// Fits a grid to a bounding box as `docs/methods.md` says, then adds `padding` empty voxels
+    /// on every side, then checks the limits.
+    pub fn fit(
+        bbox_min: [f64; 3],
+        bbox_max: [f64; 3],
+        spec: GridSpec,
+        padding: u32,
+        limits: GridLimits,
+    ) -> Result<Grid, GridError> {
+        let extent = [0, 1, 2].map(|a| bbox_max[a] - bbox_min[a]);
+        let longest = extent.iter().cloned().fold(0.0, f64::max);
+        let (origin, voxel_size, dims): ([f64; 3], f64, [u64; 3]) = match spec {
+            GridSpec::Resolution { n, cubic } => {
+                if n == 0 {
+                    return Err(GridError::ZeroResolution);
+                }
+                if longest <= 0.0 || !longest.is_finite() {
+                    return Err(GridError::NoExtent);
+                }
+                let s = longest / n as f64;
+                let dims = if cubic {
+                    [n as u64; 3]
+                } else {
+                    // The longest axis is exactly n by definition; the others are fitted.
+                    extent.map(|e| {
+                        if e == longest {
+                            n as u64
+                        } else {
+                            fitted_dim(e, s).min(n as u64)
+                        }
+                    })
+                };
+                (bbox_min, s, dims)
+            }
+            GridSpec::VoxelSize { size, cubic } => {
+                check_voxel_size(size)?;
+                let mut dims = extent.map(|e| fitted_dim(e, size));
+                if cubic {
+                    let m = *dims.iter().max().unwrap();
+                    dims = [m; 3];
+                }
+                (bbox_min, size, dims)
+            }
+            GridSpec::Explicit {
+                origin,
+                voxel_size,
+                dims,
+            } => {
+                check_voxel_size(voxel_size)?;
+                if origin.iter().any(|o| !o.is_finite()) {
+                    return Err(GridError::BadOrigin(origin));
+                }
+                if dims.contains(&0) {
+                    return Err(GridError::ZeroDims(dims));
+                }
+                (origin, voxel_size, dims.map(u64::from))
+            }
+        };
+        let p = padding as u64;
+        let dims = dims.map(|d| d + 2 * p);
+        let origin = origin.map(|o| o - p as f64 * voxel_size);
+        if dims.iter().any(|&d| d > MAX_DIM as u64) {
+            return Err(GridError::AxisTooLong { dims });
+        }
+        let voxels = dims.iter().map(|&d| d as u128).product::<u128>();
+        if voxels > limits.max_voxels as u128 {
+            return Err(GridError::TooManyVoxels {
+                dims,
+                voxels,
+                limit: limits.max_voxels,
+                limit_desc: describe_budget(limits.max_voxels),
+            });
+        }
+        Ok(Grid {
+            origin,
+            voxel_size,
+            dims: dims.map(|d| d as u32),
+        })
+    }
+
+    pub fn voxel_count(&self) -> u64 {
+        self.dims.iter().map(|&d| d as u64).product()
+    }
+
+    /// World position of the centre of voxel (i, j, k).
+    pub fn voxel_center(&self, i: u32, j: u32, k: u32) -> [f64; 3] {
+        let idx = [i, j, k];
+        [0, 1, 2].map(|a| self.origin[a] + (idx[a] as f64 + 0.5) * self.voxel_size)
+    }
+
+    /// World position of the grid's far corner.
+    pub fn max_corner(&self) -> [f64; 3] {
+        [0, 1, 2].map(|a| self.origin[a] + self.dims[a] as f64 * self.voxel_size)
+    }
+
+    /// True when `other` has the same voxel size and its origin is a whole number of voxels away,
+    /// so the two can be combined voxel by voxel.
+    pub fn is_aligned_with(&self, other: &Grid) -> bool {
+        if self.voxel_size != other.voxel_size {
+            return false;
+        }
+        (0..3).all(|a| {
+            let d = (other.origin[a] - self.origin[a]) / self.voxel_size;
+            (d - d.round()).abs() <= 1e-6
+        })
+    }
+}
+
+/// `ceil(extent / s)`, at least 1. A quotient within 1e-9 of a whole number counts as that number,
+/// so that an extent of exactly k voxels does not grow to k + 1 through rounding in the division.
+fn fitted_dim(extent: f64, s: f64) -> u64 {
+    let q = extent / s;
+    let r = q.round();
+    let d = if (q - r).abs() <= 1e-9 * r.max(1.0) {
+        r
+    } else {
+        q.ceil()
+    };
+    if !d.is_finite() || d > u64::MAX as f64 / 4.0 {
+        return u64::MAX / 4;
+    }
+    (d as u64).max(1)
+}
+
+fn check_voxel_size(s: f64) -> Result<(), GridError> {
+    if s.is_finite() && s > 0.0 {
+        Ok(())
+    } else {
+        Err(GridError::BadVoxelSize(s))
+    }
+}
+
+fn describe_budget(v: u64) -> String {
+    let c = (v as f64).cbrt().round() as u64;
+    if c * c * c == v {
+        format!("{c}³")
+    } else {
+        format!("{v} voxels")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn resolution_fit_is_tight_and_longest_axis_exact() {
+        let g = Grid::fit(
+            [0.0; 3],
+            [0.3, 0.1, 0.29],
+            GridSpec::Resolution { n: 3, cubic: false },
+            0,
+            GridLimits::default(),
+        )
+        .unwrap();
+        assert_eq!(g.dims, [3, 1, 3]);
+        assert_eq!(g.origin, [0.0; 3]);
+        let c = Grid::fit(
+            [0.0; 3],
+            [0.3, 0.1, 0.29],
+            GridSpec::Resolution { n: 3, cubic: true },
+            0,
+            GridLimits::default(),
+        )
+        .unwrap();
+        assert_eq!(c.dims, [3, 3, 3]);
+    }
+
+    #[test]
+    fn padding_moves_origin_and_grows_dims() {
+        let g = Grid::fit(
+            [1.0; 3],
+            [2.0; 3],
+            GridSpec::Resolution { n: 4, cubic: false },
+            2,
+            GridLimits::default(),
+        )
+        .unwrap();
+        assert_eq!(g.dims, [8, 8, 8]);
+        assert_eq!(g.origin, [0.5; 3]);
+    }
+
+    #[test]
+    fn voxel_size_fit_rounds_exact_multiples_down() {
+        let g = Grid::fit(
+            [0.0; 3],
+            [0.3, 0.7, 0.05],
+            GridSpec::VoxelSize {
+                size: 0.1,
+                cubic: false,
+            },
+            0,
+            GridLimits::default(),
+        )
+        .unwrap();
+        assert_eq!(g.dims, [3, 7, 1]);
+        let c = Grid::fit(
+            [0.0; 3],
+            [0.3, 0.7, 0.05],
+            GridSpec::VoxelSize {
+                size: 0.1,
+                cubic: true,
+            },
+            0,
+            GridLimits::default(),
+        )
+        .unwrap();
+        assert_eq!(c.dims, [7, 7, 7]);
+    }
+
+    #[test]
+    fn refuses_bad_grids() {
+        let l = GridLimits::default();
+        let fit = |s| Grid::fit([0.0; 3], [1.0; 3], s, 0, l);
+        assert_eq!(
+            fit(GridSpec::Resolution { n: 0, cubic: false }),
+            Err(GridError::ZeroResolution)
+        );
+        assert!(matches!(
+            fit(GridSpec::VoxelSize {
+                size: f64::NAN,
+                cubic: false
+            }),
+            Err(GridError::BadVoxelSize(_))
+        ));
+        assert!(matches!(
+            fit(GridSpec::VoxelSize {
+                size: -1.0,
+                cubic: false
+            }),
+            Err(GridError::BadVoxelSize(_))
+        ));
+        assert!(matches!(
+            fit(GridSpec::Resolution {
+                n: 2049,
+                cubic: true
+            }),
+            Err(GridError::TooManyVoxels { .. })
+        ));
+        assert!(
+            fit(GridSpec::Resolution {
+                n: 2048,
+                cubic: true
+            })
+            .is_ok()
+        );
+        let small = GridLimits { max_voxels: 1000 };
+        let e = Grid::fit(
+            [0.0; 3],
+            [1.0; 3],
+            GridSpec::Resolution { n: 11, cubic: true },
+            0,
+            small,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("10³"), "{e}");
+        assert_eq!(
+            Grid::fit(
+                [1.0; 3],
+                [1.0; 3],
+                GridSpec::Resolution { n: 8, cubic: false },
+                0,
+                l
+            ),
+            Err(GridError::NoExtent)
+        );
+        assert!(matches!(
+            Grid::fit(
+                [0.0; 3],
+                [1.0; 3],
+                GridSpec::Explicit {
+                    origin: [0.0; 3],
+                    voxel_size: 1.0,
+                    dims: [0, 1, 1]
+                },
+                0,
+                l
+            ),
+            Err(GridError::ZeroDims(_))
+        ));
+    }
+
+    #[test]
+    fn alignment() {
+        let a = Grid {
+            origin: [0.0; 3],
+            voxel_size: 0.5,
+            dims: [4; 3],
+        };
+        let b = Grid {
+            origin: [1.5, -0.5, 2.0],
+            voxel_size: 0.5,
+            dims: [2; 3],
+        };
+        let c = Grid {
+            origin: [0.25, 0.0, 0.0],
+            voxel_size: 0.5,
+            dims: [2; 3],
+        };
+        assert!(a.is_aligned_with(&b));
+        assert!(!a.is_aligned_with(&c));
+    }
+}

@@ -1,0 +1,21 @@
+//! voxd: exact voxelization of triangle meshes.
+//!
+//! Data moves one way: [`mesh`] loads and validates a triangle mesh, [`grid`] fits the grid the
+//! caller asked for, an [`engine`] turns the two into a [`volume`], and [`codec`] writes volumes as
+//! bytes. The definitions every engine must meet are in `docs/methods.md`.
+
+#[cfg(not(target_endian = "little"))]
+compile_error!(
+    "voxd stores bit volumes as little-endian words and runs on little-endian targets only"
+);
+
+pub mod codec;
+pub mod engine;
+pub mod grid;
+pub mod mesh;
+pub mod volume;
+
+pub use engine::Method;
+pub use grid::{Grid, GridLimits, GridSpec};
+pub use mesh::Mesh;
+pub use volume::{BitVolume, DensityVolume, Volume};

@@ -1,0 +1,359 @@
+//! The `voxd` command line: voxelize meshes, inspect and convert volumes.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use clap::{Args, Parser, Subcommand};
+use voxd::codec::{VolumeFormat, vxl};
+use voxd::engine::cpu::CpuEngine;
+use voxd::engine::{Engine, GridMesh, Method};
+use voxd::grid::{Grid, GridLimits, GridSpec};
+use voxd::mesh::{self, Format, MeshDiagnostics};
+use voxd::volume::Volume;
+
+#[derive(Parser)]
+#[command(
+    name = "voxd",
+    version,
+    about = "Exact voxelization of triangle meshes"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Voxelize a mesh (.obj .gltf .glb .stl .ply, optionally .gz) into a volume file.
+    Voxelize(VoxelizeArgs),
+    /// Describe a volume (.vxl .binvox .npy) or a mesh file.
+    Info { file: PathBuf },
+    /// Convert a volume between formats, chosen by the files' extensions.
+    Convert { input: PathBuf, output: PathBuf },
+}
+
+#[derive(Args)]
+struct VoxelizeArgs {
+    /// Mesh file.
+    mesh: PathBuf,
+    /// Output volume; its extension picks the format (.vxl, .binvox, .npy).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// solid | surface | conservative | interior
+    #[arg(long, default_value = "solid")]
+    method: Method,
+    /// Voxels along the mesh's longest axis (default 256 when no other grid option is given).
+    #[arg(long, conflicts_with = "voxel_size")]
+    resolution: Option<u32>,
+    /// Edge length of a voxel in mesh units.
+    #[arg(long)]
+    voxel_size: Option<f64>,
+    /// Explicit grid origin X,Y,Z (needs --voxel-size and --dims).
+    #[arg(long, value_parser = parse_f64x3, requires_all = ["voxel_size", "dims"])]
+    origin: Option<[f64; 3]>,
+    /// Explicit grid dims X,Y,Z (needs --origin and --voxel-size).
+    #[arg(long, value_parser = parse_u32x3, requires = "origin")]
+    dims: Option<[u32; 3]>,
+    /// Make every axis as long as the longest (N×N×N).
+    #[arg(long, conflicts_with = "origin")]
+    cubic: bool,
+    /// Empty voxels added on every side.
+    #[arg(long, default_value_t = 0)]
+    padding: u32,
+    /// Engine: cpu.
+    #[arg(long, default_value = "cpu", value_parser = ["cpu"])]
+    engine: String,
+    /// Refuse grids with more voxels than this.
+    #[arg(long, default_value_t = voxd::grid::DEFAULT_MAX_VOXELS)]
+    max_voxels: u64,
+    /// Mesh format, when the extension does not say (obj, gltf, glb, stl, ply).
+    #[arg(long, value_parser = parse_format)]
+    format: Option<Format>,
+}
+
+fn parse_f64x3(s: &str) -> Result<[f64; 3], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|p| {
+            p.trim()
+                .parse::<f64>()
+                .map_err(|_| format!("{p:?} is not a number"))
+        })
+        .collect::<Result<_, _>>()?;
+    v.try_into()
+        .map_err(|_| "expected three comma-separated numbers X,Y,Z".to_string())
+}
+
+fn parse_u32x3(s: &str) -> Result<[u32; 3], String> {
+    let v: Vec<u32> = s
+        .split(',')
+        .map(|p| {
+            p.trim()
+                .parse::<u32>()
+                .map_err(|_| format!("{p:?} is not a whole number"))
+        })
+        .collect::<Result<_, _>>()?;
+    v.try_into()
+        .map_err(|_| "expected three comma-separated whole numbers X,Y,Z".to_string())
+}
+
+fn parse_format(s: &str) -> Result<Format, String> {
+    Format::from_name(s)
+        .ok_or_else(|| format!("unknown mesh format {s:?}; expected obj, gltf, glb, stl or ply"))
+}
+
+fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_env("VOXD_LOG")
+                .unwrap_or_else(|_| "warn".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Voxelize(a) => voxelize(a),
+        Command::Info { file } => info(&file),
+        Command::Convert { input, output } => convert(&input, &output),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("voxd: error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn voxelize(a: VoxelizeArgs) -> Result<(), String> {
+    let t0 = Instant::now();
+    let out_format = volume_format_of(&a.output)?;
+    let name = a.mesh.display().to_string();
+    let mesh = match a.format {
+        Some(f) => {
+            let bytes = std::fs::read(&a.mesh).map_err(|e| format!("{name}: {e}"))?;
+            let dir = a.mesh.parent().map(Path::to_path_buf).unwrap_or_default();
+            let opts = mesh::LoadOptions {
+                external: mesh::ExternalResources::BesideFile(dir),
+                ..Default::default()
+            };
+            mesh::load_bytes(&bytes, Some(f), &opts)
+        }
+        None => mesh::load_file(&a.mesh, mesh::LoadOptions::default().max_triangles),
+    }
+    .map_err(|e| format!("{name}: {e}"))?;
+    let t_load = t0.elapsed();
+    let diag = mesh.diagnostics();
+    eprintln!("{}", describe_mesh(&name, &diag));
+
+    let spec = match (a.origin, a.dims, a.voxel_size, a.resolution) {
+        (Some(origin), Some(dims), Some(voxel_size), _) => GridSpec::Explicit {
+            origin,
+            voxel_size,
+            dims,
+        },
+        (_, _, Some(size), _) => GridSpec::VoxelSize {
+            size,
+            cubic: a.cubic,
+        },
+        (_, _, None, r) => GridSpec::Resolution {
+            n: r.unwrap_or(256),
+            cubic: a.cubic,
+        },
+    };
+    let grid = Grid::fit(
+        diag.bbox_min,
+        diag.bbox_max,
+        spec,
+        a.padding,
+        GridLimits {
+            max_voxels: a.max_voxels,
+        },
+    )
+    .map_err(|e| format!("{name}: {e}"))?;
+    let t1 = Instant::now();
+    let engine = CpuEngine;
+    let gm = GridMesh::new(&mesh, &grid).map_err(|e| format!("{name}: {e}"))?;
+    let vol = engine
+        .voxelize(&gm, a.method)
+        .map_err(|e| format!("{name}: {e}"))?;
+    let t_vox = t1.elapsed();
+    let t2 = Instant::now();
+    let set = vol.count_ones();
+    let mut meta = serde_json::Map::new();
+    meta.insert("method".into(), a.method.name().into());
+    meta.insert(
+        "source".into(),
+        a.mesh
+            .file_name()
+            .map(|f| f.to_string_lossy().into_owned())
+            .unwrap_or_default()
+            .into(),
+    );
+    meta.insert("triangles".into(), diag.triangles.into());
+    let vol = Volume::Bits(vol);
+    write_volume(&a.output, out_format, &vol, &meta)?;
+    let t_write = t2.elapsed();
+    let d = grid.dims;
+    println!(
+        "{name}: {}x{}x{} {} -> {}: {set} voxels set ({:.2}%), engine {}, {:.3} s (load {:.3}, voxelize {:.3}, write {:.3})",
+        d[0],
+        d[1],
+        d[2],
+        a.method,
+        a.output.display(),
+        100.0 * set as f64 / grid.voxel_count() as f64,
+        engine.name(),
+        t0.elapsed().as_secs_f64(),
+        t_load.as_secs_f64(),
+        t_vox.as_secs_f64(),
+        t_write.as_secs_f64(),
+    );
+    Ok(())
+}
+
+fn describe_mesh(name: &str, d: &MeshDiagnostics) -> String {
+    format!(
+        "{name}: {} triangles, {} vertices, {}, {} boundary edges, {} non-manifold edges, {} degenerate triangles, bbox {:?}..{:?}",
+        d.triangles,
+        d.vertices,
+        if d.watertight {
+            "watertight"
+        } else {
+            "NOT watertight (parity solid may streak; see docs/methods.md)"
+        },
+        d.boundary_edges,
+        d.non_manifold_edges,
+        d.degenerate_triangles,
+        d.bbox_min,
+        d.bbox_max
+    )
+}
+
+fn volume_format_of(p: &Path) -> Result<VolumeFormat, String> {
+    VolumeFormat::from_path(p).ok_or_else(|| {
+        format!(
+            "{}: unknown volume format; use the extension .vxl, .binvox or .npy",
+            p.display()
+        )
+    })
+}
+
+/// Writes atomically: a temporary file beside the target, then a rename.
+fn write_volume(
+    path: &Path,
+    f: VolumeFormat,
+    v: &Volume,
+    meta: &serde_json::Map<String, serde_json::Value>,
+) -> Result<(), String> {
+    let err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+    if let (VolumeFormat::Binvox, Volume::Bits(b)) = (f, v) {
+        let d = b.dims();
+        if d[0] != d[1] || d[1] != d[2] {
+            eprintln!(
+                "{}: binvox is cubic; the {}x{}x{} grid is padded with empty voxels to {n}x{n}x{n}",
+                path.display(),
+                d[0],
+                d[1],
+                d[2],
+                n = d.iter().max().unwrap()
+            );
+        }
+    }
+    let tmp = path.with_file_name(format!(
+        ".{}.tmp{}",
+        path.file_name()
+            .map(|f| f.to_string_lossy())
+            .unwrap_or_default(),
+        std::process::id()
+    ));
+    let result = (|| -> Result<(), String> {
+        let mut file = std::io::BufWriter::new(std::fs::File::create(&tmp).map_err(|e| err(&e))?);
+        match f {
+            VolumeFormat::Npy => voxd::codec::npy::write(v, &mut file).map_err(|e| err(&e))?,
+            VolumeFormat::Vxl => {
+                std::io::Write::write_all(&mut file, &vxl::encode(v, meta).map_err(|e| err(&e))?)
+                    .map_err(|e| err(&e))?
+            }
+            other => std::io::Write::write_all(&mut file, &other.encode(v).map_err(|e| err(&e))?)
+                .map_err(|e| err(&e))?,
+        }
+        let file = file.into_inner().map_err(|e| err(&e))?;
+        file.sync_all().map_err(|e| err(&e))?;
+        std::fs::rename(&tmp, path).map_err(|e| err(&e))
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+fn read_volume(p: &Path) -> Result<Volume, String> {
+    let bytes = std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))?;
+    let f = VolumeFormat::sniff(&bytes)
+        .or_else(|| VolumeFormat::from_path(p))
+        .ok_or_else(|| format!("{}: not a volume file (.vxl, .binvox, .npy)", p.display()))?;
+    f.decode(&bytes)
+        .map_err(|e| format!("{}: {e}", p.display()))
+}
+
+fn info(p: &Path) -> Result<(), String> {
+    if VolumeFormat::from_path(p).is_none() && Format::from_path(p).is_some() {
+        let m = mesh::load_file(p, usize::MAX).map_err(|e| format!("{}: {e}", p.display()))?;
+        println!(
+            "{}",
+            describe_mesh(&p.display().to_string(), &m.diagnostics())
+        );
+        return Ok(());
+    }
+    let v = read_volume(p)?;
+    let g = v.grid();
+    println!("file:       {}", p.display());
+    println!("kind:       {}", v.kind());
+    println!(
+        "dims:       {} x {} x {} ({} voxels)",
+        g.dims[0],
+        g.dims[1],
+        g.dims[2],
+        g.voxel_count()
+    );
+    println!("origin:     {:?}", g.origin);
+    println!("voxel size: {}", g.voxel_size);
+    println!("extent:     {:?} .. {:?}", g.origin, g.max_corner());
+    match &v {
+        Volume::Bits(b) => {
+            let n = b.count_ones();
+            println!(
+                "set voxels: {n} ({:.3}%), volume {}",
+                100.0 * n as f64 / g.voxel_count() as f64,
+                n as f64 * g.voxel_size.powi(3)
+            );
+            match b.solid_bounds() {
+                Some((lo, hi)) => {
+                    let wlo = [0, 1, 2].map(|a| g.origin[a] + lo[a] as f64 * g.voxel_size);
+                    let whi = [0, 1, 2].map(|a| g.origin[a] + (hi[a] + 1) as f64 * g.voxel_size);
+                    println!("set bounds: index {lo:?} ..= {hi:?}, world {wlo:?} .. {whi:?}");
+                }
+                None => println!("set bounds: empty"),
+            }
+        }
+        Volume::Density(d) => {
+            println!(
+                "density:    0..={}, {} voxels occupied, {:.3} voxels of volume",
+                d.max(),
+                d.count_nonzero(),
+                d.occupied_voxels()
+            );
+        }
+    }
+    Ok(())
+}
+
+fn convert(input: &Path, output: &Path) -> Result<(), String> {
+    let f = volume_format_of(output)?;
+    let v = read_volume(input)?;
+    write_volume(output, f, &v, &serde_json::Map::new())?;
+    println!("{} -> {} ({})", input.display(), output.display(), f.name());
+    Ok(())
+}

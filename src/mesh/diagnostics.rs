@@ -1,0 +1,134 @@
+//! What is wrong with a mesh, computed on positions merged by exact equality (so UV and normal
+//! seams do not count as holes).
+
+use std::collections::HashMap;
+
+use serde::Serialize;
+
+use super::Mesh;
+
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct MeshDiagnostics {
+    pub triangles: usize,
+    /// Distinct positions used by triangles.
+    pub vertices: usize,
+    /// Triangles of zero area: two merged corners coincide, or the f64 cross product is zero.
+    pub degenerate_triangles: usize,
+    /// Edges used by exactly one triangle.
+    pub boundary_edges: usize,
+    /// Edges used by three or more triangles.
+    pub non_manifold_edges: usize,
+    /// No boundary and no non-manifold edges.
+    pub watertight: bool,
+    pub bbox_min: [f64; 3],
+    pub bbox_max: [f64; 3],
+}
+
+impl MeshDiagnostics {
+    pub fn of(mesh: &Mesh) -> MeshDiagnostics {
+        // Merge positions by bit pattern, with -0.0 folded onto 0.0 so equal values merge.
+        let key = |p: &[f64; 3]| p.map(|c| if c == 0.0 { 0u64 } else { c.to_bits() });
+        let mut ids: HashMap<[u64; 3], u32> = HashMap::with_capacity(mesh.positions.len());
+        let remap: Vec<u32> = mesh
+            .positions
+            .iter()
+            .map(|p| {
+                let n = ids.len() as u32;
+                *ids.entry(key(p)).or_insert(n)
+            })
+            .collect();
+        let mut used = vec![false; ids.len()];
+        let mut edges: Vec<u64> = Vec::with_capacity(mesh.triangles.len() * 3);
+        let mut degenerate = 0;
+        for (t, tri) in mesh.triangles.iter().enumerate() {
+            let m = tri.map(|i| remap[i as usize]);
+            for &v in &m {
+                used[v as usize] = true;
+            }
+            let [a, b, c] = mesh.triangle(t);
+            let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+            let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+            let cross = [
+                u[1] * v[2] - u[2] * v[1],
+                u[2] * v[0] - u[0] * v[2],
+                u[0] * v[1] - u[1] * v[0],
+            ];
+            if m[0] == m[1] || m[1] == m[2] || m[0] == m[2] || cross == [0.0; 3] {
+                degenerate += 1;
+            }
+            for (p, q) in [(m[0], m[1]), (m[1], m[2]), (m[2], m[0])] {
+                if p != q {
+                    edges.push((p.min(q) as u64) << 32 | p.max(q) as u64);
+                }
+            }
+        }
+        edges.sort_unstable();
+        let (mut boundary, mut non_manifold) = (0, 0);
+        for run in edges.chunk_by(|a, b| a == b) {
+            match run.len() {
+                1 => boundary += 1,
+                2 => {}
+                _ => non_manifold += 1,
+            }
+        }
+        let (bbox_min, bbox_max) = mesh.bounds();
+        MeshDiagnostics {
+            triangles: mesh.triangles.len(),
+            vertices: used.iter().filter(|&&u| u).count(),
+            degenerate_triangles: degenerate,
+            boundary_edges: boundary,
+            non_manifold_edges: non_manifold,
+            watertight: boundary == 0 && non_manifold == 0,
+            bbox_min,
+            bbox_max,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tetrahedron_with_split_seam_is_watertight() {
+        // Vertex 4 duplicates vertex 0 (a UV seam): merged, the tetrahedron is closed.
+        let p = vec![
+            [0.0; 3],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [-0.0, 0.0, 0.0],
+        ];
+        let m = Mesh::new(p, vec![[0, 2, 1], [4, 1, 3], [0, 3, 2], [1, 2, 3]]).unwrap();
+        let d = m.diagnostics();
+        assert_eq!(
+            (
+                d.vertices,
+                d.boundary_edges,
+                d.non_manifold_edges,
+                d.degenerate_triangles
+            ),
+            (4, 0, 0, 0)
+        );
+        assert!(d.watertight);
+    }
+
+    #[test]
+    fn open_and_non_manifold() {
+        let p = vec![
+            [0.0; 3],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [0.0, 0.0, -1.0],
+            [2.0, 0.0, 0.0],
+        ];
+        // Three triangles share edge 0-1; one triangle is a zero-area sliver.
+        let m = Mesh::new(p, vec![[0, 1, 2], [0, 1, 3], [0, 1, 4], [0, 1, 5]]).unwrap();
+        let d = m.diagnostics();
+        assert_eq!(d.non_manifold_edges, 1);
+        assert_eq!(d.boundary_edges, 8);
+        assert_eq!(d.degenerate_triangles, 1);
+        assert!(!d.watertight);
+    }
+}

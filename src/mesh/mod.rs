@@ -1,0 +1,376 @@
+//! Triangle meshes: loading (OBJ, glTF/GLB, STL, PLY, each optionally gzip'd), validation and
+//! diagnostics. A [`Mesh`] that exists is valid: at least one triangle, finite coordinates of
+//! sane size, every index in range. Nothing here knows about grids or voxels.
+
+mod diagnostics;
+mod gltf;
+mod obj;
+mod ply;
+mod stl;
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+pub use diagnostics::MeshDiagnostics;
+
+/// Coordinates beyond this magnitude are refused: f64 has no sub-unit precision left there and
+/// such values are almost always garbage (uninitialised floats, unit mix-ups).
+pub const MAX_ABS_COORDINATE: f64 = 1e15;
+
+/// A triangle mesh: positions and triangles indexing them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Mesh {
+    positions: Vec<[f64; 3]>,
+    triangles: Vec<[u32; 3]>,
+}
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum MeshError {
+    #[error("cannot read {0}")]
+    Io(String),
+    #[error(
+        "cannot tell the mesh format; use a known extension (.obj .gltf .glb .stl .ply, optionally .gz) or name the format"
+    )]
+    UnknownFormat,
+    #[error("{format}: {detail}")]
+    Malformed {
+        format: &'static str,
+        detail: String,
+    },
+    #[error("the mesh has no triangles{0}")]
+    NoTriangles(String),
+    #[error("vertex {vertex} has a non-finite coordinate {value:?}")]
+    NonFinite { vertex: usize, value: [f64; 3] },
+    #[error("vertex {vertex} has coordinate {value:e}, beyond the limit of ±{limit:e}", limit = MAX_ABS_COORDINATE)]
+    HugeCoordinate { vertex: usize, value: f64 },
+    #[error("triangle {triangle} uses vertex index {index}, but the mesh has {vertices} vertices")]
+    IndexOutOfRange {
+        triangle: usize,
+        index: u64,
+        vertices: usize,
+    },
+    #[error(
+        "glTF buffer {uri:?} points outside the file; external resources are not read here (embed buffers as data URIs or upload a .glb)"
+    )]
+    ExternalRefused { uri: String },
+    #[error("the mesh has {count} triangles, over the limit of {limit}")]
+    TooManyTriangles { count: usize, limit: usize },
+    #[error("the decompressed mesh is larger than the limit of {0} bytes")]
+    TooLarge(u64),
+}
+
+fn malformed(format: &'static str, detail: impl Into<String>) -> MeshError {
+    MeshError::Malformed {
+        format,
+        detail: detail.into(),
+    }
+}
+
+/// Mesh file formats.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    Obj,
+    Gltf,
+    Glb,
+    Stl,
+    Ply,
+}
+
+impl Format {
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Obj => "obj",
+            Format::Gltf => "gltf",
+            Format::Glb => "glb",
+            Format::Stl => "stl",
+            Format::Ply => "ply",
+        }
+    }
+
+    /// `obj`, `gltf`, `glb`, `stl`, `ply` (case-insensitive).
+    pub fn from_name(s: &str) -> Option<Format> {
+        Some(match s.to_ascii_lowercase().as_str() {
+            "obj" => Format::Obj,
+            "gltf" => Format::Gltf,
+            "glb" => Format::Glb,
+            "stl" => Format::Stl,
+            "ply" => Format::Ply,
+            _ => return None,
+        })
+    }
+
+    /// From a file name, ignoring a trailing `.gz`.
+    pub fn from_path(path: &Path) -> Option<Format> {
+        let name = path.file_name()?.to_str()?.to_ascii_lowercase();
+        let name = name.strip_suffix(".gz").unwrap_or(&name);
+        Format::from_name(Path::new(name).extension()?.to_str()?)
+    }
+
+    /// From the first bytes of an (uncompressed) file.
+    pub fn sniff(bytes: &[u8]) -> Option<Format> {
+        if bytes.starts_with(b"glTF") {
+            return Some(Format::Glb);
+        }
+        if bytes.starts_with(b"ply\n") || bytes.starts_with(b"ply\r\n") {
+            return Some(Format::Ply);
+        }
+        if stl::looks_binary(bytes) {
+            return Some(Format::Stl);
+        }
+        let head = &bytes[..bytes.len().min(4096)];
+        let text = String::from_utf8_lossy(head);
+        let t = text.trim_start();
+        if t.starts_with('{') {
+            return Some(Format::Gltf);
+        }
+        if t.starts_with("solid") && text.contains("facet") {
+            return Some(Format::Stl);
+        }
+        if text
+            .lines()
+            .any(|l| l.starts_with("v ") || l.starts_with("f "))
+        {
+            return Some(Format::Obj);
+        }
+        None
+    }
+}
+
+/// Whether a glTF may read buffers from files.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ExternalResources {
+    /// Only GLB chunks and `data:` URIs; any other URI is an error. The service always uses this.
+    Deny,
+    /// Relative paths that stay inside this directory (the one holding the .gltf) may be read.
+    BesideFile(PathBuf),
+}
+
+#[derive(Clone, Debug)]
+pub struct LoadOptions {
+    pub external: ExternalResources,
+    pub max_triangles: usize,
+    /// Limit on the bytes a `.gz` may expand to.
+    pub max_decompressed_bytes: u64,
+}
+
+impl Default for LoadOptions {
+    fn default() -> Self {
+        LoadOptions {
+            external: ExternalResources::Deny,
+            max_triangles: 200_000_000,
+            max_decompressed_bytes: 8 << 30,
+        }
+    }
+}
+
+/// Reads a mesh file; the format comes from the extension, else from the content. Buffers of a
+/// `.gltf` may be read from beside it.
+pub fn load_file(path: &Path, max_triangles: usize) -> Result<Mesh, MeshError> {
+    let bytes =
+        std::fs::read(path).map_err(|e| MeshError::Io(format!("{}: {e}", path.display())))?;
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let opts = LoadOptions {
+        external: ExternalResources::BesideFile(dir),
+        max_triangles,
+        ..Default::default()
+    };
+    load_bytes(&bytes, Format::from_path(path), &opts)
+}
+
+/// Parses mesh bytes (gzip'd or not). `format` wins over sniffing when given.
+pub fn load_bytes(
+    bytes: &[u8],
+    format: Option<Format>,
+    opts: &LoadOptions,
+) -> Result<Mesh, MeshError> {
+    let owned;
+    let bytes = if bytes.starts_with(&[0x1f, 0x8b]) {
+        owned = gunzip(bytes, opts.max_decompressed_bytes)?;
+        &owned[..]
+    } else {
+        bytes
+    };
+    let format = match format.or_else(|| Format::sniff(bytes)) {
+        Some(f) => f,
+        None => return Err(MeshError::UnknownFormat),
+    };
+    let mesh = match format {
+        Format::Obj => obj::parse(bytes)?,
+        Format::Gltf | Format::Glb => gltf::parse(bytes, &opts.external)?,
+        Format::Stl => stl::parse(bytes)?,
+        Format::Ply => ply::parse(bytes)?,
+    };
+    if mesh.triangles.len() > opts.max_triangles {
+        return Err(MeshError::TooManyTriangles {
+            count: mesh.triangles.len(),
+            limit: opts.max_triangles,
+        });
+    }
+    Ok(mesh)
+}
+
+fn gunzip(bytes: &[u8], limit: u64) -> Result<Vec<u8>, MeshError> {
+    let mut out = Vec::new();
+    flate2::read::MultiGzDecoder::new(bytes)
+        .take(limit + 1)
+        .read_to_end(&mut out)
+        .map_err(|e| malformed("gzip", format!("cannot decompress: {e}")))?;
+    if out.len() as u64 > limit {
+        return Err(MeshError::TooLarge(limit));
+    }
+    Ok(out)
+}
+
+impl Mesh {
+    /// Builds a validated mesh.
+    pub fn new(positions: Vec<[f64; 3]>, triangles: Vec<[u32; 3]>) -> Result<Mesh, MeshError> {
+        if triangles.is_empty() {
+            return Err(MeshError::NoTriangles(String::new()));
+        }
+        for (i, p) in positions.iter().enumerate() {
+            if p.iter().any(|c| !c.is_finite()) {
+                return Err(MeshError::NonFinite {
+                    vertex: i,
+                    value: *p,
+                });
+            }
+            if let Some(&c) = p.iter().find(|c| c.abs() > MAX_ABS_COORDINATE) {
+                return Err(MeshError::HugeCoordinate {
+                    vertex: i,
+                    value: c,
+                });
+            }
+        }
+        let n = positions.len();
+        for (t, tri) in triangles.iter().enumerate() {
+            if let Some(&i) = tri.iter().find(|&&i| i as usize >= n) {
+                return Err(MeshError::IndexOutOfRange {
+                    triangle: t,
+                    index: i as u64,
+                    vertices: n,
+                });
+            }
+        }
+        Ok(Mesh {
+            positions,
+            triangles,
+        })
+    }
+
+    pub fn positions(&self) -> &[[f64; 3]] {
+        &self.positions
+    }
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
+    }
+    pub fn triangle(&self, t: usize) -> [[f64; 3]; 3] {
+        self.triangles[t].map(|i| self.positions[i as usize])
+    }
+
+    /// Bounding box of the vertices used by triangles.
+    pub fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for tri in &self.triangles {
+            for &i in tri {
+                let p = self.positions[i as usize];
+                for a in 0..3 {
+                    lo[a] = lo[a].min(p[a]);
+                    hi[a] = hi[a].max(p[a]);
+                }
+            }
+        }
+        (lo, hi)
+    }
+
+    pub fn diagnostics(&self) -> MeshDiagnostics {
+        MeshDiagnostics::of(self)
+    }
+
+    /// The same mesh with every triangle's orientation reversed.
+    pub fn flipped(&self) -> Mesh {
+        let triangles = self.triangles.iter().map(|t| [t[0], t[2], t[1]]).collect();
+        Mesh {
+            positions: self.positions.clone(),
+            triangles,
+        }
+    }
+}
+
+/// Fan-triangulates a polygon of vertex indices (what OBJ and PLY readers do with n-gons).
+fn fan(poly: &[u32], out: &mut Vec<[u32; 3]>) {
+    for i in 1..poly.len().saturating_sub(1) {
+        out.push([poly[0], poly[i], poly[i + 1]]);
+    }
+}
+
+/// Unrolls a triangle strip; `u32::MAX` (PLY's -1) restarts the strip. Odd triangles are
+/// reversed so the strip keeps one orientation.
+fn unroll_strip(strip: &[u32], out: &mut Vec<[u32; 3]>) {
+    for run in strip.split(|&i| i == u32::MAX) {
+        for i in 0..run.len().saturating_sub(2) {
+            let (a, b, c) = (run[i], run[i + 1], run[i + 2]);
+            out.push(if i % 2 == 0 { [a, b, c] } else { [b, a, c] });
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sniffing() {
+        assert_eq!(Format::sniff(b"glTF\x02\0\0\0"), Some(Format::Glb));
+        assert_eq!(Format::sniff(b"ply\nformat ascii 1.0\n"), Some(Format::Ply));
+        assert_eq!(Format::sniff(b"  {\"asset\":{}}"), Some(Format::Gltf));
+        assert_eq!(
+            Format::sniff(b"solid x\nfacet normal 0 0 1\n"),
+            Some(Format::Stl)
+        );
+        assert_eq!(Format::sniff(b"# c\nv 0 0 0\n"), Some(Format::Obj));
+        assert_eq!(Format::sniff(b"hello"), None);
+        assert_eq!(
+            Format::from_path(Path::new("a/b.OBJ.gz")),
+            Some(Format::Obj)
+        );
+        assert_eq!(Format::from_path(Path::new("b.glb")), Some(Format::Glb));
+        assert_eq!(Format::from_path(Path::new("b.txt")), None);
+    }
+
+    #[test]
+    fn validation() {
+        let p = vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        assert!(Mesh::new(p.clone(), vec![[0, 1, 2]]).is_ok());
+        assert!(matches!(
+            Mesh::new(p.clone(), vec![]),
+            Err(MeshError::NoTriangles(_))
+        ));
+        assert!(matches!(
+            Mesh::new(p.clone(), vec![[0, 1, 3]]),
+            Err(MeshError::IndexOutOfRange { index: 3, .. })
+        ));
+        let mut q = p.clone();
+        q[1][2] = f64::NAN;
+        assert!(matches!(
+            Mesh::new(q, vec![[0, 1, 2]]),
+            Err(MeshError::NonFinite { vertex: 1, .. })
+        ));
+        let mut q = p;
+        q[2][0] = 1e300;
+        assert!(matches!(
+            Mesh::new(q, vec![[0, 1, 2]]),
+            Err(MeshError::HugeCoordinate { vertex: 2, .. })
+        ));
+    }
+
+    #[test]
+    fn strips_and_fans() {
+        let mut out = vec![];
+        unroll_strip(&[0, 1, 2, 3, u32::MAX, 4, 5, 6], &mut out);
+        assert_eq!(out, vec![[0, 1, 2], [2, 1, 3], [4, 5, 6]]);
+        out.clear();
+        fan(&[0, 1, 2, 3, 4], &mut out);
+        assert_eq!(out, vec![[0, 1, 2], [0, 2, 3], [0, 3, 4]]);
+    }
+}
