@@ -1,0 +1,472 @@
+//! Test helpers: independent oracles written as plainly as possible (no binning, no prefix
+//! scans, no pruning), random mesh generators and access to `../shared/meshes`.
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+
+use voxd::grid::Grid;
+use voxd::mesh::Mesh;
+use voxd::volume::BitVolume;
+
+/// `../shared/meshes`, or `None` with a printed notice.
+pub fn shared_meshes() -> Option<PathBuf> {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes");
+    if p.join("README.md").exists() {
+        Some(p)
+    } else {
+        eprintln!(
+            "NOTICE: {} is absent; skipping tests on the shared real meshes",
+            p.display()
+        );
+        None
+    }
+}
+
+pub fn data(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data")
+        .join(name)
+}
+
+/// xorshift64*: deterministic, dependency-free.
+pub struct Rng(u64);
+impl Rng {
+    pub fn new(seed: u64) -> Rng {
+        Rng(seed.wrapping_mul(0x9E3779B97F4A7C15) | 1)
+    }
+    pub fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545F4914F6CDD1D)
+    }
+    pub fn below(&mut self, n: u64) -> u64 {
+        self.next() % n
+    }
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * (self.next() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    /// A coordinate in [lo, hi] on the half-voxel lattice (on voxel faces and column centres).
+    pub fn half(&mut self, lo: f64, hi: f64) -> f64 {
+        let n = ((hi - lo) * 2.0) as u64;
+        lo + self.below(n + 1) as f64 / 2.0
+    }
+}
+
+pub type Tri = [[i128; 3]; 3];
+
+/// Snaps exactly as docs/methods.md defines (grid units × 256, rounded), without culling.
+pub fn snap(mesh: &Mesh, g: &Grid) -> Vec<Tri> {
+    let scale = 256.0 / g.voxel_size;
+    mesh.triangles()
+        .iter()
+        .map(|t| {
+            t.map(|i| {
+                let p = mesh.positions()[i as usize];
+                [0, 1, 2].map(|a| ((p[a] - g.origin[a]) * scale).round() as i128)
+            })
+        })
+        .collect()
+}
+
+fn orient(p: [i128; 3], q: [i128; 3], r: [i128; 2]) -> i128 {
+    (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0])
+}
+
+/// Does the ray from the fixed-point centre `c` towards −z cross `t`? Column-in-triangle with the
+/// top-left tie rule, then "centre strictly above the plane".
+pub fn crosses(t: &Tri, c: [i128; 3]) -> bool {
+    match column_depth(t, [c[0], c[1]]) {
+        Some((num, area)) => c[2] * area > num,
+        None => false,
+    }
+}
+
+/// If the column centre `p` is inside `t`'s projection: (Σ w_i z_i, A), the plane depth being
+/// num / A with A > 0.
+pub fn column_depth(t: &Tri, p: [i128; 2]) -> Option<(i128, i128)> {
+    let [a, mut b, mut c] = *t;
+    let mut area = orient(a, b, [c[0], c[1]]);
+    if area == 0 {
+        return None;
+    }
+    if area < 0 {
+        std::mem::swap(&mut b, &mut c);
+        area = -area;
+    }
+    for (u, v) in [(a, b), (b, c), (c, a)] {
+        let s = orient(u, v, p);
+        let (dx, dy) = (v[0] - u[0], v[1] - u[1]);
+        if s < 0 || (s == 0 && !(dy > 0 || (dy == 0 && dx < 0))) {
+            return None;
+        }
+    }
+    let (wa, wb, wc) = (orient(b, c, p), orient(c, a, p), orient(a, b, p));
+    Some((wa * a[2] + wb * b[2] + wc * c[2], area))
+}
+
+pub fn centre(i: u32) -> i128 {
+    i as i128 * 256 + 128
+}
+
+/// Brute force parity: every voxel against every triangle.
+pub fn solid_brute(mesh: &Mesh, g: &Grid) -> BitVolume {
+    let tris = snap(mesh, g);
+    let mut v = BitVolume::new(*g);
+    let [nx, ny, nz] = g.dims;
+    for x in 0..nx {
+        for y in 0..ny {
+            for z in 0..nz {
+                let c = [centre(x), centre(y), centre(z)];
+                let n = tris.iter().filter(|t| crosses(t, c)).count();
+                v.set(x, y, z, n % 2 == 1);
+            }
+        }
+    }
+    v
+}
+
+/// Per-column gather: triangles binned by the columns their bbox covers, then every voxel of the
+/// column compared with every crossing (no floor division, no prefix scan).
+pub fn solid_binned(mesh: &Mesh, g: &Grid) -> BitVolume {
+    let tris = snap(mesh, g);
+    let [nx, ny, nz] = g.dims;
+    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); nx as usize * ny as usize];
+    for (i, t) in tris.iter().enumerate() {
+        let lo = [0, 1].map(|a| t.iter().map(|p| p[a]).min().unwrap());
+        let hi = [0, 1].map(|a| t.iter().map(|p| p[a]).max().unwrap());
+        let r =
+            |a: usize, n: u32| (0..n).filter(move |&k| centre(k) >= lo[a] && centre(k) <= hi[a]);
+        for x in r(0, nx) {
+            for y in r(1, ny) {
+                bins[(x * ny + y) as usize].push(i as u32);
+            }
+        }
+    }
+    let mut v = BitVolume::new(*g);
+    for x in 0..nx {
+        for y in 0..ny {
+            let depths: Vec<(i128, i128)> = bins[(x * ny + y) as usize]
+                .iter()
+                .filter_map(|&t| column_depth(&tris[t as usize], [centre(x), centre(y)]))
+                .collect();
+            for z in 0..nz {
+                let n = depths
+                    .iter()
+                    .filter(|(num, a)| centre(z) * a > *num)
+                    .count();
+                if n % 2 == 1 {
+                    v.set(x, y, z, true);
+                }
+            }
+        }
+    }
+    v
+}
+
+fn sub(a: [i128; 3], b: [i128; 3]) -> [i128; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn cross(a: [i128; 3], b: [i128; 3]) -> [i128; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+fn dot(a: [i128; 3], b: [i128; 3]) -> i128 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Plain 13-axis separating-axis test of a triangle against the closed box with centre `c` and
+/// half-size 128 (fixed point).
+pub fn tri_box(t: &Tri, c: [i128; 3]) -> bool {
+    let v = t.map(|p| sub(p, c));
+    let e = [sub(v[1], v[0]), sub(v[2], v[1]), sub(v[0], v[2])];
+    let units = [[1, 0, 0], [0, 1, 0], [0, 0, 1]];
+    let mut axes = units.to_vec();
+    axes.push(cross(e[0], e[1]));
+    for ei in e {
+        for u in units {
+            axes.push(cross(ei, u));
+        }
+    }
+    axes.iter().all(|a| {
+        let p = v.map(|x| dot(*a, x));
+        let r = 128 * (a[0].abs() + a[1].abs() + a[2].abs());
+        !(p.iter().min().unwrap() > &r || p.iter().max().unwrap() < &-r)
+    })
+}
+
+/// Brute force surface: every voxel against every triangle.
+pub fn surface_brute(mesh: &Mesh, g: &Grid) -> BitVolume {
+    let tris = snap(mesh, g);
+    let mut v = BitVolume::new(*g);
+    let [nx, ny, nz] = g.dims;
+    for x in 0..nx {
+        for y in 0..ny {
+            for z in 0..nz {
+                let c = [centre(x), centre(y), centre(z)];
+                if tris.iter().any(|t| tri_box(t, c)) {
+                    v.set(x, y, z, true);
+                }
+            }
+        }
+    }
+    v
+}
+
+/// Surface by SAT on every voxel whose box meets the triangle's bounding box.
+pub fn surface_bbox(mesh: &Mesh, g: &Grid) -> BitVolume {
+    let tris = snap(mesh, g);
+    let mut v = BitVolume::new(*g);
+    for t in &tris {
+        let r: [(u32, u32); 3] = [0, 1, 2].map(|a| {
+            let lo = t.iter().map(|p| p[a]).min().unwrap();
+            let hi = t.iter().map(|p| p[a]).max().unwrap();
+            let first = (0..g.dims[a])
+                .find(|&i| i as i128 * 256 + 256 >= lo)
+                .unwrap_or(g.dims[a]);
+            let last = (0..g.dims[a]).rev().find(|&i| i as i128 * 256 <= hi);
+            match last {
+                Some(l) if first <= l => (first, l + 1),
+                _ => (0, 0),
+            }
+        });
+        for x in r[0].0..r[0].1 {
+            for y in r[1].0..r[1].1 {
+                for z in r[2].0..r[2].1 {
+                    if tri_box(t, [centre(x), centre(y), centre(z)]) {
+                        v.set(x, y, z, true);
+                    }
+                }
+            }
+        }
+    }
+    v
+}
+
+/// Generalised winding number of the (unsnapped) mesh at `p`, and the distance from `p` to the
+/// nearest triangle.
+pub fn winding_and_distance(mesh: &Mesh, p: [f64; 3]) -> (f64, f64) {
+    let mut w = 0.0;
+    let mut d2 = f64::INFINITY;
+    for t in 0..mesh.triangles().len() {
+        let [a, b, c] = mesh
+            .triangle(t)
+            .map(|q| [q[0] - p[0], q[1] - p[1], q[2] - p[2]]);
+        let (la, lb, lc) = (norm(a), norm(b), norm(c));
+        let det = a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+            + a[2] * (b[0] * c[1] - b[1] * c[0]);
+        let den = la * lb * lc + dotf(a, b) * lc + dotf(b, c) * la + dotf(c, a) * lb;
+        w += 2.0 * det.atan2(den);
+        d2 = d2.min(dist2_to_triangle([0.0; 3], a, b, c));
+    }
+    (w / (4.0 * std::f64::consts::PI), d2.sqrt())
+}
+
+fn norm(a: [f64; 3]) -> f64 {
+    dotf(a, a).sqrt()
+}
+fn dotf(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Squared distance from p to triangle abc (Ericson, Real-Time Collision Detection 5.1.5).
+pub fn dist2_to_triangle(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
+    let s = |u: [f64; 3], v: [f64; 3]| [u[0] - v[0], u[1] - v[1], u[2] - v[2]];
+    let at = |u: f64, v: f64| [0, 1, 2].map(|i| a[i] + u * (b[i] - a[i]) + v * (c[i] - a[i]));
+    let (ab, ac, ap) = (s(b, a), s(c, a), s(p, a));
+    let d = |q: [f64; 3]| dotf(s(p, q), s(p, q));
+    let (d1, d2) = (dotf(ab, ap), dotf(ac, ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return d(a);
+    }
+    let bp = s(p, b);
+    let (d3, d4) = (dotf(ab, bp), dotf(ac, bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return d(b);
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return d(at(d1 / (d1 - d3), 0.0));
+    }
+    let cp = s(p, c);
+    let (d5, d6) = (dotf(ab, cp), dotf(ac, cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return d(c);
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return d(at(0.0, d2 / (d2 - d6)));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return d([0, 1, 2].map(|i| b[i] + w * (c[i] - b[i])));
+    }
+    let den = 1.0 / (va + vb + vc);
+    d(at(vb * den, vc * den))
+}
+
+/// Appends a closed, outward-oriented box [lo, hi] to a triangle list.
+pub fn push_box(p: &mut Vec<[f64; 3]>, t: &mut Vec<[u32; 3]>, lo: [f64; 3], hi: [f64; 3]) {
+    let b = p.len() as u32;
+    for i in 0..8 {
+        p.push([
+            if i & 1 == 0 { lo[0] } else { hi[0] },
+            if i & 2 == 0 { lo[1] } else { hi[1] },
+            if i & 4 == 0 { lo[2] } else { hi[2] },
+        ]);
+    }
+    for f in [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ] {
+        t.push([b + f[0], b + f[1], b + f[2]]);
+        t.push([b + f[0], b + f[2], b + f[3]]);
+    }
+}
+
+/// Appends a closed, outward-oriented octahedron.
+pub fn push_octahedron(p: &mut Vec<[f64; 3]>, t: &mut Vec<[u32; 3]>, c: [f64; 3], r: [f64; 3]) {
+    let b = p.len() as u32;
+    for (a, s) in [
+        (0, 1.0),
+        (0, -1.0),
+        (1, 1.0),
+        (1, -1.0),
+        (2, 1.0),
+        (2, -1.0),
+    ] {
+        let mut q = c;
+        q[a] += s * r[a];
+        p.push(q);
+    }
+    // +x 0, -x 1, +y 2, -y 3, +z 4, -z 5
+    for f in [
+        [0, 2, 4],
+        [2, 1, 4],
+        [1, 3, 4],
+        [3, 0, 4],
+        [2, 0, 5],
+        [1, 2, 5],
+        [3, 1, 5],
+        [0, 3, 5],
+    ] {
+        t.push([b + f[0], b + f[1], b + f[2]]);
+    }
+}
+
+/// Appends a closed, outward-oriented tetrahedron with the given corners.
+pub fn push_tetrahedron(p: &mut Vec<[f64; 3]>, t: &mut Vec<[u32; 3]>, v: [[f64; 3]; 4]) {
+    let b = p.len() as u32;
+    let s = |u: [f64; 3], w: [f64; 3]| [u[0] - w[0], u[1] - w[1], u[2] - w[2]];
+    let (e1, e2, e3) = (s(v[1], v[0]), s(v[2], v[0]), s(v[3], v[0]));
+    let vol = e1[0] * (e2[1] * e3[2] - e2[2] * e3[1]) - e1[1] * (e2[0] * e3[2] - e2[2] * e3[0])
+        + e1[2] * (e2[0] * e3[1] - e2[1] * e3[0]);
+    let v = if vol < 0.0 {
+        [v[0], v[2], v[1], v[3]]
+    } else {
+        v
+    };
+    p.extend_from_slice(&v);
+    for f in [[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]] {
+        t.push([b + f[0], b + f[1], b + f[2]]);
+    }
+}
+
+/// Random closed solids (boxes, octahedra, tetrahedra; overlapping) with vertices on the
+/// half-voxel lattice of a unit grid at the origin, so many vertices sit on column centres and
+/// faces on voxel faces. Some reach outside the grid and below it.
+pub fn random_closed(rng: &mut Rng, dims: [u32; 3]) -> Mesh {
+    let (mut p, mut t) = (vec![], vec![]);
+    let d = dims.map(|d| d as f64);
+    for _ in 0..1 + rng.below(4) {
+        match rng.below(3) {
+            0 => {
+                let lo = [0, 1, 2].map(|a| rng.half(-1.5, d[a]));
+                let hi =
+                    [0, 1, 2].map(|a| lo[a] + rng.half(0.5, d[a] + 1.0 - lo[a].max(0.0)).max(0.5));
+                push_box(&mut p, &mut t, lo, hi);
+            }
+            1 => {
+                let c = [0, 1, 2].map(|a| rng.half(0.0, d[a]));
+                let r = [0, 1, 2].map(|a| rng.half(0.5, (d[a] / 2.0).max(1.0)));
+                push_octahedron(&mut p, &mut t, c, r);
+            }
+            _ => {
+                let v = [0; 4].map(|_| [0, 1, 2].map(|a| rng.half(-1.0, d[a] + 1.0)));
+                push_tetrahedron(&mut p, &mut t, v);
+            }
+        }
+    }
+    Mesh::new(p, t).unwrap()
+}
+
+/// A random triangle soup: lattice and off-lattice vertices, degenerate and vertical triangles,
+/// triangles outside the grid, below it and above it.
+pub fn random_soup(rng: &mut Rng, dims: [u32; 3]) -> Mesh {
+    let d = dims.map(|d| d as f64);
+    let mut p = vec![];
+    let mut t = vec![];
+    for _ in 0..1 + rng.below(12) {
+        let b = p.len() as u32;
+        let mut v = [0; 3].map(|_| {
+            [0, 1, 2].map(|a| {
+                if rng.below(2) == 0 {
+                    rng.half(-2.0, d[a] + 2.0)
+                } else {
+                    rng.range(-2.0, d[a] + 2.0)
+                }
+            })
+        });
+        match rng.below(6) {
+            0 => v[2] = v[1],                                         // two corners coincide
+            1 => v[2] = [0, 1, 2].map(|a| (v[0][a] + v[1][a]) / 2.0), // collinear
+            2 => v[2] = [v[0][0], v[0][1], v[1][2] + 1.5],            // vertical
+            3 => v.iter_mut().for_each(|q| q[2] -= d[2] + 5.0),       // below the grid
+            _ => {}
+        }
+        p.extend_from_slice(&v);
+        t.push([b, b + 1, b + 2]);
+    }
+    Mesh::new(p, t).unwrap()
+}
+
+pub fn unit_grid(dims: [u32; 3]) -> Grid {
+    Grid {
+        origin: [0.0; 3],
+        voxel_size: 1.0,
+        dims,
+    }
+}
+
+/// Describes the first difference between two volumes, for assertion messages.
+pub fn first_difference(a: &BitVolume, b: &BitVolume) -> Option<String> {
+    let [nx, ny, nz] = a.dims();
+    for x in 0..nx {
+        for y in 0..ny {
+            for z in 0..nz {
+                if a.get(x, y, z) != b.get(x, y, z) {
+                    let n = a
+                        .words()
+                        .iter()
+                        .zip(b.words())
+                        .map(|(p, q)| (p ^ q).count_ones() as u64)
+                        .sum::<u64>();
+                    return Some(format!(
+                        "voxel ({x},{y},{z}): {} vs {}; {n} voxels differ",
+                        a.get(x, y, z),
+                        b.get(x, y, z)
+                    ));
+                }
+            }
+        }
+    }
+    None
+}
