@@ -15,12 +15,12 @@ pub(super) fn parse(bytes: &[u8]) -> Result<Mesh, MeshError> {
     if looks_binary(bytes) {
         return parse_binary(bytes);
     }
-    let head = &bytes[..bytes.len().min(512)];
-    if String::from_utf8_lossy(head)
-        .trim_start()
-        .starts_with("solid")
-    {
-        return parse_ascii(bytes);
+    // Text that starts with "solid" is ASCII; a binary file whose header happens to start with
+    // "solid" but whose size is off is reported as a broken binary file below.
+    if let Ok(text) = std::str::from_utf8(bytes) {
+        if text.trim_start().starts_with("solid") {
+            return parse_ascii(text);
+        }
     }
     if bytes.len() < 84 {
         return Err(malformed(
@@ -65,9 +65,7 @@ fn parse_binary(bytes: &[u8]) -> Result<Mesh, MeshError> {
     Mesh::new(positions, triangles)
 }
 
-fn parse_ascii(bytes: &[u8]) -> Result<Mesh, MeshError> {
-    let text = std::str::from_utf8(bytes)
-        .map_err(|e| malformed("STL", format!("ASCII STL is not valid UTF-8: {e}")))?;
+fn parse_ascii(text: &str) -> Result<Mesh, MeshError> {
     let mut positions = Vec::new();
     let mut in_facet = 0usize; // vertices seen in the current facet, or 0 outside one
     let mut open = false;
