@@ -50,7 +50,7 @@ struct VoxelizeArgs {
     #[arg(long)]
     voxel_size: Option<f64>,
     /// Explicit grid origin X,Y,Z (needs --voxel-size and --dims).
-    #[arg(long, value_parser = parse_f64x3, requires_all = ["voxel_size", "dims"])]
+    #[arg(long, value_parser = parse_f64x3, requires_all = ["voxel_size", "dims"], allow_hyphen_values = true)]
     origin: Option<[f64; 3]>,
     /// Explicit grid dims X,Y,Z (needs --origin and --voxel-size).
     #[arg(long, value_parser = parse_u32x3, requires = "origin")]

@@ -61,9 +61,8 @@ fn ply(positions: &[[f64; 3]], faces: &[Vec<u32>], strips: Option<&[i32]>, enc: 
         positions.len(),
         faces.len()
     );
-    if let Some(s) = strips {
-        h += &format!("element tristrips 1\nproperty list int int vertex_indices\n");
-        let _ = s;
+    if strips.is_some() {
+        h += "element tristrips 1\nproperty list int int vertex_indices\n";
     }
     h += "end_header\n";
     let mut b = h.into_bytes();
@@ -248,11 +247,11 @@ fn data_uri() -> String {
 
 fn glb(json: &str, bin: &[u8]) -> Vec<u8> {
     let mut j = json.as_bytes().to_vec();
-    while j.len() % 4 != 0 {
+    while !j.len().is_multiple_of(4) {
         j.push(b' ');
     }
     let mut bin = bin.to_vec();
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let mut out = b"glTF".to_vec();

@@ -11,7 +11,9 @@ use voxd::grid::{Grid, GridSpec};
 use voxd::mesh::{self, Mesh};
 
 /// (file, triangles, watertight, bbox min, bbox max) from ../shared/meshes/README.md.
-const MESHES: &[(&str, usize, bool, [f64; 3], [f64; 3])] = &[
+type Facts = (&'static str, usize, bool, [f64; 3], [f64; 3]);
+
+const MESHES: &[Facts] = &[
     (
         "spot.obj",
         5856,

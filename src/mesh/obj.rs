@@ -9,7 +9,6 @@ pub(super) fn parse(bytes: &[u8]) -> Result<Mesh, MeshError> {
         triangulate: true,
         ignore_points: true,
         ignore_lines: true,
-        ..Default::default()
     };
     let mut reader = std::io::BufReader::new(bytes);
     let (models, _materials) = tobj::load_obj_buf(&mut reader, &opts, |_| Ok(Default::default()))

@@ -1,0 +1,391 @@
+//! The `voxd` binary: voxelize, info, convert, and its errors.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use common::*;
+use voxd::codec::VolumeFormat;
+use voxd::engine::cpu::CpuEngine;
+use voxd::engine::{Engine, GridMesh, Method};
+use voxd::grid::{Grid, GridSpec};
+use voxd::volume::Volume;
+
+fn voxd(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_voxd"))
+        .args(args)
+        .env("VOXD_LOG", "error")
+        .output()
+        .unwrap()
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("voxd-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn read(p: &Path) -> Volume {
+    let b = std::fs::read(p).unwrap();
+    VolumeFormat::sniff(&b).unwrap().decode(&b).unwrap()
+}
+
+fn expected(mesh: &Path, spec: GridSpec, padding: u32, m: Method) -> voxd::BitVolume {
+    let mesh = voxd::mesh::load_file(mesh, usize::MAX).unwrap();
+    let (lo, hi) = mesh.bounds();
+    let g = Grid::fit(lo, hi, spec, padding, Default::default()).unwrap();
+    CpuEngine
+        .voxelize(&GridMesh::new(&mesh, &g).unwrap(), m)
+        .unwrap()
+}
+
+#[test]
+fn voxelize_writes_every_format_with_the_engine_bits() {
+    let fox = data("Fox.glb");
+    let want = expected(
+        &fox,
+        GridSpec::Resolution { n: 40, cubic: true },
+        0,
+        Method::Solid,
+    );
+    for ext in ["vxl", "npy", "binvox"] {
+        let out = tmp(&format!("fox.{ext}"));
+        let o = voxd(&[
+            "voxelize",
+            s(&fox),
+            "-o",
+            s(&out),
+            "--resolution",
+            "40",
+            "--cubic",
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let line = String::from_utf8(o.stdout).unwrap();
+        assert!(
+            line.contains("40x40x40 solid") && line.contains("engine cpu"),
+            "{line}"
+        );
+        assert!(
+            line.contains(&format!("{} voxels set", want.count_ones())),
+            "{line}"
+        );
+        assert!(String::from_utf8_lossy(&o.stderr).contains("576 triangles"));
+        let Volume::Bits(got) = read(&out) else {
+            panic!("kind")
+        };
+        assert_eq!(got.words(), want.words(), "{ext}");
+        if ext == "vxl" {
+            assert_eq!(got.grid(), want.grid());
+        }
+    }
+}
+
+#[test]
+fn grid_options_and_methods() {
+    let spot = data("spot.obj");
+    let out = tmp("spot.vxl");
+    let o = voxd(&[
+        "voxelize",
+        s(&spot),
+        "-o",
+        s(&out),
+        "--voxel-size",
+        "0.05",
+        "--padding",
+        "2",
+        "--method",
+        "interior",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let want = expected(
+        &spot,
+        GridSpec::VoxelSize {
+            size: 0.05,
+            cubic: false,
+        },
+        2,
+        Method::Interior,
+    );
+    assert_eq!(read(&out), Volume::Bits(want));
+    let o = voxd(&[
+        "voxelize",
+        s(&spot),
+        "-o",
+        s(&out),
+        "--origin",
+        "-1,-1,-1",
+        "--voxel-size",
+        "0.1",
+        "--dims",
+        "20,30,25",
+        "--method",
+        "surface",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v = read(&out);
+    assert_eq!(
+        v.grid(),
+        &Grid {
+            origin: [-1.0; 3],
+            voxel_size: 0.1,
+            dims: [20, 30, 25]
+        }
+    );
+    let want = expected(
+        &spot,
+        GridSpec::Explicit {
+            origin: [-1.0; 3],
+            voxel_size: 0.1,
+            dims: [20, 30, 25],
+        },
+        0,
+        Method::Surface,
+    );
+    assert_eq!(v, Volume::Bits(want));
+}
+
+#[test]
+fn info_and_convert() {
+    let b = data("Box.gltf");
+    let out = tmp("box.vxl");
+    assert!(
+        voxd(&[
+            "voxelize",
+            s(&b),
+            "-o",
+            s(&out),
+            "--resolution",
+            "10",
+            "--padding",
+            "1"
+        ])
+        .status
+        .success()
+    );
+    let o = voxd(&["info", s(&out)]);
+    let text = String::from_utf8(o.stdout).unwrap();
+    assert!(
+        text.contains("dims:       12 x 12 x 12") && text.contains("set voxels: 1000 "),
+        "{text}"
+    );
+    assert!(
+        text.contains("set bounds: index [1, 1, 1] ..= [10, 10, 10]"),
+        "{text}"
+    );
+    let npy = tmp("box.npy");
+    let bv = tmp("box.binvox");
+    let back = tmp("box2.vxl");
+    for (from, to) in [(&out, &npy), (&out, &bv), (&bv, &back)] {
+        let o = voxd(&["convert", s(from), s(to)]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let (Volume::Bits(a), Volume::Bits(c)) = (read(&out), read(&back)) else {
+        panic!()
+    };
+    assert_eq!(a.words(), c.words());
+    let mesh_info = String::from_utf8(voxd(&["info", s(&b)]).stdout).unwrap();
+    assert!(
+        mesh_info.contains("12 triangles") && mesh_info.contains("watertight"),
+        "{mesh_info}"
+    );
+}
+
+#[test]
+fn bad_input_exits_non_zero_with_one_line_naming_the_file() {
+    let junk = tmp("junk.obj");
+    std::fs::write(&junk, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n").unwrap();
+    let out = tmp("x.vxl");
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (
+            vec![
+                "voxelize".into(),
+                "/nonexistent/m.obj".into(),
+                "-o".into(),
+                s(&out).into(),
+            ],
+            "/nonexistent/m.obj",
+        ),
+        (
+            vec![
+                "voxelize".into(),
+                s(&junk).into(),
+                "-o".into(),
+                s(&out).into(),
+            ],
+            "face vertex index out of bounds",
+        ),
+        (
+            vec![
+                "voxelize".into(),
+                s(&data("spot.obj")).into(),
+                "-o".into(),
+                s(&tmp("x.txt")).into(),
+            ],
+            "unknown volume format",
+        ),
+        (
+            vec![
+                "voxelize".into(),
+                s(&data("spot.obj")).into(),
+                "-o".into(),
+                s(&out).into(),
+                "--resolution".into(),
+                "3000".into(),
+                "--cubic".into(),
+            ],
+            "over the limit",
+        ),
+        (
+            vec![
+                "voxelize".into(),
+                s(&data("spot.obj")).into(),
+                "-o".into(),
+                s(&out).into(),
+                "--resolution".into(),
+                "100".into(),
+                "--max-voxels".into(),
+                "1000".into(),
+            ],
+            "over the limit of 1000",
+        ),
+        (vec!["info".into(), s(&junk).into()], "junk.obj"),
+        (
+            vec!["convert".into(), s(&junk).into(), s(&out).into()],
+            "not a volume file",
+        ),
+    ];
+    for (args, want) in cases {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = voxd(&args);
+        assert_eq!(o.status.code(), Some(1), "{args:?}");
+        // The mesh's diagnostics line may come first; the error is one line, and the last.
+        let err = String::from_utf8(o.stderr).unwrap();
+        let errors: Vec<&str> = err
+            .lines()
+            .filter(|l| l.starts_with("voxd: error: "))
+            .collect();
+        assert_eq!(errors.len(), 1, "{err}");
+        assert_eq!(err.lines().last(), Some(errors[0]));
+        assert!(errors[0].contains(want), "{args:?}: {err}");
+    }
+    assert!(!out.exists(), "a failed run must not leave an output file");
+    // Usage errors come from clap with its own exit code.
+    assert_eq!(
+        voxd(&["voxelize", "--origin", "1,2"]).status.code(),
+        Some(2)
+    );
+}
+
+fn python_with(modules: &str) -> bool {
+    let ok = Command::new("python3")
+        .args(["-c", &format!("import {modules}")])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !ok {
+        eprintln!("NOTICE: python3 with {modules} is not available; skipping the Python checks");
+    }
+    ok
+}
+
+#[test]
+fn numpy_loads_the_npy() {
+    if !python_with("numpy") {
+        return;
+    }
+    let out = tmp("spot.npy");
+    assert!(
+        voxd(&[
+            "voxelize",
+            s(&data("spot.obj")),
+            "-o",
+            s(&out),
+            "--resolution",
+            "33"
+        ])
+        .status
+        .success()
+    );
+    let Volume::Bits(v) = read(&out) else {
+        panic!()
+    };
+    let sums = v.iter_ones().fold([0u64; 3], |a, p| {
+        [a[0] + p[0] as u64, a[1] + p[1] as u64, a[2] + p[2] as u64]
+    });
+    let script = "import numpy as np, sys; a = np.load(sys.argv[1]); assert a.dtype == np.uint8; print(*a.shape, int(a.sum()), *np.argwhere(a).sum(axis=0).tolist())";
+    let o = Command::new("python3")
+        .args(["-c", script, s(&out)])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let d = v.dims();
+    let want = format!(
+        "{} {} {} {} {} {} {}",
+        d[0],
+        d[1],
+        d[2],
+        v.count_ones(),
+        sums[0],
+        sums[1],
+        sums[2]
+    );
+    assert_eq!(String::from_utf8(o.stdout).unwrap().trim(), want);
+}
+
+/// Runs the Python reader exactly as docs/format.md prints it.
+#[test]
+fn the_documented_python_reader_reads_vxl() {
+    if !python_with("numpy, zstandard") {
+        return;
+    }
+    let doc = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/format.md"))
+        .unwrap();
+    let code = doc
+        .split("```python\n")
+        .nth(1)
+        .and_then(|r| r.split("```").next())
+        .expect("a python block in docs/format.md");
+    let script = tmp("read_vxl.py");
+    std::fs::write(&script, code).unwrap();
+    let out = tmp("fox.vxl");
+    assert!(
+        voxd(&[
+            "voxelize",
+            s(&data("Fox.glb")),
+            "-o",
+            s(&out),
+            "--resolution",
+            "70"
+        ])
+        .status
+        .success()
+    );
+    let Volume::Bits(v) = read(&out) else {
+        panic!()
+    };
+    let sums = v.iter_ones().fold([0u64; 3], |a, p| {
+        [a[0] + p[0] as u64, a[1] + p[1] as u64, a[2] + p[2] as u64]
+    });
+    let o = Command::new("python3")
+        .args([s(&script), s(&out)])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let d = v.dims();
+    let want = format!(
+        "bits {} {} {} {} {} {} {}",
+        d[0],
+        d[1],
+        d[2],
+        v.count_ones(),
+        sums[0],
+        sums[1],
+        sums[2]
+    );
+    assert_eq!(String::from_utf8(o.stdout).unwrap().trim(), want);
+    assert!(d[2] > 64, "the check should span several words per column");
+}

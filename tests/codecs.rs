@@ -1,0 +1,193 @@
+//! Round trips and byte layouts of every codec, and their errors on damaged files.
+// The index expressions spell out the documented layouts, (x·Y + y)·Z + z, even where x is 1.
+#![allow(clippy::identity_op)]
+
+mod common;
+
+use common::Rng;
+use voxd::codec::{VolumeFormat, binvox, npy, vxl};
+use voxd::grid::Grid;
+use voxd::volume::{BitVolume, DensityVolume, Volume};
+
+fn random_bits(rng: &mut Rng, dims: [u32; 3]) -> BitVolume {
+    let g = Grid {
+        origin: [rng.range(-5.0, 5.0), 0.1, -0.3],
+        voxel_size: rng.range(0.01, 2.0),
+        dims,
+    };
+    let mut v = BitVolume::new(g);
+    let fill = rng.below(100);
+    for x in 0..dims[0] {
+        for y in 0..dims[1] {
+            for z in 0..dims[2] {
+                if rng.below(100) < fill {
+                    v.set(x, y, z, true);
+                }
+            }
+        }
+    }
+    v
+}
+
+#[test]
+fn bits_round_trip_through_every_format() {
+    for seed in 0..40 {
+        let mut rng = Rng::new(seed);
+        let cubic = seed % 2 == 0;
+        let n = 1 + rng.below(70) as u32;
+        let dims = if cubic {
+            [n; 3]
+        } else {
+            [n, 1 + rng.below(9) as u32, 1 + rng.below(130) as u32]
+        };
+        let v = random_bits(&mut rng, dims);
+        let vol = Volume::Bits(v.clone());
+        let back = vxl::decode(&vxl::encode(&vol, &Default::default()).unwrap())
+            .unwrap()
+            .0;
+        assert_eq!(back, vol, "vxl seed {seed}");
+        // npy keeps the bits, not the grid.
+        let Volume::Bits(b) = npy::decode(&npy::encode(&vol)).unwrap() else {
+            panic!("npy kind")
+        };
+        assert_eq!(b.words(), v.words(), "npy seed {seed}");
+        assert_eq!(b.dims(), dims);
+        // binvox keeps the grid when cubic, pads when not.
+        let bv = binvox::decode(&binvox::encode(&vol).unwrap()).unwrap();
+        // binvox stores the cube's edge length, so the voxel size comes back as scale / n (rounded).
+        assert!(
+            (bv.grid().voxel_size - v.grid().voxel_size).abs()
+                <= 4.0 * f64::EPSILON * v.grid().voxel_size
+        );
+        assert_eq!(bv.grid().origin, v.grid().origin);
+        if cubic {
+            assert_eq!(bv.words(), v.words(), "binvox seed {seed}");
+        } else {
+            let m = *dims.iter().max().unwrap();
+            assert_eq!(bv.dims(), [m; 3]);
+            assert_eq!(bv.count_ones(), v.count_ones());
+            assert!(v.iter_ones().all(|p| bv.get(p[0], p[1], p[2])));
+        }
+    }
+}
+
+#[test]
+fn density_round_trips_through_vxl_and_npy() {
+    let g = Grid {
+        origin: [1.0, 2.0, 3.0],
+        voxel_size: 0.5,
+        dims: [3, 4, 5],
+    };
+    let mut d = DensityVolume::new(g, 8);
+    d.set(2, 3, 4, 8);
+    d.set(0, 1, 2, 3);
+    let vol = Volume::Density(d.clone());
+    let (back, _) = vxl::decode(&vxl::encode(&vol, &Default::default()).unwrap()).unwrap();
+    assert_eq!(back, vol);
+    let Volume::Density(n) = npy::decode(&npy::encode(&vol)).unwrap() else {
+        panic!("npy kind")
+    };
+    assert_eq!(n.data(), d.data());
+    assert!(matches!(
+        binvox::encode(&vol),
+        Err(voxd::codec::CodecError::Unsupported { .. })
+    ));
+}
+
+#[test]
+fn byte_layouts_are_the_documented_ones() {
+    let g = Grid {
+        origin: [0.0; 3],
+        voxel_size: 1.0,
+        dims: [2, 3, 70],
+    };
+    let mut v = BitVolume::new(g);
+    v.set(1, 2, 65, true);
+    let vol = Volume::Bits(v);
+    // npy: C order (x, y, z), header padded to 64 bytes.
+    let n = npy::encode(&vol);
+    let hlen = u16::from_le_bytes([n[8], n[9]]) as usize;
+    assert_eq!((10 + hlen) % 64, 0);
+    assert!(
+        std::str::from_utf8(&n[10..10 + hlen])
+            .unwrap()
+            .contains("'shape': (2, 3, 70)")
+    );
+    let data = &n[10 + hlen..];
+    assert_eq!(
+        data.iter().position(|&b| b == 1),
+        Some((1 * 3 + 2) * 70 + 65)
+    );
+    // vxl: header JSON, then words where column (1, 2) is word (1·3 + 2)·2 and bit 65 is word 1, bit 1.
+    let e = vxl::encode(&vol, &Default::default()).unwrap();
+    let hl = u32::from_le_bytes(e[12..16].try_into().unwrap()) as usize;
+    let h: serde_json::Value = serde_json::from_slice(&e[16..16 + hl]).unwrap();
+    assert_eq!(h["layout"], "x-y-zcolumns-u64le");
+    assert_eq!(h["dims"], serde_json::json!([2, 3, 70]));
+    let raw = zstd::decode_all(&e[16 + hl..]).unwrap();
+    let words: Vec<u64> = raw
+        .chunks(8)
+        .map(|c| u64::from_le_bytes(c.try_into().unwrap()))
+        .collect();
+    assert_eq!(
+        words.iter().position(|&w| w != 0),
+        Some((1 * 3 + 2) * 2 + 1)
+    );
+    assert_eq!(words[(1 * 3 + 2) * 2 + 1], 1 << 1);
+    // binvox: y fastest, then z, then x; voxel (1, 0, 0) of a 2³ cube is index 4.
+    let mut c = BitVolume::new(Grid {
+        origin: [0.5, 0.0, -1.0],
+        voxel_size: 0.25,
+        dims: [2, 2, 2],
+    });
+    c.set(1, 0, 0, true);
+    let b = binvox::encode(&Volume::Bits(c)).unwrap();
+    let text = "#binvox 1\ndim 2 2 2\ntranslate 0.5 0 -1\nscale 0.5\ndata\n";
+    assert_eq!(&b[..text.len()], text.as_bytes());
+    assert_eq!(&b[text.len()..], &[0, 4, 1, 1, 0, 3]);
+}
+
+#[test]
+fn damaged_files_are_refused() {
+    let mut rng = Rng::new(3);
+    let vol = Volume::Bits(random_bits(&mut rng, [9, 9, 9]));
+    let good = vxl::encode(&vol, &Default::default()).unwrap();
+    let bad = |b: &[u8]| vxl::decode(b).unwrap_err().to_string();
+    assert!(bad(&good[..good.len() - 5]).contains("vxl"));
+    assert!(bad(b"hello").contains("bad magic"));
+    let mut v2 = good.clone();
+    v2[8] = 9;
+    assert!(bad(&v2).contains("version 9"));
+    let mut flipped = good.clone();
+    let last = flipped.len() - 6;
+    flipped[last] ^= 0x55;
+    assert!(
+        vxl::decode(&flipped).is_err(),
+        "a damaged payload must not decode"
+    );
+    let n = npy::encode(&vol);
+    assert!(
+        npy::decode(&n[..n.len() - 1])
+            .unwrap_err()
+            .to_string()
+            .contains("data bytes")
+    );
+    let b = binvox::encode(&vol).unwrap();
+    assert!(
+        binvox::decode(&b[..b.len() - 2])
+            .unwrap_err()
+            .to_string()
+            .contains("truncated")
+    );
+    let mut over = b.clone();
+    over.extend_from_slice(&[1, 255]);
+    assert!(
+        binvox::decode(&over)
+            .unwrap_err()
+            .to_string()
+            .contains("past the end")
+    );
+    assert_eq!(VolumeFormat::sniff(&good), Some(VolumeFormat::Vxl));
+    assert_eq!(VolumeFormat::sniff(&n), Some(VolumeFormat::Npy));
+    assert_eq!(VolumeFormat::sniff(&b), Some(VolumeFormat::Binvox));
+}
