@@ -217,7 +217,7 @@ fn bad_input_exits_non_zero_with_one_line_naming_the_file() {
                 "-o".into(),
                 s(&out).into(),
             ],
-            "face vertex index out of bounds",
+            "line 4: vertex index 9 is out of range",
         ),
         (
             vec![

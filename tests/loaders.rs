@@ -21,8 +21,21 @@ fn soup(m: &Mesh) -> Vec<[[f64; 3]; 3]> {
     (0..m.triangles().len()).map(|t| m.triangle(t)).collect()
 }
 
+/// spot.obj with every coordinate rounded to f32, so binary STL (f32) can hold it exactly.
 fn spot() -> Mesh {
-    mesh::load_file(&data("spot.obj"), usize::MAX).unwrap()
+    let m = mesh::load_file(&data("spot.obj"), usize::MAX).unwrap();
+    Mesh::new(f32_positions(&m), m.triangles().to_vec()).unwrap()
+}
+
+fn obj_text(m: &Mesh) -> Vec<u8> {
+    let mut s = String::from("o spot\n");
+    for p in m.positions() {
+        s += &format!("v {} {} {}\n", p[0], p[1], p[2]);
+    }
+    for t in m.triangles() {
+        s += &format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1);
+    }
+    s.into_bytes()
 }
 
 fn stl_binary(m: &Mesh) -> Vec<u8> {
@@ -141,7 +154,7 @@ fn every_format_gives_the_same_triangles() {
     let m = spot();
     let want = soup(&m);
     let faces: Vec<Vec<u32>> = m.triangles().iter().map(|t| t.to_vec()).collect();
-    let positions = f32_positions(&m);
+    let positions = m.positions().to_vec();
     let mut cases: Vec<(&str, Vec<u8>, Option<Format>)> = vec![
         ("stl binary", stl_binary(&m), None),
         ("stl ascii", stl_ascii(&m), None),
@@ -156,17 +169,22 @@ fn every_format_gives_the_same_triangles() {
             ply(&positions, &faces, None, "binary_big_endian"),
             None,
         ),
-        (
-            "obj",
-            std::fs::read(data("spot.obj")).unwrap(),
-            Some(Format::Obj),
-        ),
+        ("obj", obj_text(&m), Some(Format::Obj)),
     ];
     let gzipped: Vec<_> = cases.iter().map(|(n, b, f)| (*n, gz(b), *f)).collect();
     cases.extend(gzipped);
     for (name, bytes, f) in cases {
         let got = load(&bytes, f).unwrap_or_else(|e| panic!("{name}: {e}"));
-        assert!(soup(&got) == want, "{name}: triangles differ from spot.obj");
+        let (g, w) = (soup(&got), &want);
+        let first = g.iter().zip(w).position(|(a, b)| a != b);
+        assert!(
+            g.len() == w.len() && first.is_none(),
+            "{name}: triangles differ from spot.obj ({} vs {}, first at {first:?}: {:?} vs {:?})",
+            g.len(),
+            w.len(),
+            g[0],
+            w[0]
+        );
     }
 }
 
@@ -343,6 +361,86 @@ fn gltf_external_buffers_are_read_only_beside_the_file_and_only_when_allowed() {
     std::fs::remove_dir_all(dir).unwrap();
 }
 
+/// voxd's parallel OBJ reader against tobj, on real files and on the syntax corners.
+#[test]
+fn fast_obj_reader_agrees_with_tobj() {
+    let mut files: Vec<(String, Vec<u8>)> =
+        vec![("spot.obj".into(), std::fs::read(data("spot.obj")).unwrap())];
+    if let Some(dir) = shared_meshes() {
+        for f in [
+            "stanford-bunny.obj",
+            "teapot.obj",
+            "suzanne.obj",
+            "rocker-arm.obj",
+            "ogre.obj",
+            "igea.obj",
+        ] {
+            files.push((f.into(), std::fs::read(dir.join(f)).unwrap()));
+        }
+    }
+    let corners = "# corners\nmtllib x.mtl\no a\nv 0 0 0\nv 1 0 0 1.0\nvt 0 0\nvn 0 0 1\nv 1 1 0\n\tv  0 1 0\ng g\nusemtl m\nf 1/1/1 2/1/1 3/1/1 4/1/1\nf -4//1 -3//1 -2//1\nl 1 2\np 3\nv 2 2 2\nf -1 1 2\r\nf 3 4 5 1 2 \n";
+    files.push(("corners".into(), corners.as_bytes().to_vec()));
+    // Big enough to be cut into several chunks, with relative indices across chunk borders.
+    let mut big = String::new();
+    for i in 0..120_000 {
+        big += &format!(
+            "v {i} {} 0.5\nv {i} 1 {}\nv 0 {i} 1e-3\nf -3 -2 -1\n",
+            i % 7,
+            i % 3
+        );
+    }
+    files.push(("big".into(), big.into_bytes()));
+    for (name, bytes) in files {
+        let fast = load(&bytes, Some(Format::Obj)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let reference = obj_with_tobj(&bytes);
+        assert!(
+            soup(&fast) == soup(&reference),
+            "{name}: the fast reader and tobj disagree"
+        );
+    }
+    // tobj 4.0.5 fails this valid file once a smoothing-group line is added; the fast reader does not.
+    let with_s = corners.replace("usemtl m\n", "usemtl m\ns 1\n");
+    assert_eq!(
+        load(with_s.as_bytes(), Some(Format::Obj))
+            .unwrap()
+            .triangles()
+            .len(),
+        7
+    );
+    // A backslash at the end of a line continues it.
+    let cont = b"v 0 0 0\nv 1 0 \\\r\n 0\nv 0 1 0\nf 1 \\\n 2 3\n";
+    assert_eq!(
+        load(cont, Some(Format::Obj)).unwrap().bounds(),
+        ([0.0; 3], [1.0, 1.0, 0.0])
+    );
+}
+
+/// tobj's reading (all objects and groups, fan-triangulated) as a Mesh.
+fn obj_with_tobj(bytes: &[u8]) -> Mesh {
+    let opts = tobj::LoadOptions {
+        single_index: false,
+        triangulate: true,
+        ignore_points: true,
+        ignore_lines: true,
+    };
+    let (models, _) = tobj::load_obj_buf(&mut std::io::BufReader::new(bytes), &opts, |_| {
+        Ok(Default::default())
+    })
+    .unwrap();
+    let (mut positions, mut triangles) = (vec![], vec![]);
+    for m in &models {
+        let base = positions.len() as u32;
+        positions.extend(m.mesh.positions.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
+        triangles.extend(
+            m.mesh
+                .indices
+                .chunks_exact(3)
+                .map(|t| [base + t[0], base + t[1], base + t[2]]),
+        );
+    }
+    Mesh::new(positions, triangles).unwrap()
+}
+
 fn err(bytes: &[u8], f: Option<Format>) -> String {
     load(bytes, f).unwrap_err().to_string()
 }
@@ -356,7 +454,23 @@ fn malformed_inputs_get_clear_errors() {
     has(err(b"", Some(Format::Obj)), "no triangles");
     has(
         err(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", None),
-        "OBJ: face vertex index out of bounds",
+        "OBJ: line 4: vertex index 4 is out of range (the file has 3 vertices)",
+    );
+    has(
+        err(b"v 0 0 0\nv 1 0 0\nf -1 -2 -3\nv 0 1 0\n", None),
+        "OBJ: line 3: vertex index -3 is out of range",
+    );
+    has(
+        err(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", None),
+        "index 0",
+    );
+    has(
+        err(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 x\n", None),
+        "not a vertex index",
+    );
+    has(
+        err(b"v 0 0 0\nv 1 0\nv 0 1 0\nf 1 2 3\n", None),
+        "line 2: a vertex needs x, y and z",
     );
     has(
         err(b"v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n", None),

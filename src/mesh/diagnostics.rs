@@ -1,8 +1,7 @@
 //! What is wrong with a mesh, computed on positions merged by exact equality (so UV and normal
 //! seams do not count as holes).
 
-use std::collections::HashMap;
-
+use rayon::prelude::*;
 use serde::Serialize;
 
 use super::Mesh;
@@ -26,49 +25,66 @@ pub struct MeshDiagnostics {
 
 impl MeshDiagnostics {
     pub fn of(mesh: &Mesh) -> MeshDiagnostics {
-        // Merge positions by bit pattern, with -0.0 folded onto 0.0 so equal values merge.
+        // Merge positions by bit pattern (-0.0 folded onto 0.0 so equal values merge): sort
+        // (key, index) pairs and number the distinct keys.
         let key = |p: &[f64; 3]| p.map(|c| if c == 0.0 { 0u64 } else { c.to_bits() });
-        let mut ids: HashMap<[u64; 3], u32> = HashMap::with_capacity(mesh.positions.len());
-        let remap: Vec<u32> = mesh
+        let mut keyed: Vec<([u64; 3], u32)> = mesh
             .positions
-            .iter()
-            .map(|p| {
-                let n = ids.len() as u32;
-                *ids.entry(key(p)).or_insert(n)
+            .par_iter()
+            .enumerate()
+            .map(|(i, p)| (key(p), i as u32))
+            .collect();
+        keyed.par_sort_unstable();
+        let mut remap = vec![0u32; mesh.positions.len()];
+        let mut distinct = 0u32;
+        for (i, (k, idx)) in keyed.iter().enumerate() {
+            if i > 0 && keyed[i - 1].0 != *k {
+                distinct += 1;
+            }
+            remap[*idx as usize] = distinct;
+        }
+        let merged = |t: &[u32; 3]| t.map(|i| remap[i as usize]);
+        let degenerate = mesh
+            .triangles
+            .par_iter()
+            .enumerate()
+            .filter(|(t, tri)| {
+                let m = merged(tri);
+                let [a, b, c] = mesh.triangle(*t);
+                let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+                let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+                let cross = [
+                    u[1] * v[2] - u[2] * v[1],
+                    u[2] * v[0] - u[0] * v[2],
+                    u[0] * v[1] - u[1] * v[0],
+                ];
+                m[0] == m[1] || m[1] == m[2] || m[0] == m[2] || cross == [0.0; 3]
+            })
+            .count();
+        let mut edges: Vec<u64> = mesh
+            .triangles
+            .par_iter()
+            .flat_map_iter(|tri| {
+                let m = merged(tri);
+                [(m[0], m[1]), (m[1], m[2]), (m[2], m[0])]
+                    .into_iter()
+                    .filter(|(p, q)| p != q)
+                    .map(|(p, q)| ((p.min(q) as u64) << 32) | p.max(q) as u64)
             })
             .collect();
-        let mut used = vec![false; ids.len()];
-        let mut edges: Vec<u64> = Vec::with_capacity(mesh.triangles.len() * 3);
-        let mut degenerate = 0;
-        for (t, tri) in mesh.triangles.iter().enumerate() {
-            let m = tri.map(|i| remap[i as usize]);
-            for &v in &m {
-                used[v as usize] = true;
-            }
-            let [a, b, c] = mesh.triangle(t);
-            let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-            let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-            let cross = [
-                u[1] * v[2] - u[2] * v[1],
-                u[2] * v[0] - u[0] * v[2],
-                u[0] * v[1] - u[1] * v[0],
-            ];
-            if m[0] == m[1] || m[1] == m[2] || m[0] == m[2] || cross == [0.0; 3] {
-                degenerate += 1;
-            }
-            for (p, q) in [(m[0], m[1]), (m[1], m[2]), (m[2], m[0])] {
-                if p != q {
-                    edges.push((p.min(q) as u64) << 32 | p.max(q) as u64);
-                }
-            }
-        }
-        edges.sort_unstable();
+        edges.par_sort_unstable();
         let (mut boundary, mut non_manifold) = (0, 0);
         for run in edges.chunk_by(|a, b| a == b) {
             match run.len() {
                 1 => boundary += 1,
                 2 => {}
                 _ => non_manifold += 1,
+            }
+        }
+        let mut used = vec![false; distinct as usize + 1];
+        for t in &mesh.triangles {
+            for v in merged(t) {
+                used[v as usize] = true;
             }
         }
         let (bbox_min, bbox_max) = mesh.bounds();
