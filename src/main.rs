@@ -144,7 +144,9 @@ fn voxelize(a: VoxelizeArgs) -> Result<(), String> {
     }
     .map_err(|e| format!("{name}: {e}"))?;
     let t_load = t0.elapsed();
+    let t_diag0 = Instant::now();
     let diag = mesh.diagnostics();
+    let t_diag = t_diag0.elapsed();
     eprintln!("{}", describe_mesh(&name, &diag));
 
     let spec = match (a.origin, a.dims, a.voxel_size, a.resolution) {
@@ -197,7 +199,7 @@ fn voxelize(a: VoxelizeArgs) -> Result<(), String> {
     let t_write = t2.elapsed();
     let d = grid.dims;
     println!(
-        "{name}: {}x{}x{} {} -> {}: {set} voxels set ({:.2}%), engine {}, {:.3} s (load {:.3}, voxelize {:.3}, write {:.3})",
+        "{name}: {}x{}x{} {} -> {}: {set} voxels set ({:.2}%), engine {}, {:.3} s (load {:.3}, diagnose {:.3}, voxelize {:.3}, write {:.3})",
         d[0],
         d[1],
         d[2],
@@ -207,6 +209,7 @@ fn voxelize(a: VoxelizeArgs) -> Result<(), String> {
         engine.name(),
         t0.elapsed().as_secs_f64(),
         t_load.as_secs_f64(),
+        t_diag.as_secs_f64(),
         t_vox.as_secs_f64(),
         t_write.as_secs_f64(),
     );
