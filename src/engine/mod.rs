@@ -4,6 +4,7 @@
 //! GPU engine is tested against. Engines know nothing of files or HTTP.
 
 pub mod cpu;
+pub mod gpu;
 mod snap;
 
 use std::str::FromStr;
@@ -64,6 +65,10 @@ impl std::fmt::Display for Method {
 
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum EngineError {
+    #[error("no GPU: {0}")]
+    NoDevice(String),
+    #[error("GPU engine: {0}")]
+    Gpu(String),
     #[error("mesh vertex {vertex} lies {voxels:.0} voxels from the grid; at most {max} are supported (crop the mesh or use a coarser or larger grid)", max = MAX_FIXED >> FIXED_SHIFT)]
     OutOfRange { vertex: usize, voxels: f64 },
 }
@@ -73,4 +78,38 @@ pub trait Engine: Send + Sync {
     /// Short name for logs and summaries (`cpu`, `gpu`).
     fn name(&self) -> &'static str;
     fn voxelize(&self, mesh: &GridMesh, method: Method) -> Result<BitVolume, EngineError>;
+}
+
+/// Triangle vertices as i64 for arithmetic.
+pub(crate) fn widen(t: &[[i32; 3]; 3]) -> [[i64; 3]; 3] {
+    t.map(|p| p.map(i64::from))
+}
+
+/// Inclusive range of cells `i` (clamped to `0..n`) whose centre `256 i + 128` lies in `[lo, hi]`.
+pub(crate) fn centre_range(lo: i64, hi: i64, n: u32) -> Option<(u32, u32)> {
+    let a = (lo - FIXED_HALF).div_euclid(FIXED_ONE)
+        + i64::from((lo - FIXED_HALF).rem_euclid(FIXED_ONE) != 0);
+    let b = (hi - FIXED_HALF).div_euclid(FIXED_ONE);
+    clamp_range(a, b, n)
+}
+
+/// Inclusive range of cells `i` (clamped to `0..n`) whose closed extent `[256 i, 256 i + 256]`
+/// meets `[lo, hi]`.
+pub(crate) fn box_range(lo: i64, hi: i64, n: u32) -> Option<(u32, u32)> {
+    let a = (lo - FIXED_ONE).div_euclid(FIXED_ONE)
+        + i64::from((lo - FIXED_ONE).rem_euclid(FIXED_ONE) != 0);
+    let b = hi.div_euclid(FIXED_ONE);
+    clamp_range(a, b, n)
+}
+
+pub(crate) fn clamp_range(a: i64, b: i64, n: u32) -> Option<(u32, u32)> {
+    let (a, b) = (a.max(0), b.min(n as i64 - 1));
+    (a <= b).then_some((a as u32, b as u32))
+}
+
+pub(crate) fn axis_bounds(v: &[[i64; 3]; 3], a: usize) -> (i64, i64) {
+    (
+        v[0][a].min(v[1][a]).min(v[2][a]),
+        v[0][a].max(v[1][a]).max(v[2][a]),
+    )
 }

@@ -10,6 +10,7 @@ use std::ops::Range;
 use rayon::prelude::*;
 
 use super::{Engine, EngineError, GridMesh, Method};
+pub(crate) use super::{axis_bounds, box_range, centre_range};
 use crate::volume::BitVolume;
 
 pub use solid::crossing_voxel;
@@ -79,41 +80,7 @@ fn for_each_band<F>(
         });
 }
 
-/// Triangle vertices as i64 for arithmetic.
-fn widen(t: &[[i32; 3]; 3]) -> [[i64; 3]; 3] {
-    t.map(|p| p.map(i64::from))
-}
-
-/// Inclusive range of cells `i` (clamped to `0..n`) whose centre `256 i + 128` lies in `[lo, hi]`.
-fn centre_range(lo: i64, hi: i64, n: u32) -> Option<(u32, u32)> {
-    use super::{FIXED_HALF, FIXED_ONE};
-    let a = (lo - FIXED_HALF).div_euclid(FIXED_ONE)
-        + i64::from((lo - FIXED_HALF).rem_euclid(FIXED_ONE) != 0);
-    let b = (hi - FIXED_HALF).div_euclid(FIXED_ONE);
-    clamp_range(a, b, n)
-}
-
-/// Inclusive range of cells `i` (clamped to `0..n`) whose closed extent `[256 i, 256 i + 256]`
-/// meets `[lo, hi]`.
-fn box_range(lo: i64, hi: i64, n: u32) -> Option<(u32, u32)> {
-    use super::FIXED_ONE;
-    let a = (lo - FIXED_ONE).div_euclid(FIXED_ONE)
-        + i64::from((lo - FIXED_ONE).rem_euclid(FIXED_ONE) != 0);
-    let b = hi.div_euclid(FIXED_ONE);
-    clamp_range(a, b, n)
-}
-
-fn clamp_range(a: i64, b: i64, n: u32) -> Option<(u32, u32)> {
-    let (a, b) = (a.max(0), b.min(n as i64 - 1));
-    (a <= b).then_some((a as u32, b as u32))
-}
-
-fn axis_bounds(v: &[[i64; 3]; 3], a: usize) -> (i64, i64) {
-    (
-        v[0][a].min(v[1][a]).min(v[2][a]),
-        v[0][a].max(v[1][a]).max(v[2][a]),
-    )
-}
+pub(crate) use super::widen;
 
 #[cfg(test)]
 mod tests {

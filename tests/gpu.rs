@@ -1,0 +1,182 @@
+//! The GPU engine against the CPU engine, bit for bit. Needs a Vulkan adapter (lavapipe in CI):
+//! without one these tests skip with a notice, unless VOXD_REQUIRE_GPU=1 (set by scripts/test.sh
+//! once it has installed a driver), where that is a failure.
+
+mod common;
+
+use std::sync::OnceLock;
+
+use common::*;
+use voxd::engine::cpu::CpuEngine;
+use voxd::engine::gpu::{GpuEngine, GpuOptions};
+use voxd::engine::{Engine, GridMesh, Method};
+use voxd::grid::{Grid, GridSpec};
+use voxd::mesh::{self, Mesh};
+
+fn gpu() -> Option<&'static GpuEngine> {
+    static ENGINE: OnceLock<Option<GpuEngine>> = OnceLock::new();
+    ENGINE
+        .get_or_init(|| {
+            match GpuEngine::new(GpuOptions {
+                adapter: std::env::var("VOXD_ADAPTER").ok(),
+                ..Default::default()
+            }) {
+                Ok(e) => {
+                    eprintln!("GPU tests on {:?}", e.adapter());
+                    Some(e)
+                }
+                Err(e) => {
+                    assert!(
+                        std::env::var("VOXD_REQUIRE_GPU").is_err(),
+                        "VOXD_REQUIRE_GPU is set but: {e}"
+                    );
+                    eprintln!("NOTICE: {e}; skipping GPU tests");
+                    None
+                }
+            }
+        })
+        .as_ref()
+}
+
+fn check(engine: &GpuEngine, mesh: &Mesh, g: &Grid, what: &str) {
+    let gm = GridMesh::new(mesh, g).unwrap();
+    for m in Method::ALL {
+        let want = CpuEngine.voxelize(&gm, m).unwrap();
+        let got = engine.voxelize(&gm, m).unwrap();
+        if let Some(d) = first_difference(&got, &want) {
+            panic!("{what}, {m}: GPU differs from CPU: {d}");
+        }
+    }
+}
+
+#[test]
+fn random_meshes_equal_the_cpu() {
+    let Some(e) = gpu() else { return };
+    for seed in 0..60u64 {
+        let mut rng = Rng::new(seed);
+        let dims = [
+            1 + rng.below(20) as u32,
+            1 + rng.below(20) as u32,
+            [1, 31, 32, 33, 64, 65, 100][rng.below(7) as usize],
+        ];
+        let mesh = if seed % 2 == 0 {
+            random_closed(&mut rng, dims)
+        } else {
+            random_soup(&mut rng, dims)
+        };
+        let g = if seed % 3 == 0 {
+            Grid {
+                origin: [-0.37, 0.11, -0.5],
+                voxel_size: 0.93,
+                dims,
+            }
+        } else {
+            unit_grid(dims)
+        };
+        check(e, &mesh, &g, &format!("seed {seed}"));
+    }
+}
+
+#[test]
+fn several_slabs_and_triangle_chunks_equal_the_cpu() {
+    let Some(_) = gpu() else { return };
+    // Tiny slabs (a few x-rows) and tiny triangle chunks (10 triangles).
+    let small = GpuEngine::new(GpuOptions {
+        adapter: std::env::var("VOXD_ADAPTER").ok(),
+        max_slab_bytes: Some(3 * 40 * 8),
+        max_chunk_bytes: Some(36 * 10),
+    })
+    .unwrap();
+    let m = mesh::load_file(&data("spot.obj"), usize::MAX).unwrap();
+    let (lo, hi) = m.bounds();
+    let g = Grid::fit(
+        lo,
+        hi,
+        GridSpec::Resolution {
+            n: 40,
+            cubic: false,
+        },
+        1,
+        Default::default(),
+    )
+    .unwrap();
+    let gm = GridMesh::new(&m, &g).unwrap();
+    let (v, t) = small.voxelize_timed(&gm, Method::Conservative).unwrap();
+    assert!(t.slabs > 5, "only {} slabs", t.slabs);
+    assert_eq!(v, CpuEngine.voxelize(&gm, Method::Conservative).unwrap());
+    check(&small, &m, &g, "spot in slabs");
+}
+
+#[test]
+fn huge_triangles_do_not_hit_the_loop_cap() {
+    let Some(e) = gpu() else { return };
+    // A 12-triangle box spanning a 1024 × 1024 × 64 grid, plus a box inside it.
+    let (mut p, mut t) = (vec![], vec![]);
+    push_box(&mut p, &mut t, [0.0, 0.0, 0.0], [1024.0, 1024.0, 64.0]);
+    push_box(&mut p, &mut t, [100.5, 200.25, 10.5], [900.0, 1000.0, 50.0]);
+    // A box reaching out of the grid on every side (negative coordinates).
+    push_box(&mut p, &mut t, [-20.5, -3.0, -7.25], [30.0, 40.0, 20.0]);
+    let mesh = Mesh::new(p, t).unwrap();
+    let g = unit_grid([1024, 1024, 64]);
+    check(e, &mesh, &g, "box in a 1024² grid");
+    let solid = e
+        .voxelize(&GridMesh::new(&mesh, &g).unwrap(), Method::Solid)
+        .unwrap();
+    // Inner box: x centres 101..=899 (the one on the face x = 100.5 is excluded by the top-left
+    // rule), y 200..=999, z 11..=49 (a centre on the bottom face is not above it).
+    let cpu = CpuEngine
+        .voxelize(&GridMesh::new(&mesh, &g).unwrap(), Method::Solid)
+        .unwrap();
+    assert_eq!(solid, cpu);
+    // The third box flips its in-grid part (x 0..30, y 0..40, z 0..20) out of the outer one.
+    assert_eq!(
+        solid.count_ones(),
+        1024 * 1024 * 64 - 799 * 800 * 39 - 30 * 40 * 20
+    );
+    // One triangle covering the whole xy plane (and more), tilted through the grid.
+    let p = vec![
+        [-3000.0, -3000.0, 5.0],
+        [5000.0, -3000.0, 40.0],
+        [-3000.0, 5000.0, 60.0],
+    ];
+    let mesh = Mesh::new(p, vec![[0, 1, 2]]).unwrap();
+    check(
+        e,
+        &mesh,
+        &unit_grid([700, 600, 64]),
+        "one tilted triangle over the plane",
+    );
+}
+
+#[test]
+fn real_meshes_at_two_resolutions_equal_the_cpu() {
+    let Some(e) = gpu() else { return };
+    let Some(dir) = shared_meshes() else { return };
+    for name in [
+        "spot.obj",
+        "stanford-bunny.obj",
+        "teapot.obj",
+        "suzanne.obj",
+        "rocker-arm.obj",
+        "ogre.obj",
+        "igea.obj",
+        "igea-subdiv4.obj.gz",
+        "Box.gltf",
+        "2CylinderEngine.gltf",
+        "Fox.glb",
+    ] {
+        let m = mesh::load_file(&dir.join(name), usize::MAX).unwrap();
+        let (lo, hi) = m.bounds();
+        for (n, cubic) in [(48, false), (128, true)] {
+            let g = Grid::fit(
+                lo,
+                hi,
+                GridSpec::Resolution { n, cubic },
+                0,
+                Default::default(),
+            )
+            .unwrap();
+            check(e, &m, &g, &format!("{name} at {n}"));
+        }
+    }
+}
