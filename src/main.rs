@@ -6,8 +6,8 @@ use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand};
 use voxd::codec::{VolumeFormat, vxl};
-use voxd::engine::cpu::CpuEngine;
-use voxd::engine::{Engine, GridMesh, Method};
+use voxd::engine::gpu::GpuOptions;
+use voxd::engine::{EngineChoice, GridMesh, Method};
 use voxd::grid::{Grid, GridLimits, GridSpec};
 use voxd::mesh::{self, Format, MeshDiagnostics};
 use voxd::volume::Volume;
@@ -61,9 +61,12 @@ struct VoxelizeArgs {
     /// Empty voxels added on every side.
     #[arg(long, default_value_t = 0)]
     padding: u32,
-    /// Engine: cpu.
-    #[arg(long, default_value = "cpu", value_parser = ["cpu"])]
-    engine: String,
+    /// auto (the GPU when an adapter exists, else the CPU), gpu or cpu.
+    #[arg(long, default_value = "auto")]
+    engine: EngineChoice,
+    /// Use the GPU adapter whose name contains this (e.g. llvmpipe); also VOXD_ADAPTER.
+    #[arg(long, env = "VOXD_ADAPTER")]
+    adapter: Option<String>,
     /// Refuse grids with more voxels than this.
     #[arg(long, default_value_t = voxd::grid::DEFAULT_MAX_VOXELS)]
     max_voxels: u64,
@@ -104,6 +107,12 @@ fn parse_format(s: &str) -> Result<Format, String> {
 }
 
 fn main() -> ExitCode {
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
+        // Mesa prints "XDG_RUNTIME_DIR is invalid" on every start without it; nothing is
+        // written there by a compute-only device.
+        // SAFETY: single-threaded at this point, before any thread or engine is started.
+        unsafe { std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir()) };
+    }
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_env("VOXD_LOG")
@@ -174,8 +183,15 @@ fn voxelize(a: VoxelizeArgs) -> Result<(), String> {
         },
     )
     .map_err(|e| format!("{name}: {e}"))?;
+    let engine = voxd::engine::open(
+        a.engine,
+        GpuOptions {
+            adapter: a.adapter.clone(),
+            ..Default::default()
+        },
+    )
+    .map_err(|e| format!("{name}: {e}"))?;
     let t1 = Instant::now();
-    let engine = CpuEngine;
     let gm = GridMesh::new(&mesh, &grid).map_err(|e| format!("{name}: {e}"))?;
     let vol = engine
         .voxelize(&gm, a.method)
@@ -206,7 +222,7 @@ fn voxelize(a: VoxelizeArgs) -> Result<(), String> {
         a.method,
         a.output.display(),
         100.0 * set as f64 / grid.voxel_count() as f64,
-        engine.name(),
+        engine.describe(),
         t0.elapsed().as_secs_f64(),
         t_load.as_secs_f64(),
         t_diag.as_secs_f64(),

@@ -77,7 +77,48 @@ pub enum EngineError {
 pub trait Engine: Send + Sync {
     /// Short name for logs and summaries (`cpu`, `gpu`).
     fn name(&self) -> &'static str;
+    /// What it runs on, for summaries: the adapter for the GPU engine.
+    fn describe(&self) -> String {
+        self.name().to_string()
+    }
     fn voxelize(&self, mesh: &GridMesh, method: Method) -> Result<BitVolume, EngineError>;
+}
+
+/// Which engine to use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EngineChoice {
+    /// The GPU engine when an adapter exists, else the CPU engine (with a warning).
+    Auto,
+    Gpu,
+    Cpu,
+}
+
+impl FromStr for EngineChoice {
+    type Err = String;
+    fn from_str(s: &str) -> Result<EngineChoice, String> {
+        match s {
+            "auto" => Ok(EngineChoice::Auto),
+            "gpu" => Ok(EngineChoice::Gpu),
+            "cpu" => Ok(EngineChoice::Cpu),
+            _ => Err(format!("unknown engine {s:?}; expected auto, gpu or cpu")),
+        }
+    }
+}
+
+/// Opens the chosen engine. `Auto` never fails: without a usable adapter it falls back to the
+/// CPU engine and logs why.
+pub fn open(choice: EngineChoice, gpu: gpu::GpuOptions) -> Result<Box<dyn Engine>, EngineError> {
+    match choice {
+        EngineChoice::Cpu => Ok(Box::new(cpu::CpuEngine)),
+        EngineChoice::Gpu => Ok(Box::new(gpu::GpuEngine::new(gpu)?)),
+        EngineChoice::Auto => match gpu::GpuEngine::new(gpu) {
+            Ok(e) => Ok(Box::new(e)),
+            Err(e) => {
+                tracing::warn!("{e}; using the CPU engine");
+                Ok(Box::new(cpu::CpuEngine))
+            }
+        },
+    }
 }
 
 /// Triangle vertices as i64 for arithmetic.

@@ -371,6 +371,9 @@ impl Engine for GpuEngine {
     fn name(&self) -> &'static str {
         "gpu"
     }
+    fn describe(&self) -> String {
+        format!("gpu ({})", self.adapter().name)
+    }
     fn voxelize(&self, mesh: &GridMesh, method: Method) -> Result<BitVolume, EngineError> {
         self.voxelize_timed(mesh, method).map(|(v, _)| v)
     }
