@@ -3,6 +3,7 @@
 # the result; with arguments it runs `voxd ARGS...`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+scripts/setup-vulkan.sh
 cargo build --release --locked --quiet
 if (($# > 0)); then
   exec ./target/release/voxd "$@"

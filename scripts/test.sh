@@ -13,6 +13,13 @@ if ! has_py && [[ $(id -u) == 0 ]] && command -v apt-get >/dev/null; then
 fi
 if has_py; then export VOXD_REQUIRE_PYTHON=1; else echo "NOTICE: no python3 with numpy and zstandard; Python checks will skip"; fi
 
+# The GPU tests run on lavapipe where no GPU exists; once a driver is there they are required.
+"$(dirname "$0")/setup-vulkan.sh"
+if [[ ${CI:-} == true ]] || { compgen -G "/usr/share/vulkan/icd.d/*.json" >/dev/null && ldconfig -p | grep -q libvulkan.so.1; }; then
+  export VOXD_REQUIRE_GPU=1
+fi
+export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-$(mktemp -d)}
+
 cargo fmt --all -- --check
 cargo clippy --locked --all-targets --quiet -- -D warnings
 # --show-output: skip notices (e.g. ../shared/meshes absent) stay visible.

@@ -5,6 +5,11 @@
 // w > 0, or w == 0 on an edge with d.y > 0 || (d.y == 0 && d.x < 0); the toggle goes to the
 // smallest k with (2k+1)·128·A > Σ w_i z_i, found exactly by binary search.
 
+// MASKS: instead of one toggle bit per crossing (and a prefix-XOR pass afterwards), XOR every
+// voxel above the crossing directly: a partial mask into the crossing's word and all ones into
+// the words above, clipped at Z. Chosen on the host (src/engine/gpu/mod.rs says which is used).
+override MASKS: bool = false;
+
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> tris: array<i32>;
 @group(0) @binding(2) var<storage, read> items: array<u32>;
@@ -77,7 +82,18 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 let k = first_voxel_above(num, area2);
                 if (k < params.dims.z) {
                     let col = (x - params.slab_x0) * params.dims.y + y;
-                    atomicXor(&words[col * wpc + k / 32u], 1u << (k % 32u));
+                    if (MASKS) {
+                        let last = (params.dims.z - 1u) / 32u;
+                        for (var w = k / 32u; w <= last; w++) {
+                            var m = 0xffffffffu;
+                            if (w == k / 32u) { m = m << (k % 32u); }
+                            let top = params.dims.z - w * 32u;
+                            if (top < 32u) { m &= (1u << top) - 1u; }
+                            atomicXor(&words[col * wpc + w], m);
+                        }
+                    } else {
+                        atomicXor(&words[col * wpc + k / 32u], 1u << (k % 32u));
+                    }
                 }
             }
         }

@@ -1,4 +1,6 @@
-//! The `voxd` command line: voxelize meshes, inspect and convert volumes.
+//! The `voxd` command line: voxelize meshes, inspect and convert volumes, benchmark engines.
+
+mod bench;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -6,7 +8,7 @@ use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand};
 use voxd::codec::{VolumeFormat, vxl};
-use voxd::engine::gpu::GpuOptions;
+use voxd::engine::gpu::{GpuOptions, SolidStrategy};
 use voxd::engine::{EngineChoice, GridMesh, Method};
 use voxd::grid::{Grid, GridLimits, GridSpec};
 use voxd::mesh::{self, Format, MeshDiagnostics};
@@ -31,6 +33,31 @@ enum Command {
     Info { file: PathBuf },
     /// Convert a volume between formats, chosen by the files' extensions.
     Convert { input: PathBuf, output: PathBuf },
+    /// Time the CPU and GPU engines per method and resolution on a mesh (a markdown table).
+    Bench {
+        mesh: PathBuf,
+        /// Cubic resolutions, comma-separated.
+        #[arg(long, default_value = "256,512,1024", value_delimiter = ',')]
+        resolutions: Vec<u32>,
+        /// Methods, comma-separated.
+        #[arg(
+            long,
+            default_value = "solid,surface,conservative",
+            value_delimiter = ','
+        )]
+        methods: Vec<Method>,
+        /// Timed runs per cell (after one warm-up).
+        #[arg(long, default_value_t = 3)]
+        runs: usize,
+        #[arg(long, env = "VOXD_ADAPTER")]
+        adapter: Option<String>,
+        /// Only the CPU engine.
+        #[arg(long)]
+        cpu_only: bool,
+        /// GPU solid strategy: scan (toggle bits + prefix XOR) or masks (XOR every word above).
+        #[arg(long, default_value = "scan", value_parser = ["scan", "masks"])]
+        gpu_solid: String,
+    },
 }
 
 #[derive(Args)]
@@ -125,6 +152,27 @@ fn main() -> ExitCode {
         Command::Voxelize(a) => voxelize(a),
         Command::Info { file } => info(&file),
         Command::Convert { input, output } => convert(&input, &output),
+        Command::Bench {
+            mesh,
+            resolutions,
+            methods,
+            runs,
+            adapter,
+            cpu_only,
+            gpu_solid,
+        } => bench::run(bench::BenchArgs {
+            mesh: &mesh,
+            resolutions: &resolutions,
+            methods: &methods,
+            runs: runs.max(1),
+            adapter,
+            cpu_only,
+            solid_strategy: if gpu_solid == "masks" {
+                SolidStrategy::Masks
+            } else {
+                SolidStrategy::ToggleScan
+            },
+        }),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

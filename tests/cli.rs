@@ -67,7 +67,8 @@ fn voxelize_writes_every_format_with_the_engine_bits() {
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let line = String::from_utf8(o.stdout).unwrap();
         assert!(
-            line.contains("40x40x40 solid") && line.contains("engine cpu"),
+            line.contains("40x40x40 solid")
+                && (line.contains("engine cpu") || line.contains("engine gpu (")),
             "{line}"
         );
         assert!(
@@ -83,6 +84,75 @@ fn voxelize_writes_every_format_with_the_engine_bits() {
             assert_eq!(got.grid(), want.grid());
         }
     }
+}
+
+/// `--engine gpu` writes the same file as `--engine cpu` (needs a Vulkan adapter, as tests/gpu.rs).
+#[test]
+fn gpu_and_cpu_engines_write_the_same_file() {
+    let mesh = data("Fox.glb");
+    let (g, c) = (tmp("fox-gpu.vxl"), tmp("fox-cpu.vxl"));
+    let og = voxd(&[
+        "voxelize",
+        s(&mesh),
+        "-o",
+        s(&g),
+        "--resolution",
+        "100",
+        "--method",
+        "conservative",
+        "--engine",
+        "gpu",
+    ]);
+    if !og.status.success() {
+        let err = String::from_utf8_lossy(&og.stderr);
+        assert!(
+            std::env::var("VOXD_REQUIRE_GPU").is_err() && err.contains("no GPU"),
+            "{err}"
+        );
+        eprintln!("NOTICE: {err}; skipping");
+        return;
+    }
+    assert!(String::from_utf8_lossy(&og.stdout).contains("engine gpu ("));
+    let oc = voxd(&[
+        "voxelize",
+        s(&mesh),
+        "-o",
+        s(&c),
+        "--resolution",
+        "100",
+        "--method",
+        "conservative",
+        "--engine",
+        "cpu",
+    ]);
+    assert!(oc.status.success());
+    assert_eq!(std::fs::read(&g).unwrap(), std::fs::read(&c).unwrap());
+    // A named adapter that does not exist is an error for --engine gpu, a fallback for auto.
+    let o = voxd(&[
+        "voxelize",
+        s(&mesh),
+        "-o",
+        s(&g),
+        "--engine",
+        "gpu",
+        "--adapter",
+        "no-such-adapter",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("no adapter named like \"no-such-adapter\"")
+    );
+    let o = voxd(&[
+        "voxelize",
+        s(&mesh),
+        "-o",
+        s(&g),
+        "--engine",
+        "auto",
+        "--adapter",
+        "no-such-adapter",
+    ]);
+    assert!(o.status.success() && String::from_utf8_lossy(&o.stdout).contains("engine cpu"));
 }
 
 #[test]

@@ -8,7 +8,7 @@ use std::sync::OnceLock;
 
 use common::*;
 use voxd::engine::cpu::CpuEngine;
-use voxd::engine::gpu::{GpuEngine, GpuOptions};
+use voxd::engine::gpu::{GpuEngine, GpuOptions, SolidStrategy};
 use voxd::engine::{Engine, GridMesh, Method};
 use voxd::grid::{Grid, GridSpec};
 use voxd::mesh::{self, Mesh};
@@ -78,6 +78,44 @@ fn random_meshes_equal_the_cpu() {
 }
 
 #[test]
+fn the_mask_strategy_equals_the_cpu_too() {
+    let Some(_) = gpu() else { return };
+    let masks = GpuEngine::new(GpuOptions {
+        adapter: std::env::var("VOXD_ADAPTER").ok(),
+        solid_strategy: SolidStrategy::Masks,
+        ..Default::default()
+    })
+    .unwrap();
+    for seed in 0..30u64 {
+        let mut rng = Rng::new(500 + seed);
+        let dims = [
+            1 + rng.below(16) as u32,
+            1 + rng.below(16) as u32,
+            [1, 31, 32, 33, 64, 65, 200][rng.below(7) as usize],
+        ];
+        let mesh = if seed % 2 == 0 {
+            random_closed(&mut rng, dims)
+        } else {
+            random_soup(&mut rng, dims)
+        };
+        check(
+            &masks,
+            &mesh,
+            &unit_grid(dims),
+            &format!("masks, seed {seed}"),
+        );
+    }
+    let (mut p, mut t) = (vec![], vec![]);
+    push_box(&mut p, &mut t, [0.5, 0.5, 0.5], [700.0, 500.0, 300.0]);
+    check(
+        &masks,
+        &Mesh::new(p, t).unwrap(),
+        &unit_grid([700, 500, 300]),
+        "masks, big box",
+    );
+}
+
+#[test]
 fn several_slabs_and_triangle_chunks_equal_the_cpu() {
     let Some(_) = gpu() else { return };
     // Tiny slabs (a few x-rows) and tiny triangle chunks (10 triangles).
@@ -85,6 +123,7 @@ fn several_slabs_and_triangle_chunks_equal_the_cpu() {
         adapter: std::env::var("VOXD_ADAPTER").ok(),
         max_slab_bytes: Some(3 * 40 * 8),
         max_chunk_bytes: Some(36 * 10),
+        ..Default::default()
     })
     .unwrap();
     let m = mesh::load_file(&data("spot.obj"), usize::MAX).unwrap();

@@ -11,6 +11,8 @@
 //! triangle entirely below the grid (all z < −1 voxel) still flips every column it covers, but its
 //! depth is irrelevant: it is flattened to z = −1 voxel, which changes no bit of any method.
 
+use rayon::prelude::*;
+
 use crate::grid::Grid;
 use crate::mesh::Mesh;
 
@@ -38,43 +40,51 @@ impl GridMesh {
         let scale = FIXED_ONE as f64 / grid.voxel_size;
         let g: Vec<[f64; 3]> = mesh
             .positions()
-            .iter()
+            .par_iter()
             .map(|p| [0, 1, 2].map(|a| (p[a] - grid.origin[a]) * scale))
             .collect();
         let d = grid.dims.map(|d| d as f64 * FIXED_ONE as f64);
         let one = FIXED_ONE as f64;
-        let mut triangles = Vec::with_capacity(mesh.triangles().len());
-        for tri in mesh.triangles() {
-            let v = tri.map(|i| g[i as usize]);
-            let lo = [0, 1, 2].map(|a| v[0][a].min(v[1][a]).min(v[2][a]));
-            let hi = [0, 1, 2].map(|a| v[0][a].max(v[1][a]).max(v[2][a]));
-            if hi[0] < -one
-                || lo[0] > d[0] + one
-                || hi[1] < -one
-                || lo[1] > d[1] + one
-                || lo[2] > d[2] + one
-            {
-                continue;
-            }
-            let below = hi[2] < -one;
-            let mut out = [[0i32; 3]; 3];
-            for (c, (p, &vi)) in v.iter().zip(tri).enumerate() {
-                for a in 0..3 {
-                    if a == 2 && below {
-                        out[c][a] = -(FIXED_ONE as i32);
-                        continue;
-                    }
-                    let r = p[a].round();
-                    if r.abs() > MAX_FIXED as f64 {
-                        return Err(EngineError::OutOfRange {
-                            vertex: vi as usize,
-                            voxels: (r / one).abs(),
-                        });
-                    }
-                    out[c][a] = r as i32;
+        // Indexed collect (direct writes), then one pass for errors and dropped triangles.
+        let snapped: Vec<Result<Option<[[i32; 3]; 3]>, EngineError>> = mesh
+            .triangles()
+            .par_iter()
+            .map(|tri| {
+                let v = tri.map(|i| g[i as usize]);
+                let lo = [0, 1, 2].map(|a| v[0][a].min(v[1][a]).min(v[2][a]));
+                let hi = [0, 1, 2].map(|a| v[0][a].max(v[1][a]).max(v[2][a]));
+                if hi[0] < -one
+                    || lo[0] > d[0] + one
+                    || hi[1] < -one
+                    || lo[1] > d[1] + one
+                    || lo[2] > d[2] + one
+                {
+                    return Ok(None);
                 }
-            }
-            triangles.push(out);
+                let below = hi[2] < -one;
+                let mut out = [[0i32; 3]; 3];
+                for (c, (p, &vi)) in v.iter().zip(tri).enumerate() {
+                    for a in 0..3 {
+                        if a == 2 && below {
+                            out[c][a] = -(FIXED_ONE as i32);
+                            continue;
+                        }
+                        let r = p[a].round();
+                        if r.abs() > MAX_FIXED as f64 {
+                            return Err(EngineError::OutOfRange {
+                                vertex: vi as usize,
+                                voxels: (r / one).abs(),
+                            });
+                        }
+                        out[c][a] = r as i32;
+                    }
+                }
+                Ok(Some(out))
+            })
+            .collect();
+        let mut triangles = Vec::with_capacity(snapped.len());
+        for t in snapped {
+            triangles.extend(t?);
         }
         Ok(GridMesh {
             grid: *grid,

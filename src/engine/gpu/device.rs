@@ -30,6 +30,7 @@ pub(super) struct GpuDevice {
     pub limits: wgpu::Limits,
     pub summary: AdapterSummary,
     pub solid: wgpu::ComputePipeline,
+    pub solid_masks: wgpu::ComputePipeline,
     pub prefix_xor: wgpu::ComputePipeline,
     pub surface: wgpu::ComputePipeline,
     pub union: wgpu::ComputePipeline,
@@ -94,7 +95,7 @@ impl GpuDevice {
             driver: format!("{} {}", info.driver, info.driver_info)
                 .trim()
                 .to_string(),
-            max_storage_buffer_binding_size: limits.max_storage_buffer_binding_size as u64,
+            max_storage_buffer_binding_size: limits.max_storage_buffer_binding_size,
             max_buffer_size: limits.max_buffer_size,
         };
         tracing::info!(?summary, "GPU engine ready");
@@ -117,7 +118,8 @@ impl GpuDevice {
         };
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let dev = GpuDevice {
-            solid: pipeline("solid", SOLID, &[]),
+            solid: pipeline("solid", SOLID, &[("MASKS", 0.0)]),
+            solid_masks: pipeline("solid_masks", SOLID, &[("MASKS", 1.0)]),
             prefix_xor: pipeline("prefix_xor", PREFIX_XOR, &[]),
             surface: pipeline("surface", SURFACE, &[]),
             union: pipeline("union", COMBINE, &[("SUBTRACT", 0.0)]),

@@ -30,6 +30,19 @@ pub struct GpuOptions {
     pub max_slab_bytes: Option<u64>,
     /// Cap on one triangle chunk's bytes; tests use it to force several chunks.
     pub max_chunk_bytes: Option<u64>,
+    /// How solid turns crossings into parity.
+    pub solid_strategy: SolidStrategy,
+}
+
+/// Two ways to turn crossings into parity on the GPU; both give the same bits.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SolidStrategy {
+    /// One atomic XOR of a single bit per crossing, then a prefix-XOR pass up each column. The
+    /// default: faster in every measurement so far (docs/benchmarks.md).
+    #[default]
+    ToggleScan,
+    /// Atomic XOR of all the words above each crossing; no scan pass.
+    Masks,
 }
 
 /// Where the time of one voxelization went.
@@ -122,7 +135,7 @@ impl GpuEngine {
         let mut vol = BitVolume::new(grid);
         let wpc32 = 2 * words_per_column(nz) as u64;
         let row_bytes = ny as u64 * wpc32 * 4;
-        let binding = dev.limits.max_storage_buffer_binding_size as u64;
+        let binding = dev.limits.max_storage_buffer_binding_size;
         let slab_limit = self
             .options
             .max_slab_bytes
@@ -208,10 +221,17 @@ impl GpuEngine {
                 let n = tris_per_chunk.min(mesh.triangles.len() - base);
                 let part = &mesh.triangles[*base..*base + n];
                 if need_solid {
-                    let items = work::solid_items(part, xr.clone(), grid.dims);
-                    self.dispatch_items(
-                        dev, &mut enc, &dev.solid, &params, tris, &items, 4, &slab_a,
-                    );
+                    let masks = self.options.solid_strategy == SolidStrategy::Masks;
+                    // With masks a crossing touches up to every word of its column: fewer columns
+                    // per item keep the invocation under the loop cap.
+                    let side = if masks {
+                        (work::MAX_TILE * 16 / wpc32 as u32).clamp(1, 1024).isqrt()
+                    } else {
+                        32
+                    };
+                    let items = work::solid_items(part, xr.clone(), grid.dims, side);
+                    let pipeline = if masks { &dev.solid_masks } else { &dev.solid };
+                    self.dispatch_items(dev, &mut enc, pipeline, &params, tris, &items, 4, &slab_a);
                 }
                 if need_surface {
                     let items = work::surface_items(part, xr.clone(), grid.dims);
@@ -228,7 +248,7 @@ impl GpuEngine {
                     );
                 }
             }
-            if need_solid {
+            if need_solid && self.options.solid_strategy == SolidStrategy::ToggleScan {
                 let cols = rows * ny;
                 let u = self.uniform(dev, &params);
                 let bind = [(0, u.as_entire_binding()), (1, slab_a.as_entire_binding())];

@@ -11,9 +11,15 @@ use crate::engine::{axis_bounds, box_range, centre_range, widen};
 /// Columns (solid) or voxels (surface) per work item.
 pub const MAX_TILE: u32 = 1024;
 
-/// Items `[triangle, x0, y0, nx << 16 | ny]` covering, for each triangle with a non-zero
-/// projected area, the columns of the slab whose centres lie in its bounding box.
-pub fn solid_items(tris: &[[[i32; 3]; 3]], slab: Range<u32>, dims: [u32; 3]) -> Vec<u32> {
+/// Items `[triangle, x0, y0, nx << 16 | ny]` of at most `side × side` columns covering, for each
+/// triangle with a non-zero projected area, the columns of the slab whose centres lie in its
+/// bounding box.
+pub fn solid_items(
+    tris: &[[[i32; 3]; 3]],
+    slab: Range<u32>,
+    dims: [u32; 3],
+    side: u32,
+) -> Vec<u32> {
     per_triangle(tris, |t, v, out| {
         let area2 =
             (v[1][0] - v[0][0]) * (v[2][1] - v[0][1]) - (v[1][1] - v[0][1]) * (v[2][0] - v[0][0]);
@@ -31,11 +37,10 @@ pub fn solid_items(tris: &[[[i32; 3]; 3]], slab: Range<u32>, dims: [u32; 3]) -> 
         if x0 > x1 {
             return;
         }
-        let side = 32;
-        for tx in (x0..=x1).step_by(side) {
-            for ty in (y0..=y1).step_by(side) {
-                let nx = (x1 - tx + 1).min(side as u32);
-                let ny = (y1 - ty + 1).min(side as u32);
+        for tx in (x0..=x1).step_by(side as usize) {
+            for ty in (y0..=y1).step_by(side as usize) {
+                let nx = (x1 - tx + 1).min(side);
+                let ny = (y1 - ty + 1).min(side);
                 out.extend_from_slice(&[t, tx, ty, nx << 16 | ny]);
             }
         }
@@ -115,7 +120,7 @@ mod tests {
             voxels += (nx * ny * nz) as u64;
         }
         assert_eq!(voxels, 1000 * 700 * 300);
-        let items = solid_items(&[t], 100..200, dims);
+        let items = solid_items(&[t], 100..200, dims, 32);
         let cols: u64 = items
             .chunks(4)
             .map(|it| ((it[3] >> 16) * (it[3] & 0xffff)) as u64)
