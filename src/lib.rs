@@ -13,6 +13,7 @@ pub mod codec;
 pub mod engine;
 pub mod grid;
 pub mod mesh;
+pub mod service;
 pub mod volume;
 
 pub use engine::Method;

@@ -33,6 +33,8 @@ enum Command {
     Info { file: PathBuf },
     /// Convert a volume between formats, chosen by the files' extensions.
     Convert { input: PathBuf, output: PathBuf },
+    /// Run the HTTP service.
+    Serve(ServeArgs),
     /// Time the CPU and GPU engines per method and resolution on a mesh (a markdown table).
     Bench {
         mesh: PathBuf,
@@ -102,6 +104,76 @@ struct VoxelizeArgs {
     format: Option<Format>,
 }
 
+#[derive(Args)]
+struct ServeArgs {
+    /// Address to listen on (port 0 picks a free port; the bound address is printed).
+    #[arg(long, env = "VOXD_ADDR", default_value = "127.0.0.1:8080")]
+    addr: std::net::SocketAddr,
+    /// Where volumes are stored.
+    #[arg(long, env = "VOXD_DATA_DIR", default_value = "./voxd-data")]
+    data_dir: PathBuf,
+    /// auto, gpu or cpu.
+    #[arg(long, env = "VOXD_ENGINE", default_value = "auto")]
+    engine: EngineChoice,
+    #[arg(long, env = "VOXD_ADAPTER")]
+    adapter: Option<String>,
+    /// Jobs that may wait; more are refused with 429.
+    #[arg(long, env = "VOXD_QUEUE_CAPACITY", default_value_t = 64)]
+    queue_capacity: usize,
+    /// Jobs run at once on the CPU engine (the GPU engine runs one at a time).
+    #[arg(long, env = "VOXD_WORKERS", default_value_t = 1)]
+    workers: usize,
+    /// Largest request body in bytes.
+    #[arg(long, env = "VOXD_MAX_BODY_BYTES", default_value_t = 256 << 20)]
+    max_body_bytes: usize,
+    #[arg(long, env = "VOXD_MAX_TRIANGLES", default_value_t = 20_000_000)]
+    max_triangles: usize,
+    /// Voxel budget of one job.
+    #[arg(long, env = "VOXD_MAX_VOXELS", default_value_t = 1024 * 1024 * 1024)]
+    max_voxels: u64,
+    /// Total bytes of stored volumes.
+    #[arg(long, env = "VOXD_MAX_STORE_BYTES", default_value_t = 10 << 30)]
+    max_store_bytes: u64,
+}
+
+fn serve(a: ServeArgs) -> Result<(), String> {
+    let config = voxd::service::Config {
+        addr: a.addr,
+        data_dir: a.data_dir,
+        engine: a.engine,
+        adapter: a.adapter,
+        queue_capacity: a.queue_capacity.max(1),
+        workers: a.workers.max(1),
+        max_body_bytes: a.max_body_bytes,
+        max_triangles: a.max_triangles,
+        max_voxels: a.max_voxels,
+        max_store_bytes: a.max_store_bytes,
+    };
+    let rt = tokio::runtime::Runtime::new().map_err(|e| e.to_string())?;
+    rt.block_on(voxd::service::serve(config, shutdown_signal(), |addr| {
+        println!("voxd listening on http://{addr}");
+        use std::io::Write;
+        let _ = std::io::stdout().flush();
+    }))
+}
+
+/// SIGTERM or Ctrl-C.
+async fn shutdown_signal() {
+    let term = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(_) => std::future::pending().await,
+        }
+    };
+    tokio::select! {
+        _ = tokio::signal::ctrl_c() => {},
+        _ = term => {},
+    }
+    tracing::info!("shutdown signal received");
+}
+
 fn parse_f64x3(s: &str) -> Result<[f64; 3], String> {
     let v: Vec<f64> = s
         .split(',')
@@ -152,6 +224,7 @@ fn main() -> ExitCode {
         Command::Voxelize(a) => voxelize(a),
         Command::Info { file } => info(&file),
         Command::Convert { input, output } => convert(&input, &output),
+        Command::Serve(a) => serve(a),
         Command::Bench {
             mesh,
             resolutions,

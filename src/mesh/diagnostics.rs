@@ -2,11 +2,11 @@
 //! seams do not count as holes).
 
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::Mesh;
 
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct MeshDiagnostics {
     pub triangles: usize,
     /// Distinct positions used by triangles.

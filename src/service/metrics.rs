@@ -1,0 +1,104 @@
+//! Prometheus text exposition of the service's counters, written by hand (a few lines each).
+
+use std::fmt::Write;
+use std::sync::Mutex;
+
+use super::jobs::Jobs;
+
+const BUCKETS: [f64; 9] = [0.01, 0.05, 0.1, 0.25, 0.5, 1.0, 5.0, 10.0, 60.0];
+
+pub struct Metrics {
+    engine: String,
+    inner: Mutex<Inner>,
+}
+
+#[derive(Default)]
+struct Inner {
+    buckets: [u64; BUCKETS.len()],
+    count: u64,
+    sum: f64,
+    voxels: u64,
+    voxel_seconds: f64,
+    last_rate: f64,
+}
+
+impl Metrics {
+    pub fn new(engine: &str) -> Metrics {
+        Metrics {
+            engine: engine.replace('"', "'"),
+            inner: Mutex::new(Inner::default()),
+        }
+    }
+
+    pub fn job_done(&self, secs: f64, voxels: Option<u64>) {
+        let mut m = self.inner.lock().unwrap();
+        for (b, le) in m.buckets.iter_mut().zip(BUCKETS) {
+            if secs <= le {
+                *b += 1;
+            }
+        }
+        m.count += 1;
+        m.sum += secs;
+        if let Some(v) = voxels {
+            m.voxels += v;
+            m.voxel_seconds += secs;
+            m.last_rate = v as f64 / secs.max(1e-9);
+        }
+    }
+
+    pub async fn render(&self, jobs: &Jobs) -> String {
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            "# HELP voxd_jobs Jobs known to this process, by state and method.\n# TYPE voxd_jobs gauge"
+        );
+        let mut counts: Vec<_> = jobs.count_by_state().await.into_iter().collect();
+        counts.sort_by(|a, b| (a.0.0.name(), &a.0.1).cmp(&(b.0.0.name(), &b.0.1)));
+        for ((state, method), n) in counts {
+            let _ = writeln!(
+                s,
+                "voxd_jobs{{state=\"{}\",method=\"{method}\"}} {n}",
+                state.name()
+            );
+        }
+        let _ = writeln!(
+            s,
+            "# HELP voxd_queue_depth Jobs waiting.\n# TYPE voxd_queue_depth gauge\nvoxd_queue_depth {}",
+            jobs.depth().await
+        );
+        let m = self.inner.lock().unwrap();
+        let _ = writeln!(
+            s,
+            "# HELP voxd_job_duration_seconds Time jobs spent running.\n# TYPE voxd_job_duration_seconds histogram"
+        );
+        for (b, le) in m.buckets.iter().zip(BUCKETS) {
+            let _ = writeln!(s, "voxd_job_duration_seconds_bucket{{le=\"{le}\"}} {b}");
+        }
+        let _ = writeln!(
+            s,
+            "voxd_job_duration_seconds_bucket{{le=\"+Inf\"}} {}",
+            m.count
+        );
+        let _ = writeln!(
+            s,
+            "voxd_job_duration_seconds_sum {}\nvoxd_job_duration_seconds_count {}",
+            m.sum, m.count
+        );
+        let _ = writeln!(
+            s,
+            "# HELP voxd_voxels_total Voxels produced by succeeded jobs.\n# TYPE voxd_voxels_total counter\nvoxd_voxels_total {}",
+            m.voxels
+        );
+        let _ = writeln!(
+            s,
+            "# HELP voxd_voxels_per_second Voxels per second of the last succeeded job.\n# TYPE voxd_voxels_per_second gauge\nvoxd_voxels_per_second {}",
+            m.last_rate
+        );
+        let _ = writeln!(
+            s,
+            "# HELP voxd_engine_info The engine this process runs.\n# TYPE voxd_engine_info gauge\nvoxd_engine_info{{engine=\"{}\"}} 1",
+            self.engine
+        );
+        s
+    }
+}

@@ -1,0 +1,777 @@
+//! The HTTP service, end to end: the real `voxd serve` binary on 127.0.0.1 with an ephemeral
+//! port, spoken to over TCP with a small HTTP/1.1 client. Loopback only; every loop is bounded.
+
+mod common;
+
+use std::collections::HashMap;
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use common::*;
+use serde_json::Value;
+use voxd::codec::VolumeFormat;
+use voxd::engine::cpu::CpuEngine;
+use voxd::engine::{Engine, GridMesh, Method};
+use voxd::grid::{Grid, GridSpec};
+use voxd::volume::Volume;
+
+struct Server {
+    child: Child,
+    addr: String,
+    dir: PathBuf,
+}
+
+impl Server {
+    fn start(dir: &Path, extra: &[&str]) -> Server {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_voxd"))
+            .args([
+                "serve",
+                "--addr",
+                "127.0.0.1:0",
+                "--data-dir",
+                dir.to_str().unwrap(),
+                "--engine",
+                "cpu",
+            ])
+            .args(extra)
+            .env("VOXD_LOG", "warn")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .unwrap();
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap())
+            .read_line(&mut line)
+            .unwrap();
+        let addr = line
+            .trim()
+            .strip_prefix("voxd listening on http://")
+            .unwrap_or_else(|| panic!("unexpected first line {line:?}"))
+            .to_string();
+        Server {
+            child,
+            addr,
+            dir: dir.to_path_buf(),
+        }
+    }
+
+    fn req(&self, method: &str, path: &str, headers: &[(&str, &str)], body: &[u8]) -> Resp {
+        request(&self.addr, method, path, headers, body)
+    }
+
+    /// SIGTERM, then the exit status.
+    fn stop(mut self) -> std::process::ExitStatus {
+        Command::new("kill")
+            .args(["-TERM", &self.child.id().to_string()])
+            .status()
+            .unwrap();
+        let deadline = Instant::now() + Duration::from_secs(60);
+        loop {
+            if let Some(s) = self.child.try_wait().unwrap() {
+                return s;
+            }
+            assert!(Instant::now() < deadline, "server did not stop");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+#[derive(Debug)]
+struct Resp {
+    status: u16,
+    headers: HashMap<String, String>,
+    body: Vec<u8>,
+}
+
+impl Resp {
+    fn json(&self) -> Value {
+        serde_json::from_slice(&self.body)
+            .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&self.body)))
+    }
+    fn header(&self, h: &str) -> Option<&str> {
+        self.headers.get(h).map(String::as_str)
+    }
+}
+
+fn request(addr: &str, method: &str, path: &str, headers: &[(&str, &str)], body: &[u8]) -> Resp {
+    let mut s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(120))).unwrap();
+    let mut head = format!(
+        "{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nContent-Length: {}\r\n",
+        body.len()
+    );
+    for (k, v) in headers {
+        head += &format!("{k}: {v}\r\n");
+    }
+    head += "\r\n";
+    s.write_all(head.as_bytes()).unwrap();
+    s.write_all(body).unwrap();
+    let mut raw = Vec::new();
+    s.read_to_end(&mut raw).unwrap();
+    let split = raw
+        .windows(4)
+        .position(|w| w == b"\r\n\r\n")
+        .expect("response head");
+    let head = String::from_utf8_lossy(&raw[..split]).to_string();
+    let mut lines = head.split("\r\n");
+    let status = lines
+        .next()
+        .unwrap()
+        .split(' ')
+        .nth(1)
+        .unwrap()
+        .parse()
+        .unwrap();
+    let headers: HashMap<String, String> = lines
+        .filter_map(|l| l.split_once(':'))
+        .map(|(k, v)| (k.trim().to_ascii_lowercase(), v.trim().to_string()))
+        .collect();
+    let mut body = raw[split + 4..].to_vec();
+    if headers
+        .get("transfer-encoding")
+        .is_some_and(|t| t == "chunked")
+    {
+        let mut out = Vec::new();
+        let mut rest = &body[..];
+        loop {
+            let eol = rest.windows(2).position(|w| w == b"\r\n").unwrap();
+            let n = usize::from_str_radix(std::str::from_utf8(&rest[..eol]).unwrap().trim(), 16)
+                .unwrap();
+            if n == 0 {
+                break;
+            }
+            out.extend_from_slice(&rest[eol + 2..eol + 2 + n]);
+            rest = &rest[eol + 2 + n + 2..];
+        }
+        body = out;
+    }
+    Resp {
+        status,
+        headers,
+        body,
+    }
+}
+
+fn tmpdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("voxd-svc-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// What the CLI/library gives for the same request.
+fn expected(mesh_path: &Path, spec: GridSpec, m: Method) -> voxd::BitVolume {
+    let mesh = voxd::mesh::load_file(mesh_path, usize::MAX).unwrap();
+    let (lo, hi) = mesh.bounds();
+    let g = Grid::fit(lo, hi, spec, 0, Default::default()).unwrap();
+    CpuEngine
+        .voxelize(&GridMesh::new(&mesh, &g).unwrap(), m)
+        .unwrap()
+}
+
+fn decode(bytes: &[u8]) -> voxd::BitVolume {
+    match VolumeFormat::sniff(bytes).unwrap().decode(bytes).unwrap() {
+        Volume::Bits(b) => b,
+        Volume::Density(_) => panic!("density"),
+    }
+}
+
+fn gz(b: &[u8]) -> Vec<u8> {
+    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    e.write_all(b).unwrap();
+    e.finish().unwrap()
+}
+
+fn assert_problem(r: &Resp, status: u16, slug: &str) -> Value {
+    assert_eq!(r.status, status, "{}", String::from_utf8_lossy(&r.body));
+    assert_eq!(r.header("content-type"), Some("application/problem+json"));
+    let p = r.json();
+    assert_eq!(
+        p["type"],
+        format!("https://voxd.dev/problems/{slug}"),
+        "{p}"
+    );
+    assert_eq!(p["status"], status);
+    assert!(p["title"].as_str().is_some_and(|t| !t.is_empty()));
+    assert!(p["detail"].as_str().is_some_and(|t| t.len() > 10), "{p}");
+    assert_eq!(p["request_id"].as_str(), r.header("x-request-id"));
+    p
+}
+
+#[test]
+fn every_upload_format_and_download_format_matches_the_library() {
+    let srv = Server::start(&tmpdir("formats"), &[]);
+    let spot = std::fs::read(data("spot.obj")).unwrap();
+    let stl = {
+        // Binary STL of spot, written here.
+        let m = voxd::mesh::load_file(&data("spot.obj"), usize::MAX).unwrap();
+        let mut b = vec![0u8; 80];
+        b.extend_from_slice(&(m.triangles().len() as u32).to_le_bytes());
+        for t in 0..m.triangles().len() {
+            b.extend_from_slice(&[0u8; 12]);
+            for p in m.triangle(t) {
+                for c in p {
+                    b.extend_from_slice(&(c as f32).to_le_bytes());
+                }
+            }
+            b.extend_from_slice(&[0, 0]);
+        }
+        b
+    };
+    let stl_path = tmpdir("stl").join("spot.stl");
+    std::fs::write(&stl_path, &stl).unwrap();
+    // (what, body, headers, the file the library reads for the expected bits)
+    type Case<'a> = (&'a str, Vec<u8>, Vec<(&'a str, &'a str)>, PathBuf);
+    let cases: Vec<Case> = vec![
+        (
+            "obj",
+            spot.clone(),
+            vec![("Content-Type", "model/obj")],
+            data("spot.obj"),
+        ),
+        (
+            "obj gzip",
+            gz(&spot),
+            vec![("Content-Type", "model/obj"), ("Content-Encoding", "gzip")],
+            data("spot.obj"),
+        ),
+        (
+            "glb",
+            std::fs::read(data("Fox.glb")).unwrap(),
+            vec![("Content-Type", "model/gltf-binary")],
+            data("Fox.glb"),
+        ),
+        (
+            "gltf",
+            std::fs::read(data("Box.gltf")).unwrap(),
+            vec![("Content-Type", "model/gltf+json")],
+            data("Box.gltf"),
+        ),
+        (
+            "stl",
+            stl.clone(),
+            vec![("Content-Type", "model/stl")],
+            stl_path.clone(),
+        ),
+        ("stl by query", stl, vec![], stl_path),
+    ];
+    for (what, body, headers, path) in cases {
+        let q = if what == "stl by query" {
+            "&format=stl"
+        } else {
+            ""
+        };
+        let r = srv.req(
+            "POST",
+            &format!("/v1/voxelize?resolution=40&method=conservative&wait=60{q}"),
+            &headers,
+            &body,
+        );
+        assert_eq!(
+            r.status,
+            201,
+            "{what}: {}",
+            String::from_utf8_lossy(&r.body)
+        );
+        let meta = r.json();
+        let id = meta["id"].as_str().unwrap();
+        assert_eq!(
+            r.header("location"),
+            Some(format!("/v1/volumes/{id}").as_str())
+        );
+        let want = expected(
+            &path,
+            GridSpec::Resolution {
+                n: 40,
+                cubic: false,
+            },
+            Method::Conservative,
+        );
+        assert_eq!(meta["solid_voxels"], want.count_ones(), "{what}");
+        for f in ["vxl", "npy", "binvox"] {
+            let d = srv.req(
+                "GET",
+                &format!("/v1/volumes/{id}/data?format={f}"),
+                &[],
+                &[],
+            );
+            assert_eq!(d.status, 200, "{what} {f}");
+            let got = decode(&d.body);
+            if f == "binvox" {
+                assert_eq!(got.count_ones(), want.count_ones(), "{what} {f}");
+            } else {
+                assert_eq!(got.words(), want.words(), "{what} {f}");
+            }
+        }
+    }
+}
+
+#[test]
+fn polling_wait_cancel_and_caching() {
+    let srv = Server::start(&tmpdir("poll"), &[]);
+    let spot = std::fs::read(data("spot.obj")).unwrap();
+    // wait=0: 202 and a job to poll.
+    let r = srv.req(
+        "POST",
+        "/v1/voxelize?resolution=64&name=spot",
+        &[("Content-Type", "model/obj")],
+        &spot,
+    );
+    assert_eq!(r.status, 202);
+    let job = r.json();
+    let id = job["id"].as_str().unwrap().to_string();
+    assert_eq!(
+        r.header("location"),
+        Some(format!("/v1/jobs/{id}").as_str())
+    );
+    assert!(["queued", "running", "succeeded"].contains(&job["state"].as_str().unwrap()));
+    let deadline = Instant::now() + Duration::from_secs(60);
+    let done = loop {
+        let j = srv.req("GET", &format!("/v1/jobs/{id}"), &[], &[]).json();
+        if j["state"] == "succeeded" {
+            break j;
+        }
+        assert!(j["state"] != "failed" && Instant::now() < deadline, "{j}");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert_eq!(done["progress"], 1.0);
+    let vid = done["volume_id"].as_str().unwrap();
+    let meta = srv
+        .req("GET", &format!("/v1/volumes/{vid}"), &[], &[])
+        .json();
+    assert_eq!(meta["name"], "spot");
+    assert_eq!(meta["source"]["triangles"], 5856);
+    assert_eq!(meta["diagnostics"]["watertight"], true);
+    // ETag / If-None-Match, and compression of uncompressed formats.
+    let d = srv.req(
+        "GET",
+        &format!("/v1/volumes/{vid}/data?format=npy"),
+        &[("Accept-Encoding", "gzip")],
+        &[],
+    );
+    assert_eq!(d.header("content-encoding"), Some("gzip"));
+    let etag = d.header("etag").unwrap().to_string();
+    let again = srv.req(
+        "GET",
+        &format!("/v1/volumes/{vid}/data?format=npy"),
+        &[("If-None-Match", &etag)],
+        &[],
+    );
+    assert_eq!(again.status, 304);
+    assert!(again.body.is_empty());
+    let vxl = srv.req(
+        "GET",
+        &format!("/v1/volumes/{vid}/data"),
+        &[("Accept-Encoding", "gzip")],
+        &[],
+    );
+    assert_eq!(vxl.header("content-type"), Some("application/vnd.voxd.vxl"));
+    assert_eq!(
+        vxl.header("content-encoding"),
+        None,
+        "vxl is compressed already"
+    );
+    // Cancel: a big job occupies the worker, the next one waits and is canceled.
+    let big = srv
+        .req(
+            "POST",
+            "/v1/voxelize?resolution=700&method=conservative",
+            &[("Content-Type", "model/obj")],
+            &spot,
+        )
+        .json();
+    let queued = srv
+        .req(
+            "POST",
+            "/v1/voxelize?resolution=32",
+            &[("Content-Type", "model/obj")],
+            &spot,
+        )
+        .json();
+    let qid = queued["id"].as_str().unwrap();
+    let c = srv.req("DELETE", &format!("/v1/jobs/{qid}"), &[], &[]);
+    assert_eq!(c.status, 200, "{}", String::from_utf8_lossy(&c.body));
+    assert_eq!(c.json()["state"], "canceled");
+    assert_problem(
+        &srv.req("DELETE", &format!("/v1/jobs/{qid}"), &[], &[]),
+        409,
+        "not-cancelable",
+    );
+    let bid = big["id"].as_str().unwrap();
+    let c = srv.req("DELETE", &format!("/v1/jobs/{bid}"), &[], &[]);
+    assert_eq!(c.status, 200);
+    assert_eq!(
+        srv.req("GET", &format!("/v1/jobs/{bid}"), &[], &[]).json()["state"],
+        "canceled"
+    );
+    // Delete a volume.
+    assert_eq!(
+        srv.req("DELETE", &format!("/v1/volumes/{vid}"), &[], &[])
+            .status,
+        204
+    );
+    assert_problem(
+        &srv.req("GET", &format!("/v1/volumes/{vid}"), &[], &[]),
+        404,
+        "not-found",
+    );
+}
+
+#[test]
+fn every_error_is_a_problem_document() {
+    let dir = tmpdir("errors");
+    let srv = Server::start(
+        &dir,
+        &[
+            "--max-triangles",
+            "1000",
+            "--max-body-bytes",
+            "400000",
+            "--max-voxels",
+            "1000000",
+        ],
+    );
+    let spot = std::fs::read(data("spot.obj")).unwrap();
+    let obj = [("Content-Type", "model/obj")];
+    let post =
+        |q: &str, h: &[(&str, &str)], b: &[u8]| srv.req("POST", &format!("/v1/voxelize{q}"), h, b);
+    assert_problem(
+        &post("", &obj, b"v 0 0 0\nv 1 0 0\nf 1 2 9\n"),
+        422,
+        "invalid-mesh",
+    );
+    assert_problem(&post("", &obj, b""), 422, "invalid-mesh");
+    assert_problem(
+        &post("", &[("Content-Type", "text/html")], b"<html>"),
+        415,
+        "unsupported-media-type",
+    );
+    assert_problem(
+        &post("?format=dwg", &[], b"x"),
+        415,
+        "unsupported-media-type",
+    );
+    assert_problem(
+        &post("", &[], b"hello there"),
+        415,
+        "unsupported-media-type",
+    );
+    let ext = r#"{"asset":{"version":"2.0"},"buffers":[{"uri":"/etc/passwd","byteLength":12}],"meshes":[],"scenes":[]}"#;
+    assert_problem(
+        &post("", &[("Content-Type", "model/gltf+json")], ext.as_bytes()),
+        422,
+        "external-resource",
+    );
+    assert_problem(&post("", &obj, &spot), 422, "too-many-triangles");
+    let big = vec![b' '; 500_000];
+    assert_problem(&post("", &obj, &big), 413, "body-too-large");
+    let small = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\n";
+    assert_problem(&post("?resolution=200", &obj, small), 422, "grid-too-large");
+    assert_problem(
+        &post("?method=sculpt", &obj, small),
+        400,
+        "invalid-parameter",
+    );
+    assert_problem(
+        &post("?fill=winding", &obj, small),
+        400,
+        "invalid-parameter",
+    );
+    assert_problem(
+        &post("?resolution=-3", &obj, small),
+        400,
+        "invalid-parameter",
+    );
+    assert_problem(
+        &post("?origin=0,0&dims=2,2,2&voxel_size=1", &obj, small),
+        400,
+        "invalid-parameter",
+    );
+    assert_problem(&post("?colour=red", &obj, small), 400, "invalid-parameter");
+    assert_problem(&post("?wait=1000", &obj, small), 400, "invalid-parameter");
+    assert_problem(&srv.req("GET", "/v1/jobs/nope", &[], &[]), 404, "not-found");
+    assert_problem(
+        &srv.req("GET", "/v1/volumes/nope/data", &[], &[]),
+        404,
+        "not-found",
+    );
+    assert_problem(
+        &srv.req("GET", "/v1/nothing-here", &[], &[]),
+        404,
+        "not-found",
+    );
+    assert_problem(
+        &srv.req("GET", "/v1/volumes?limit=0", &[], &[]),
+        400,
+        "invalid-parameter",
+    );
+    // The request id a caller sends comes back in the problem.
+    let r = srv.req("GET", "/v1/jobs/nope", &[("x-request-id", "abc-123")], &[]);
+    assert_eq!(
+        assert_problem(&r, 404, "not-found")["request_id"],
+        "abc-123"
+    );
+    drop(srv);
+    // A store that is full.
+    let srv = Server::start(&tmpdir("full"), &["--max-store-bytes", "100"]);
+    let r = srv.req(
+        "POST",
+        "/v1/voxelize?resolution=16&wait=30",
+        &[("Content-Type", "model/obj")],
+        small,
+    );
+    assert_problem(&r, 507, "storage-full");
+}
+
+#[test]
+fn a_full_queue_says_429_and_loses_nothing_accepted() {
+    let srv = Server::start(&tmpdir("flood"), &["--queue-capacity", "3"]);
+    let spot = std::fs::read(data("spot.obj")).unwrap();
+    let obj = [("Content-Type", "model/obj")];
+    // Occupy the worker, then flood.
+    srv.req(
+        "POST",
+        "/v1/voxelize?resolution=1000&method=conservative",
+        &obj,
+        &spot,
+    );
+    let (mut accepted, mut refused) = (vec![], 0);
+    for _ in 0..12 {
+        let depth = String::from_utf8(srv.req("GET", "/metrics", &[], &[]).body).unwrap();
+        let depth: usize = depth
+            .lines()
+            .find_map(|l| l.strip_prefix("voxd_queue_depth "))
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!(depth <= 3, "queue depth {depth} over capacity");
+        let r = srv.req("POST", "/v1/voxelize?resolution=24", &obj, &spot);
+        match r.status {
+            202 => accepted.push(r.json()["id"].as_str().unwrap().to_string()),
+            429 => {
+                assert_problem(&r, 429, "queue-full");
+                assert_eq!(r.header("retry-after"), Some("5"));
+                refused += 1;
+            }
+            s => panic!("unexpected {s}"),
+        }
+    }
+    assert!(
+        refused >= 1 && accepted.len() >= 3,
+        "{refused} refused, {} accepted",
+        accepted.len()
+    );
+    let deadline = Instant::now() + Duration::from_secs(120);
+    for id in &accepted {
+        loop {
+            let j = srv.req("GET", &format!("/v1/jobs/{id}"), &[], &[]).json();
+            if j["state"] == "succeeded" {
+                break;
+            }
+            assert!(j["state"] != "failed" && Instant::now() < deadline, "{j}");
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+}
+
+#[test]
+fn concurrent_clients_get_their_own_results() {
+    let srv = Server::start(&tmpdir("concurrent"), &["--workers", "2"]);
+    let spot = std::fs::read(data("spot.obj")).unwrap();
+    let addr = srv.addr.clone();
+    let handles: Vec<_> = (0..6u32)
+        .map(|i| {
+            let (addr, spot) = (addr.clone(), spot.clone());
+            std::thread::spawn(move || {
+                let n = 20 + 7 * i;
+                let r = request(
+                    &addr,
+                    "POST",
+                    &format!("/v1/voxelize?resolution={n}&wait=60"),
+                    &[("Content-Type", "model/obj")],
+                    &spot,
+                );
+                assert_eq!(r.status, 201);
+                (n, r.json())
+            })
+        })
+        .collect();
+    for h in handles {
+        let (n, meta) = h.join().unwrap();
+        let want = expected(
+            &data("spot.obj"),
+            GridSpec::Resolution { n, cubic: false },
+            Method::Solid,
+        );
+        assert_eq!(meta["solid_voxels"], want.count_ones(), "resolution {n}");
+        assert_eq!(meta["grid"]["dims"], serde_json::json!(want.dims()));
+    }
+}
+
+#[test]
+fn restart_keeps_volumes_and_sigterm_finishes_the_running_job() {
+    let dir = tmpdir("restart");
+    let srv = Server::start(&dir, &[]);
+    let spot = std::fs::read(data("spot.obj")).unwrap();
+    let obj = [("Content-Type", "model/obj")];
+    let kept = srv
+        .req("POST", "/v1/voxelize?resolution=50&wait=60", &obj, &spot)
+        .json();
+    let kept_id = kept["id"].as_str().unwrap().to_string();
+    let bytes = srv
+        .req("GET", &format!("/v1/volumes/{kept_id}/data"), &[], &[])
+        .body;
+    // A job still running when SIGTERM arrives is finished and stored.
+    let running = srv
+        .req(
+            "POST",
+            "/v1/voxelize?resolution=500&method=conservative",
+            &obj,
+            &spot,
+        )
+        .json();
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while srv
+        .req(
+            "GET",
+            &format!("/v1/jobs/{}", running["id"].as_str().unwrap()),
+            &[],
+            &[],
+        )
+        .json()["state"]
+        == "queued"
+    {
+        assert!(Instant::now() < deadline);
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    // A leftover of an interrupted write must not survive a restart.
+    std::fs::write(dir.join("volumes/.half-written.vxl.1.tmp"), b"junk").unwrap();
+    let status = srv.stop();
+    assert!(status.success(), "{status:?}");
+    let srv = Server::start(&dir, &[]);
+    assert!(!dir.join("volumes/.half-written.vxl.1.tmp").exists());
+    let list = srv.req("GET", "/v1/volumes?limit=1", &[], &[]).json();
+    assert_eq!(list["volumes"].as_array().unwrap().len(), 1);
+    let next = list["next"].as_str().expect("a second page");
+    let rest = srv.req("GET", next, &[], &[]).json();
+    let all: Vec<Value> = list["volumes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .chain(rest["volumes"].as_array().unwrap())
+        .cloned()
+        .collect();
+    assert_eq!(
+        all.len(),
+        2,
+        "the finished and the interrupted-by-SIGTERM volume"
+    );
+    assert!(all.iter().any(|v| {
+        v["grid"]["dims"][1] == 500
+            || v["grid"]["dims"]
+                .as_array()
+                .unwrap()
+                .contains(&serde_json::json!(500))
+    }));
+    assert_eq!(
+        srv.req("GET", &format!("/v1/volumes/{kept_id}/data"), &[], &[])
+            .body,
+        bytes
+    );
+    assert_eq!(srv.dir, dir);
+}
+
+#[test]
+fn health_metrics_and_the_openapi_document() {
+    let srv = Server::start(&tmpdir("health"), &[]);
+    assert_eq!(srv.req("GET", "/healthz", &[], &[]).json()["status"], "ok");
+    let ready = srv.req("GET", "/readyz", &[], &[]).json();
+    assert_eq!(ready["status"], "ready");
+    assert_eq!(ready["engine"], "cpu");
+    srv.req(
+        "POST",
+        "/v1/voxelize?resolution=16&wait=30",
+        &[("Content-Type", "model/obj")],
+        &std::fs::read(data("spot.obj")).unwrap(),
+    );
+    let m = String::from_utf8(srv.req("GET", "/metrics", &[], &[]).body).unwrap();
+    for want in [
+        "voxd_jobs{state=\"succeeded\",method=\"solid\"} 1",
+        "voxd_queue_depth 0",
+        "voxd_job_duration_seconds_count 1",
+        "voxd_engine_info{engine=\"cpu\"} 1",
+    ] {
+        assert!(m.contains(want), "{want} missing from\n{m}");
+    }
+    let doc = srv.req("GET", "/openapi.yaml", &[], &[]);
+    assert_eq!(doc.header("content-type"), Some("application/yaml"));
+    assert_eq!(
+        doc.body,
+        std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("openapi.yaml")).unwrap()
+    );
+}
+
+/// The router (src/service/routes.rs) and openapi.yaml list the same paths and methods, and every
+/// documented operation answers on the live server (not the fallback).
+#[test]
+fn router_and_openapi_agree() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let yaml = std::fs::read_to_string(root.join("openapi.yaml")).unwrap();
+    let mut documented = std::collections::BTreeSet::new();
+    let mut path = None;
+    for line in yaml.lines() {
+        if line == "components:" {
+            break;
+        }
+        if let Some(p) = line.strip_prefix("  /").and_then(|l| l.strip_suffix(':')) {
+            path = Some(format!("/{p}"));
+        } else if let (Some(p), Some(m)) = (
+            &path,
+            line.strip_prefix("    ").and_then(|l| l.strip_suffix(':')),
+        ) {
+            if ["get", "post", "delete", "put", "patch"].contains(&m) {
+                documented.insert((p.clone(), m.to_uppercase()));
+            }
+        }
+    }
+    let src = std::fs::read_to_string(root.join("src/service/routes.rs")).unwrap();
+    let mut routed = std::collections::BTreeSet::new();
+    // Each `.route(` call up to the next one (or the fallback), whatever rustfmt's layout.
+    for part in src.split(".route(").skip(1) {
+        let part = part.split(".fallback(").next().unwrap();
+        let Some((_, rest)) = part.split_once('"') else {
+            continue;
+        };
+        let (p, handlers) = rest.split_once('"').unwrap();
+        for m in ["get", "post", "delete", "put", "patch"] {
+            if [" ", ".", "("]
+                .iter()
+                .any(|pre| handlers.contains(&format!("{pre}{m}(")))
+            {
+                routed.insert((p.to_string(), m.to_uppercase()));
+            }
+        }
+    }
+    assert_eq!(documented, routed, "openapi.yaml and the router disagree");
+    let srv = Server::start(&tmpdir("openapi"), &[]);
+    for (p, m) in &documented {
+        let r = srv.req(m, &p.replace("{id}", "x"), &[], &[]);
+        let fallback =
+            r.status == 404 && String::from_utf8_lossy(&r.body).contains("no such route");
+        assert!(
+            !fallback && r.status != 405,
+            "{m} {p} is documented but not routed ({})",
+            r.status
+        );
+    }
+}
