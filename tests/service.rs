@@ -654,6 +654,11 @@ fn restart_keeps_volumes_and_sigterm_finishes_the_running_job() {
         assert!(Instant::now() < deadline);
         std::thread::sleep(Duration::from_millis(10));
     }
+    // A job queued behind it when SIGTERM arrives is failed explicitly.
+    let queued = srv
+        .req("POST", "/v1/voxelize?resolution=20", &obj, &spot)
+        .json();
+    assert_eq!(queued["state"], "queued");
     // A leftover of an interrupted write must not survive a restart.
     std::fs::write(dir.join("volumes/.half-written.vxl.1.tmp"), b"junk").unwrap();
     let status = srv.stop();
@@ -774,4 +779,217 @@ fn router_and_openapi_agree() {
             r.status
         );
     }
+}
+
+/// Checks `v` against the subset of JSON Schema openapi.yaml uses: $ref, type, nullable,
+/// required, properties, items, enum.
+fn validate(doc: &Value, schema: &Value, v: &Value, at: &str) -> Result<(), String> {
+    if let Some(r) = schema.get("$ref").and_then(Value::as_str) {
+        let name = r
+            .strip_prefix("#/components/schemas/")
+            .ok_or(format!("unsupported $ref {r}"))?;
+        return validate(doc, &doc["components"]["schemas"][name], v, at);
+    }
+    if v.is_null() && schema.get("nullable") == Some(&Value::Bool(true)) {
+        return Ok(());
+    }
+    let ok = match schema.get("type").and_then(Value::as_str) {
+        None => true,
+        Some("object") => v.is_object(),
+        Some("array") => v.is_array(),
+        Some("string") => v.is_string(),
+        Some("integer") => v.is_i64() || v.is_u64(),
+        Some("number") => v.is_number(),
+        Some("boolean") => v.is_boolean(),
+        Some(t) => return Err(format!("{at}: unsupported type {t}")),
+    };
+    if !ok {
+        return Err(format!("{at}: {v} is not of type {}", schema["type"]));
+    }
+    if let Some(e) = schema.get("enum").and_then(Value::as_array) {
+        if !e.contains(v) {
+            return Err(format!("{at}: {v} is not one of {e:?}"));
+        }
+    }
+    for r in schema
+        .get("required")
+        .and_then(Value::as_array)
+        .into_iter()
+        .flatten()
+    {
+        let k = r.as_str().unwrap();
+        if v.get(k).is_none() {
+            return Err(format!("{at}: required field {k} is missing"));
+        }
+    }
+    if let Some(props) = schema.get("properties").and_then(Value::as_object) {
+        for (k, s) in props {
+            if let Some(x) = v.get(k) {
+                validate(doc, s, x, &format!("{at}.{k}"))?;
+            }
+        }
+    }
+    if let (Some(items), Some(arr)) = (schema.get("items"), v.as_array()) {
+        for (i, x) in arr.iter().enumerate() {
+            validate(doc, items, x, &format!("{at}[{i}]"))?;
+        }
+    }
+    Ok(())
+}
+
+/// Real responses, checked against the operation's documented status codes, media types and
+/// schemas in openapi.yaml.
+#[test]
+fn real_responses_match_the_openapi_schemas() {
+    let yaml = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("openapi.yaml"))
+        .unwrap();
+    let doc: Value = serde_norway::from_str(&yaml).unwrap();
+    let srv = Server::start(&tmpdir("schemas"), &[]);
+    let spot = std::fs::read(data("spot.obj")).unwrap();
+    let obj: &[(&str, &str)] = &[("Content-Type", "model/obj")];
+    let mut checked = 0;
+    let mut check = |template: &str, method: &str, r: &Resp| {
+        let op = &doc["paths"][template][method];
+        assert!(op.is_object(), "{method} {template} is not documented");
+        let mut resp = &op["responses"][r.status.to_string()];
+        assert!(
+            resp.is_object(),
+            "{method} {template} answered {} which is not documented",
+            r.status
+        );
+        if let Some(name) = resp.get("$ref").and_then(Value::as_str) {
+            resp = &doc["components"]["responses"]
+                [name.strip_prefix("#/components/responses/").unwrap()];
+        }
+        let Some(content) = resp.get("content") else {
+            assert!(
+                r.body.is_empty(),
+                "{method} {template} {}: undocumented body",
+                r.status
+            );
+            return;
+        };
+        let ct = r
+            .header("content-type")
+            .unwrap_or("")
+            .split(';')
+            .next()
+            .unwrap()
+            .to_string();
+        let media = content.get(&ct).unwrap_or_else(|| {
+            panic!(
+                "{method} {template} {}: media type {ct} not documented",
+                r.status
+            )
+        });
+        if ct.ends_with("json") {
+            if let Err(e) = validate(&doc, &media["schema"], &r.json(), "body") {
+                panic!("{method} {template} {}: {e}", r.status);
+            }
+        }
+        checked += 1;
+    };
+    let r = srv.req(
+        "POST",
+        "/v1/voxelize?resolution=30&wait=60&name=a",
+        obj,
+        &spot,
+    );
+    check("/v1/voxelize", "post", &r);
+    let vid = r.json()["id"].as_str().unwrap().to_string();
+    let r = srv.req("POST", "/v1/voxelize?resolution=31", obj, &spot);
+    check("/v1/voxelize", "post", &r);
+    let jid = r.json()["id"].as_str().unwrap().to_string();
+    check(
+        "/v1/voxelize",
+        "post",
+        &srv.req("POST", "/v1/voxelize?method=x", obj, &spot),
+    );
+    check(
+        "/v1/voxelize",
+        "post",
+        &srv.req("POST", "/v1/voxelize", obj, b"v 1 2 3\n"),
+    );
+    check(
+        "/v1/voxelize",
+        "post",
+        &srv.req(
+            "POST",
+            "/v1/voxelize",
+            &[("Content-Type", "image/png")],
+            b"x",
+        ),
+    );
+    std::thread::sleep(Duration::from_millis(300));
+    check(
+        "/v1/jobs/{id}",
+        "get",
+        &srv.req("GET", &format!("/v1/jobs/{jid}"), &[], &[]),
+    );
+    check(
+        "/v1/jobs/{id}",
+        "get",
+        &srv.req("GET", "/v1/jobs/none", &[], &[]),
+    );
+    check(
+        "/v1/jobs/{id}",
+        "delete",
+        &srv.req("DELETE", &format!("/v1/jobs/{jid}"), &[], &[]),
+    );
+    check(
+        "/v1/volumes",
+        "get",
+        &srv.req("GET", "/v1/volumes?limit=1", &[], &[]),
+    );
+    check(
+        "/v1/volumes",
+        "get",
+        &srv.req("GET", "/v1/volumes?limit=x", &[], &[]),
+    );
+    check(
+        "/v1/volumes/{id}",
+        "get",
+        &srv.req("GET", &format!("/v1/volumes/{vid}"), &[], &[]),
+    );
+    for f in ["vxl", "npy", "binvox"] {
+        check(
+            "/v1/volumes/{id}/data",
+            "get",
+            &srv.req(
+                "GET",
+                &format!("/v1/volumes/{vid}/data?format={f}"),
+                &[],
+                &[],
+            ),
+        );
+    }
+    check(
+        "/v1/volumes/{id}/data",
+        "get",
+        &srv.req(
+            "GET",
+            &format!("/v1/volumes/{vid}/data?format=obj"),
+            &[],
+            &[],
+        ),
+    );
+    check("/healthz", "get", &srv.req("GET", "/healthz", &[], &[]));
+    check("/readyz", "get", &srv.req("GET", "/readyz", &[], &[]));
+    check("/metrics", "get", &srv.req("GET", "/metrics", &[], &[]));
+    check(
+        "/openapi.yaml",
+        "get",
+        &srv.req("GET", "/openapi.yaml", &[], &[]),
+    );
+    check(
+        "/v1/volumes/{id}",
+        "delete",
+        &srv.req("DELETE", &format!("/v1/volumes/{vid}"), &[], &[]),
+    );
+    check(
+        "/v1/volumes/{id}",
+        "delete",
+        &srv.req("DELETE", &format!("/v1/volumes/{vid}"), &[], &[]),
+    );
+    assert_eq!(checked, 20);
 }

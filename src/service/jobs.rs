@@ -15,7 +15,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant, SystemTime};
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use tokio::sync::{Mutex, Notify, watch};
 
 use super::problem::Problem;
@@ -26,7 +26,7 @@ use crate::mesh::{Mesh, MeshDiagnostics};
 /// Voxel credit per second of waiting (a 256³ job).
 const AGE_CREDIT_PER_SEC: f64 = 256.0 * 256.0 * 256.0;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum State {
     Queued,
@@ -62,8 +62,8 @@ pub struct Work {
     pub sha256: String,
 }
 
-/// The job as the API shows it.
-#[derive(Clone, Debug, Serialize)]
+/// The job as the API shows it (and as it is stored in `jobs/{id}.json`).
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct JobView {
     pub id: String,
     pub state: State,
@@ -82,7 +82,7 @@ pub struct JobView {
     pub problem: Option<Problem>,
 }
 
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct Timings {
     /// Seconds spent queued, running, and in total (so far, while unfinished).
     pub queued_s: Option<f64>,
@@ -91,6 +91,8 @@ pub struct Timings {
 
 struct Job {
     view: JobView,
+    /// A record of an earlier process: shown as stored.
+    loaded: bool,
     work: Option<Arc<Work>>,
     cost: f64,
     enqueued: Instant,
@@ -104,6 +106,8 @@ pub struct Jobs {
     inner: Mutex<Inner>,
     ready: Notify,
     capacity: usize,
+    /// Where job records are kept (`data_dir/jobs`); none in memory-only use.
+    dir: Option<std::path::PathBuf>,
 }
 
 struct Inner {
@@ -120,15 +124,71 @@ pub enum Refused {
 }
 
 impl Jobs {
-    pub fn new(capacity: usize) -> Jobs {
-        Jobs {
+    /// A queue whose job records live in `dir`. Records of earlier runs are loaded; a job that
+    /// was queued or running when that process died is marked failed (interrupted), since its
+    /// mesh was only in memory.
+    pub fn open(capacity: usize, dir: std::path::PathBuf) -> std::io::Result<Jobs> {
+        std::fs::create_dir_all(&dir)?;
+        let mut jobs = HashMap::new();
+        for entry in std::fs::read_dir(&dir)? {
+            let p = entry?.path();
+            if p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with('.'))
+            {
+                let _ = std::fs::remove_file(&p);
+                continue;
+            }
+            let Some(mut view) = std::fs::read(&p)
+                .ok()
+                .and_then(|b| serde_json::from_slice::<JobView>(&b).ok())
+            else {
+                tracing::warn!(path = %p.display(), "ignoring unreadable job record");
+                continue;
+            };
+            if !view.state.is_final() {
+                view.state = State::Failed;
+                view.position = None;
+                view.problem = Some(Problem::new(
+                    super::problem::Kind::ShuttingDown,
+                    "interrupted: the server stopped before this job finished; submit it again",
+                ));
+                persist(&dir, &view);
+            }
+            let (done, _) = watch::channel(view.state);
+            let now = Instant::now();
+            let canceled = Arc::new(AtomicBool::new(false));
+            jobs.insert(
+                view.id.clone(),
+                Job {
+                    view,
+                    loaded: true,
+                    work: None,
+                    cost: 0.0,
+                    enqueued: now,
+                    started: None,
+                    finished: Some(now),
+                    canceled,
+                    done,
+                },
+            );
+        }
+        tracing::info!(jobs = jobs.len(), "job records loaded");
+        Ok(Jobs {
             inner: Mutex::new(Inner {
-                jobs: HashMap::new(),
+                jobs,
                 queue: vec![],
                 closed: false,
             }),
             ready: Notify::new(),
             capacity,
+            dir: Some(dir),
+        })
+    }
+
+    fn persist(&self, view: &JobView) {
+        if let Some(dir) = &self.dir {
+            persist(dir, view);
         }
     }
 
@@ -167,6 +227,7 @@ impl Jobs {
             id.clone(),
             Job {
                 view,
+                loaded: false,
                 work: Some(Arc::new(work)),
                 cost,
                 enqueued: Instant::now(),
@@ -178,6 +239,7 @@ impl Jobs {
         );
         inner.queue.push(id.clone());
         let v = inner.view(&id).expect("just inserted");
+        self.persist(&v);
         drop(inner);
         self.ready.notify_one();
         Ok((v, rx))
@@ -209,7 +271,9 @@ impl Jobs {
         job.work = None;
         let _ = job.done.send(State::Canceled);
         inner.queue.retain(|q| q != id);
-        Some(Ok(inner.view(id).expect("present")))
+        let v = inner.view(id).expect("present");
+        self.persist(&v);
+        Some(Ok(v))
     }
 
     pub async fn depth(&self) -> usize {
@@ -287,6 +351,8 @@ impl Jobs {
             }
         }
         let _ = job.done.send(job.view.state);
+        let v = inner.view(id).expect("present");
+        self.persist(&v);
     }
 
     /// Stops accepting jobs and fails every queued one explicitly (for shutdown); running jobs
@@ -302,6 +368,9 @@ impl Jobs {
                 job.work = None;
                 job.finished = Some(Instant::now());
                 let _ = job.done.send(State::Failed);
+            }
+            if let Some(v) = inner.view(id) {
+                self.persist(&v);
             }
         }
         drop(inner);
@@ -323,6 +392,9 @@ impl Jobs {
 impl Inner {
     fn view(&self, id: &str) -> Option<JobView> {
         let j = self.jobs.get(id)?;
+        if j.loaded {
+            return Some(j.view.clone());
+        }
         let mut v = j.view.clone();
         v.position = (v.state == State::Queued)
             .then(|| self.queue.iter().position(|q| q == id).map(|p| p + 1))
@@ -338,6 +410,13 @@ impl Inner {
             .started
             .map(|s| secs(j.finished.unwrap_or(now).duration_since(s)));
         Some(v)
+    }
+}
+
+fn persist(dir: &std::path::Path, view: &JobView) {
+    let bytes = serde_json::to_vec(view).expect("job record serialises");
+    if let Err(e) = super::store::write_atomic(dir, &format!("{}.json", view.id), &bytes) {
+        tracing::error!(job = %view.id, "cannot write the job record: {e}");
     }
 }
 

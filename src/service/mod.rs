@@ -86,8 +86,10 @@ pub fn build(config: Config) -> Result<(axum::Router, Arc<App>), String> {
     tracing::info!(engine = %engine.describe(), "engine ready");
     let store = Store::open(&config.data_dir, config.max_store_bytes)
         .map_err(|e| format!("{}: {e}", config.data_dir.display()))?;
+    let jobs = Jobs::open(config.queue_capacity, config.data_dir.join("jobs"))
+        .map_err(|e| format!("{}: {e}", config.data_dir.display()))?;
     let app = Arc::new(App {
-        jobs: Jobs::new(config.queue_capacity),
+        jobs,
         store,
         metrics: metrics::Metrics::new(&engine.describe()),
         engine,
