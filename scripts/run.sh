@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Builds voxd (release) and runs it. With no arguments it voxelizes a bundled mesh and describes
-# the result; with arguments it runs `voxd ARGS...`.
+# Builds voxd (release) and runs it. With no arguments it starts the service on 127.0.0.1:8080
+# (VOXD_ADDR, VOXD_DATA_DIR and the other VOXD_* settings apply); with arguments it runs
+# `voxd ARGS...`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup-vulkan.sh
@@ -8,5 +9,4 @@ cargo build --release --locked --quiet
 if (($# > 0)); then
   exec ./target/release/voxd "$@"
 fi
-./target/release/voxd voxelize tests/data/spot.obj -o target/spot.vxl --resolution 256
-./target/release/voxd info target/spot.vxl
+exec ./target/release/voxd serve

@@ -205,6 +205,14 @@ fn parse_format(s: &str) -> Result<Format, String> {
         .ok_or_else(|| format!("unknown mesh format {s:?}; expected obj, gltf, glb, stl or ply"))
 }
 
+/// `println!` into a String.
+macro_rules! outln {
+    ($out:expr, $($arg:tt)*) => {{
+        use std::fmt::Write as _;
+        let _ = writeln!($out, $($arg)*);
+    }};
+}
+
 fn main() -> ExitCode {
     if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
         // Mesa prints "XDG_RUNTIME_DIR is invalid" on every start without it; nothing is
@@ -439,9 +447,12 @@ fn read_volume(p: &Path) -> Result<Volume, String> {
 }
 
 fn info(p: &Path) -> Result<(), String> {
+    // Built first and written once: a reader that closes early (`| head`) is not an error.
+    let mut out = String::new();
     if VolumeFormat::from_path(p).is_none() && Format::from_path(p).is_some() {
         let m = mesh::load_file(p, usize::MAX).map_err(|e| format!("{}: {e}", p.display()))?;
-        println!(
+        outln!(
+            out,
             "{}",
             describe_mesh(&p.display().to_string(), &m.diagnostics())
         );
@@ -449,22 +460,24 @@ fn info(p: &Path) -> Result<(), String> {
     }
     let v = read_volume(p)?;
     let g = v.grid();
-    println!("file:       {}", p.display());
-    println!("kind:       {}", v.kind());
-    println!(
+    outln!(out, "file:       {}", p.display());
+    outln!(out, "kind:       {}", v.kind());
+    outln!(
+        out,
         "dims:       {} x {} x {} ({} voxels)",
         g.dims[0],
         g.dims[1],
         g.dims[2],
         g.voxel_count()
     );
-    println!("origin:     {:?}", g.origin);
-    println!("voxel size: {}", g.voxel_size);
-    println!("extent:     {:?} .. {:?}", g.origin, g.max_corner());
+    outln!(out, "origin:     {:?}", g.origin);
+    outln!(out, "voxel size: {}", g.voxel_size);
+    outln!(out, "extent:     {:?} .. {:?}", g.origin, g.max_corner());
     match &v {
         Volume::Bits(b) => {
             let n = b.count_ones();
-            println!(
+            outln!(
+                out,
                 "set voxels: {n} ({:.3}%), volume {}",
                 100.0 * n as f64 / g.voxel_count() as f64,
                 n as f64 * g.voxel_size.powi(3)
@@ -473,13 +486,17 @@ fn info(p: &Path) -> Result<(), String> {
                 Some((lo, hi)) => {
                     let wlo = [0, 1, 2].map(|a| g.origin[a] + lo[a] as f64 * g.voxel_size);
                     let whi = [0, 1, 2].map(|a| g.origin[a] + (hi[a] + 1) as f64 * g.voxel_size);
-                    println!("set bounds: index {lo:?} ..= {hi:?}, world {wlo:?} .. {whi:?}");
+                    outln!(
+                        out,
+                        "set bounds: index {lo:?} ..= {hi:?}, world {wlo:?} .. {whi:?}"
+                    );
                 }
-                None => println!("set bounds: empty"),
+                None => outln!(out, "set bounds: empty"),
             }
         }
         Volume::Density(d) => {
-            println!(
+            outln!(
+                out,
                 "density:    0..={}, {} voxels occupied, {:.3} voxels of volume",
                 d.max(),
                 d.count_nonzero(),
@@ -487,7 +504,17 @@ fn info(p: &Path) -> Result<(), String> {
             );
         }
     }
-    Ok(())
+    emit(out)
+}
+
+fn emit(out: String) -> Result<(), String> {
+    use std::io::Write;
+    match std::io::stdout().write_all(out.as_bytes()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
+            Err(format!("writing to stdout: {e}"))
+        }
+        _ => Ok(()),
+    }
 }
 
 fn convert(input: &Path, output: &Path) -> Result<(), String> {
