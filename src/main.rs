@@ -456,7 +456,7 @@ fn info(p: &Path) -> Result<(), String> {
             "{}",
             describe_mesh(&p.display().to_string(), &m.diagnostics())
         );
-        return Ok(());
+        return emit(out);
     }
     let v = read_volume(p)?;
     let g = v.grid();
