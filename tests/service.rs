@@ -230,6 +230,22 @@ fn every_upload_format_and_download_format_matches_the_library() {
     };
     let stl_path = tmpdir("stl").join("spot.stl");
     std::fs::write(&stl_path, &stl).unwrap();
+    // ASCII PLY of spot with quads-free faces, written here.
+    let ply = {
+        let m = voxd::mesh::load_file(&data("spot.obj"), usize::MAX).unwrap();
+        let mut t = format!(
+            "ply\nformat ascii 1.0\nelement vertex {}\nproperty double x\nproperty double y\nproperty double z\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
+            m.positions().len(),
+            m.triangles().len()
+        );
+        for p in m.positions() {
+            t += &format!("{} {} {}\n", p[0], p[1], p[2]);
+        }
+        for f in m.triangles() {
+            t += &format!("3 {} {} {}\n", f[0], f[1], f[2]);
+        }
+        t.into_bytes()
+    };
     // (what, body, headers, the file the library reads for the expected bits)
     type Case<'a> = (&'a str, Vec<u8>, Vec<(&'a str, &'a str)>, PathBuf);
     let cases: Vec<Case> = vec![
