@@ -279,6 +279,12 @@ fn every_upload_format_and_download_format_matches_the_library() {
             vec![("Content-Type", "model/stl")],
             stl_path.clone(),
         ),
+        (
+            "ply",
+            ply,
+            vec![("Content-Type", "model/ply")],
+            data("spot.obj"),
+        ),
         ("stl by query", stl, vec![], stl_path),
     ];
     for (what, body, headers, path) in cases {
