@@ -69,9 +69,12 @@ struct VoxelizeArgs {
     /// Output volume; its extension picks the format (.vxl, .binvox, .npy).
     #[arg(short, long)]
     output: PathBuf,
-    /// solid | surface | conservative | interior
+    /// solid | surface | conservative | interior | density
     #[arg(long, default_value = "solid")]
-    method: Method,
+    method: MethodArg,
+    /// Sub-voxels per axis for density: 2 (values 0..8) or 4 (0..64).
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(2..=4))]
+    density_factor: u32,
     /// Voxels along the mesh's longest axis (default 256 when no other grid option is given).
     #[arg(long, conflicts_with = "voxel_size")]
     resolution: Option<u32>,
@@ -172,6 +175,35 @@ async fn shutdown_signal() {
         _ = term => {},
     }
     tracing::info!("shutdown signal received");
+}
+
+/// A bit method, or density.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum MethodArg {
+    Bits(Method),
+    Density,
+}
+
+impl std::str::FromStr for MethodArg {
+    type Err = String;
+    fn from_str(s: &str) -> Result<MethodArg, String> {
+        if s == "density" {
+            Ok(MethodArg::Density)
+        } else {
+            s.parse::<Method>()
+                .map(MethodArg::Bits)
+                .map_err(|e| e.replace("interior", "interior, density"))
+        }
+    }
+}
+
+impl std::fmt::Display for MethodArg {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            MethodArg::Bits(m) => m.fmt(f),
+            MethodArg::Density => f.write_str("density"),
+        }
+    }
 }
 
 fn parse_f64x3(s: &str) -> Result<[f64; 3], String> {
@@ -321,15 +353,39 @@ fn voxelize(a: VoxelizeArgs) -> Result<(), String> {
     )
     .map_err(|e| format!("{name}: {e}"))?;
     let t1 = Instant::now();
-    let gm = GridMesh::new(&mesh, &grid).map_err(|e| format!("{name}: {e}"))?;
-    let vol = engine
-        .voxelize(&gm, a.method)
-        .map_err(|e| format!("{name}: {e}"))?;
+    if a.density_factor == 3 {
+        return Err("--density-factor must be 2 or 4".into());
+    }
+    let vol = match a.method {
+        MethodArg::Bits(m) => {
+            let gm = GridMesh::new(&mesh, &grid).map_err(|e| format!("{name}: {e}"))?;
+            Volume::Bits(
+                engine
+                    .voxelize(&gm, m)
+                    .map_err(|e| format!("{name}: {e}"))?,
+            )
+        }
+        MethodArg::Density => Volume::Density(
+            voxd::engine::density::density(
+                &*engine,
+                &mesh,
+                &grid,
+                a.density_factor,
+                GridLimits {
+                    max_voxels: a.max_voxels,
+                },
+            )
+            .map_err(|e| format!("{name}: {e}"))?,
+        ),
+    };
     let t_vox = t1.elapsed();
     let t2 = Instant::now();
-    let set = vol.count_ones();
+    let set = match &vol {
+        Volume::Bits(b) => b.count_ones(),
+        Volume::Density(d) => d.count_nonzero(),
+    };
     let mut meta = serde_json::Map::new();
-    meta.insert("method".into(), a.method.name().into());
+    meta.insert("method".into(), a.method.to_string().into());
     meta.insert(
         "source".into(),
         a.mesh
@@ -339,7 +395,6 @@ fn voxelize(a: VoxelizeArgs) -> Result<(), String> {
             .into(),
     );
     meta.insert("triangles".into(), diag.triangles.into());
-    let vol = Volume::Bits(vol);
     write_volume(&a.output, out_format, &vol, &meta)?;
     let t_write = t2.elapsed();
     let d = grid.dims;

@@ -219,3 +219,24 @@ fn real_meshes_at_two_resolutions_equal_the_cpu() {
         }
     }
 }
+
+#[test]
+fn density_equals_the_cpu() {
+    let Some(e) = gpu() else { return };
+    let m = mesh::load_file(&data("spot.obj"), usize::MAX).unwrap();
+    let (lo, hi) = m.bounds();
+    for (n, f) in [(33, 2), (64, 2), (40, 4)] {
+        let g = Grid::fit(
+            lo,
+            hi,
+            GridSpec::Resolution { n, cubic: false },
+            1,
+            Default::default(),
+        )
+        .unwrap();
+        let want =
+            voxd::engine::density::density(&CpuEngine, &m, &g, f, Default::default()).unwrap();
+        let got = voxd::engine::density::density(e, &m, &g, f, Default::default()).unwrap();
+        assert!(got == want, "density n={n} f={f}: GPU differs from CPU");
+    }
+}

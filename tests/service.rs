@@ -1015,3 +1015,89 @@ fn real_responses_match_the_openapi_schemas() {
     );
     assert_eq!(checked, 20);
 }
+
+#[test]
+fn density_over_http() {
+    let srv = Server::start(&tmpdir("density"), &[]);
+    let spot = std::fs::read(data("spot.obj")).unwrap();
+    let r = srv.req(
+        "POST",
+        "/v1/voxelize?resolution=30&method=density&wait=60",
+        &[("Content-Type", "model/obj")],
+        &spot,
+    );
+    assert_eq!(r.status, 201, "{}", String::from_utf8_lossy(&r.body));
+    let meta = r.json();
+    assert_eq!(meta["kind"], "density");
+    let id = meta["id"].as_str().unwrap();
+    let mesh = voxd::mesh::load_file(&data("spot.obj"), usize::MAX).unwrap();
+    let (lo, hi) = mesh.bounds();
+    let g = Grid::fit(
+        lo,
+        hi,
+        GridSpec::Resolution {
+            n: 30,
+            cubic: false,
+        },
+        0,
+        Default::default(),
+    )
+    .unwrap();
+    let want =
+        voxd::engine::density::density(&CpuEngine, &mesh, &g, 2, Default::default()).unwrap();
+    assert!(
+        (meta["volume"].as_f64().unwrap() - want.occupied_voxels() * g.voxel_size.powi(3)).abs()
+            < 1e-12
+    );
+    let npy = srv.req(
+        "GET",
+        &format!("/v1/volumes/{id}/data?format=npy"),
+        &[],
+        &[],
+    );
+    let Volume::Density(got) = VolumeFormat::Npy.decode(&npy.body).unwrap() else {
+        panic!("npy should hold density")
+    };
+    assert_eq!(got.data(), want.data());
+    let raw = srv.req(
+        "GET",
+        &format!("/v1/volumes/{id}/data?format=raw"),
+        &[],
+        &[],
+    );
+    assert_eq!(raw.body, want.data());
+    let Volume::Density(v) = VolumeFormat::Vxl
+        .decode(
+            &srv.req("GET", &format!("/v1/volumes/{id}/data"), &[], &[])
+                .body,
+        )
+        .unwrap()
+    else {
+        panic!("vxl should hold density")
+    };
+    assert_eq!(v, want);
+    assert_problem(
+        &srv.req(
+            "GET",
+            &format!("/v1/volumes/{id}/data?format=binvox"),
+            &[],
+            &[],
+        ),
+        400,
+        "invalid-parameter",
+    );
+    let r = srv.req(
+        "POST",
+        "/v1/voxelize?method=density&density_factor=3",
+        &[("Content-Type", "model/obj")],
+        &spot,
+    );
+    assert_problem(&r, 400, "invalid-parameter");
+    let r = srv.req(
+        "POST",
+        "/v1/voxelize?method=density&density_factor=4&resolution=700",
+        &[("Content-Type", "model/obj")],
+        &spot,
+    );
+    assert_problem(&r, 422, "grid-too-large");
+}

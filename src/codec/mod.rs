@@ -36,16 +36,24 @@ pub enum VolumeFormat {
     Vxl,
     Binvox,
     Npy,
+    /// One byte per voxel, C order of (X, Y, Z), no header: written, never read back.
+    Raw,
 }
 
 impl VolumeFormat {
-    pub const ALL: [VolumeFormat; 3] = [VolumeFormat::Vxl, VolumeFormat::Binvox, VolumeFormat::Npy];
+    pub const ALL: [VolumeFormat; 4] = [
+        VolumeFormat::Vxl,
+        VolumeFormat::Binvox,
+        VolumeFormat::Npy,
+        VolumeFormat::Raw,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
             VolumeFormat::Vxl => "vxl",
             VolumeFormat::Binvox => "binvox",
             VolumeFormat::Npy => "npy",
+            VolumeFormat::Raw => "raw",
         }
     }
     pub fn from_name(s: &str) -> Option<VolumeFormat> {
@@ -74,6 +82,11 @@ impl VolumeFormat {
             VolumeFormat::Vxl => vxl::encode(v, &serde_json::Map::new()),
             VolumeFormat::Binvox => binvox::encode(v),
             VolumeFormat::Npy => Ok(npy::encode(v)),
+            VolumeFormat::Raw => {
+                let n = npy::encode(v);
+                let hlen = u16::from_le_bytes([n[8], n[9]]) as usize;
+                Ok(n[10 + hlen..].to_vec())
+            }
         }
     }
 
@@ -82,6 +95,10 @@ impl VolumeFormat {
             VolumeFormat::Vxl => vxl::decode(bytes).map(|(v, _)| v),
             VolumeFormat::Binvox => binvox::decode(bytes).map(Volume::Bits),
             VolumeFormat::Npy => npy::decode(bytes),
+            VolumeFormat::Raw => Err(CodecError::Unsupported {
+                format: "raw",
+                detail: "a .raw file has no header (no dims, no grid), so it cannot be read back; use .vxl or .npy".into(),
+            }),
         }
     }
 }

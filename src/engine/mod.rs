@@ -4,6 +4,7 @@
 //! GPU engine is tested against. Engines know nothing of files or HTTP.
 
 pub mod cpu;
+pub mod density;
 pub mod gpu;
 mod snap;
 

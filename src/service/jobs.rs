@@ -51,12 +51,28 @@ impl State {
     }
 }
 
+/// A bit method, or density with its sub-voxel factor.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum MethodSpec {
+    Bits(Method),
+    Density(u32),
+}
+
+impl MethodSpec {
+    pub fn name(self) -> &'static str {
+        match self {
+            MethodSpec::Bits(m) => m.name(),
+            MethodSpec::Density(_) => "density",
+        }
+    }
+}
+
 /// What a job computes.
 pub struct Work {
     pub mesh: Mesh,
     pub diagnostics: MeshDiagnostics,
     pub grid: Grid,
-    pub method: Method,
+    pub method: MethodSpec,
     pub name: Option<String>,
     pub format: String,
     pub sha256: String,
@@ -208,7 +224,12 @@ impl Jobs {
                 capacity: self.capacity,
             });
         }
-        let cost = work.grid.voxel_count() as f64 + 64.0 * work.mesh.triangles().len() as f64;
+        let fine = match work.method {
+            MethodSpec::Density(f) => (f * f * f) as f64,
+            MethodSpec::Bits(_) => 1.0,
+        };
+        let cost =
+            fine * work.grid.voxel_count() as f64 + 64.0 * work.mesh.triangles().len() as f64;
         let (tx, rx) = watch::channel(State::Queued);
         let view = JobView {
             id: id.clone(),

@@ -150,8 +150,7 @@ pub async fn serve(
 /// Takes jobs from the queue and runs them on the engine until the queue closes.
 async fn worker(app: Arc<App>) {
     while let Some((id, work, canceled)) = app.jobs.next().await {
-        let span =
-            tracing::info_span!("job", id = %id, method = %work.method, dims = ?work.grid.dims);
+        let span = tracing::info_span!("job", id = %id, method = work.method.name(), dims = ?work.grid.dims);
         let _e = span.enter();
         let t = Instant::now();
         let app2 = app.clone();
@@ -187,32 +186,55 @@ fn run_job(
     work: &Work,
     canceled: &std::sync::atomic::AtomicBool,
 ) -> Result<String, Problem> {
-    let gm = GridMesh::new(&work.mesh, &work.grid)
-        .map_err(|e| Problem::new(Kind::InvalidMesh, e.to_string()))?;
-    let vol = app
-        .engine
-        .voxelize(&gm, work.method)
-        .map_err(|e| Problem::new(Kind::EngineFailure, e.to_string()))?;
+    let vol = match work.method {
+        jobs::MethodSpec::Bits(m) => {
+            let gm = GridMesh::new(&work.mesh, &work.grid)
+                .map_err(|e| Problem::new(Kind::InvalidMesh, e.to_string()))?;
+            Volume::Bits(
+                app.engine
+                    .voxelize(&gm, m)
+                    .map_err(|e| Problem::new(Kind::EngineFailure, e.to_string()))?,
+            )
+        }
+        jobs::MethodSpec::Density(f) => {
+            let limits = crate::grid::GridLimits {
+                max_voxels: u64::MAX,
+            };
+            let d =
+                crate::engine::density::density(&*app.engine, &work.mesh, &work.grid, f, limits)
+                    .map_err(|e| match e {
+                        crate::engine::density::DensityError::Engine(
+                            crate::engine::EngineError::OutOfRange { .. },
+                        ) => Problem::new(Kind::InvalidMesh, e.to_string()),
+                        _ => Problem::new(Kind::EngineFailure, e.to_string()),
+                    })?;
+            Volume::Density(d)
+        }
+    };
     if canceled.load(Ordering::SeqCst) {
         return Err(Problem::new(Kind::NotCancelable, "canceled"));
     }
-    let solid = vol.count_ones();
+    let (solid, occupied) = match &vol {
+        Volume::Bits(b) => (b.count_ones(), b.count_ones() as f64),
+        Volume::Density(d) => (d.count_nonzero(), d.occupied_voxels()),
+    };
+    let kind = vol.kind();
     let mut meta = serde_json::Map::new();
     meta.insert("method".into(), work.method.name().into());
     meta.insert("job".into(), id.into());
     meta.insert("source_sha256".into(), work.sha256.clone().into());
-    let bytes = vxl::encode(&Volume::Bits(vol), &meta)
-        .map_err(|e| Problem::new(Kind::Internal, e.to_string()))?;
+    let bytes =
+        vxl::encode(&vol, &meta).map_err(|e| Problem::new(Kind::Internal, e.to_string()))?;
     let vid = app.new_id();
     let g = work.grid;
     let m = VolumeMeta {
         id: vid.clone(),
         name: work.name.clone(),
-        kind: "bits".into(),
+        kind: kind.into(),
         method: work.method.name().into(),
         grid: g,
         solid_voxels: solid,
-        volume: solid as f64 * g.voxel_size.powi(3),
+        volume: occupied * g.voxel_size.powi(3),
         source: SourceInfo {
             format: work.format.clone(),
             sha256: work.sha256.clone(),

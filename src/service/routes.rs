@@ -16,7 +16,7 @@ use tower_http::compression::CompressionLayer;
 use tower_http::compression::predicate::{NotForContentType, Predicate, SizeAbove};
 use tracing::Instrument;
 
-use super::jobs::{Refused, State as JobState, Work};
+use super::jobs::{MethodSpec, Refused, State as JobState, Work};
 use super::problem::{Kind, Problem};
 use super::{App, hex_sha256};
 use crate::codec::{VolumeFormat, vxl};
@@ -122,7 +122,8 @@ fn triple<T: std::str::FromStr>(
     }
 }
 
-const KNOWN_PARAMS: [&str; 12] = [
+const KNOWN_PARAMS: [&str; 13] = [
+    "density_factor",
     "method",
     "resolution",
     "voxel_size",
@@ -203,14 +204,16 @@ async fn voxelize(
             KNOWN_PARAMS.join(", ")
         )));
     }
-    let method: Method = match q.get("method").map(String::as_str) {
-        None => Method::Solid,
-        Some("density") => {
-            return Err(bad(
-                "method=density is not available yet; use solid, surface, conservative or interior",
-            ));
-        }
-        Some(m) => m.parse().map_err(bad)?,
+    let method = match q.get("method").map(String::as_str) {
+        None => MethodSpec::Bits(Method::Solid),
+        Some("density") => match parse::<u32>(&q, "density_factor")?.unwrap_or(2) {
+            f @ (2 | 4) => MethodSpec::Density(f),
+            f => return Err(bad(format!("density_factor must be 2 or 4, got {f}"))),
+        },
+        Some(m) => MethodSpec::Bits(
+            m.parse()
+                .map_err(|e: String| bad(e.replace("interior", "interior, density")))?,
+        ),
     };
     match q.get("fill").map(String::as_str) {
         None | Some("parity") => {}
@@ -293,6 +296,14 @@ async fn voxelize(
         }
         other => bad(other.to_string()),
     })?;
+    if let MethodSpec::Density(f) = method {
+        crate::engine::density::fine_grid(&grid, f, GridLimits { max_voxels }).map_err(|e| {
+            Problem::new(
+                Kind::GridTooLarge,
+                format!("density needs a {f}× finer grid: {e}"),
+            )
+        })?;
+    }
     let work = Work {
         mesh,
         diagnostics,
@@ -437,9 +448,14 @@ async fn volume_data(
     let format = match q.get("format") {
         None => VolumeFormat::Vxl,
         Some(f) => VolumeFormat::from_name(f)
-            .ok_or_else(|| bad(format!("format={f:?} is not one of vxl, binvox, npy")))?,
+            .ok_or_else(|| bad(format!("format={f:?} is not one of vxl, binvox, npy, raw")))?,
     };
     let meta = app.store.get(&id).ok_or_else(|| not_found("volume", &id))?;
+    if meta.kind == "density" && format == VolumeFormat::Binvox {
+        return Err(bad(
+            "binvox holds one bit per voxel; download a density volume as vxl, npy or raw",
+        ));
+    }
     let etag = format!("\"{}-{}\"", &meta.sha256[..16], format.name());
     if headers
         .get(header::IF_NONE_MATCH)
@@ -468,10 +484,10 @@ async fn volume_data(
             .map_err(|e| Problem::new(Kind::Internal, format!("stored volume {id}: {e}")))?;
             (
                 out,
-                if other == VolumeFormat::Npy {
-                    "application/x-npy"
-                } else {
-                    "application/x-binvox"
+                match other {
+                    VolumeFormat::Npy => "application/x-npy",
+                    VolumeFormat::Binvox => "application/x-binvox",
+                    _ => "application/octet-stream",
                 },
             )
         }

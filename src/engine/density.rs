@@ -1,0 +1,80 @@
+//! `density`: each voxel split into f×f×f sub-voxels (f = 2: centres at ¼ and ¾ of the voxel; f = 4
+//! for 0..64), the sub-voxel centres classified by `solid` on the f-times finer grid (whichever
+//! engine runs it, the bits are the same), and the solid sub-voxels counted per voxel.
+
+use rayon::prelude::*;
+
+use super::{Engine, EngineError, GridMesh, Method};
+use crate::grid::{Grid, GridError, GridLimits};
+use crate::mesh::Mesh;
+use crate::volume::DensityVolume;
+
+#[derive(Debug, thiserror::Error)]
+pub enum DensityError {
+    #[error("density needs a {factor}× finer grid: {source}")]
+    Grid { factor: u32, source: GridError },
+    #[error(transparent)]
+    Engine(#[from] EngineError),
+}
+
+/// The grid `factor` times finer than `grid` over the same box, within `limits`.
+pub fn fine_grid(grid: &Grid, factor: u32, limits: GridLimits) -> Result<Grid, GridError> {
+    let dims = grid.dims.map(|d| d as u64 * factor as u64);
+    if dims.iter().any(|&d| d > crate::grid::MAX_DIM as u64) {
+        return Err(GridError::AxisTooLong { dims });
+    }
+    let voxels = dims.iter().map(|&d| d as u128).product::<u128>();
+    if voxels > limits.max_voxels as u128 {
+        let limit_desc = format!("{} voxels", limits.max_voxels);
+        return Err(GridError::TooManyVoxels {
+            dims,
+            voxels,
+            limit: limits.max_voxels,
+            limit_desc,
+        });
+    }
+    Ok(Grid {
+        origin: grid.origin,
+        voxel_size: grid.voxel_size / factor as f64,
+        dims: dims.map(|d| d as u32),
+    })
+}
+
+/// Density of `mesh` on `grid` with `factor` ∈ {2, 4}, computed by `engine`; the finer grid must
+/// fit `limits`.
+pub fn density(
+    engine: &dyn Engine,
+    mesh: &Mesh,
+    grid: &Grid,
+    factor: u32,
+    limits: GridLimits,
+) -> Result<DensityVolume, DensityError> {
+    assert!(factor == 2 || factor == 4, "density factor must be 2 or 4");
+    let fine =
+        fine_grid(grid, factor, limits).map_err(|source| DensityError::Grid { factor, source })?;
+    let solid = engine.voxelize(&GridMesh::new(mesh, &fine)?, Method::Solid)?;
+    let [_, ny, nz] = grid.dims;
+    let (fy, wpc) = (fine.dims[1] as usize, solid.words_per_column());
+    let words = solid.words();
+    let f = factor as usize;
+    let mask = (1u64 << f) - 1;
+    let mut data = vec![0u8; grid.voxel_count() as usize];
+    data.par_chunks_mut(ny as usize * nz as usize)
+        .enumerate()
+        .for_each(|(x, plane)| {
+            for y in 0..ny as usize {
+                let out = &mut plane[y * nz as usize..(y + 1) * nz as usize];
+                for dx in 0..f {
+                    for dy in 0..f {
+                        let col = ((x * f + dx) * fy + (y * f + dy)) * wpc;
+                        let col = &words[col..col + wpc];
+                        for (z, o) in out.iter_mut().enumerate() {
+                            let bit = z * f; // f divides 64: a group never straddles two words
+                            *o += ((col[bit / 64] >> (bit % 64)) & mask).count_ones() as u8;
+                        }
+                    }
+                }
+            }
+        });
+    Ok(DensityVolume::from_data(*grid, (f * f * f) as u8, data).expect("counts fit the grid"))
+}

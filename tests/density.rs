@@ -1,0 +1,126 @@
+//! Density: analytic partial-voxel counts, the reduction against a naive count, and (with an
+//! adapter) GPU == CPU.
+
+mod common;
+
+use common::*;
+use voxd::engine::cpu::CpuEngine;
+use voxd::engine::density::{density, fine_grid};
+use voxd::engine::{Engine, GridMesh, Method};
+use voxd::grid::{Grid, GridLimits};
+use voxd::mesh::Mesh;
+
+/// Sub-voxel centres of voxel i (factor f) strictly inside (lo, hi) along one axis.
+fn axis_count(lo: f64, hi: f64, i: u32, f: u32) -> u32 {
+    (0..f)
+        .filter(|k| {
+            let c = i as f64 + (*k as f64 + 0.5) / f as f64;
+            lo < c && c < hi
+        })
+        .count() as u32
+}
+
+#[test]
+fn a_box_has_the_analytic_partial_counts() {
+    let (lo, hi) = ([0.4, 0.1, 1.6], [2.6, 1.3, 3.9]);
+    let (mut p, mut t) = (vec![], vec![]);
+    push_box(&mut p, &mut t, lo, hi);
+    let mesh = Mesh::new(p, t).unwrap();
+    let g = unit_grid([4, 4, 5]);
+    for f in [2, 4] {
+        let d = density(&CpuEngine, &mesh, &g, f, GridLimits::default()).unwrap();
+        assert_eq!(d.max() as u32, f * f * f);
+        for x in 0..4 {
+            for y in 0..4 {
+                for z in 0..5 {
+                    let want = axis_count(lo[0], hi[0], x, f)
+                        * axis_count(lo[1], hi[1], y, f)
+                        * axis_count(lo[2], hi[2], z, f);
+                    assert_eq!(d.get(x, y, z) as u32, want, "f={f} voxel ({x},{y},{z})");
+                }
+            }
+        }
+        // The total is the product of the sampled lengths per axis (each within 1/f of the true one).
+        let dims = [4, 4, 5];
+        let sampled: f64 = (0..3)
+            .map(|a| {
+                (0..dims[a])
+                    .map(|i| axis_count(lo[a], hi[a], i, f))
+                    .sum::<u32>() as f64
+                    / f as f64
+            })
+            .product();
+        assert_eq!(d.occupied_voxels(), sampled, "f={f}");
+        for a in 0..3 {
+            let len = (0..dims[a])
+                .map(|i| axis_count(lo[a], hi[a], i, f))
+                .sum::<u32>() as f64
+                / f as f64;
+            assert!(
+                (len - (hi[a] - lo[a])).abs() <= 1.0 / f as f64,
+                "axis {a}: {len}"
+            );
+        }
+    }
+}
+
+#[test]
+fn the_reduction_counts_the_fine_solid() {
+    for seed in 0..20u64 {
+        let mut rng = Rng::new(300 + seed);
+        let dims = [
+            1 + rng.below(9) as u32,
+            1 + rng.below(9) as u32,
+            [1, 15, 16, 17, 33][rng.below(5) as usize],
+        ];
+        let mesh = random_closed(&mut rng, dims);
+        let g = Grid {
+            origin: [-0.3, 0.2, -0.1],
+            voxel_size: 0.97,
+            dims,
+        };
+        for f in [2u32, 4] {
+            let d = density(&CpuEngine, &mesh, &g, f, GridLimits::default()).unwrap();
+            let fine = fine_grid(&g, f, GridLimits::default()).unwrap();
+            let s = CpuEngine
+                .voxelize(&GridMesh::new(&mesh, &fine).unwrap(), Method::Solid)
+                .unwrap();
+            for x in 0..dims[0] {
+                for y in 0..dims[1] {
+                    for z in 0..dims[2] {
+                        let mut n = 0;
+                        for (dx, dy, dz) in (0..f)
+                            .flat_map(|a| (0..f).flat_map(move |b| (0..f).map(move |c| (a, b, c))))
+                        {
+                            n += s.get(x * f + dx, y * f + dy, z * f + dz) as u32;
+                        }
+                        assert_eq!(d.get(x, y, z) as u32, n, "seed {seed} f={f} ({x},{y},{z})");
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn the_finer_grid_must_fit_the_budget() {
+    let mesh = Mesh::new(
+        vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+        vec![[0, 1, 2]],
+    )
+    .unwrap();
+    let e = density(
+        &CpuEngine,
+        &mesh,
+        &unit_grid([64, 64, 64]),
+        4,
+        GridLimits {
+            max_voxels: 1 << 20,
+        },
+    )
+    .unwrap_err();
+    assert!(
+        e.to_string().contains("4× finer grid") && e.to_string().contains("over the limit"),
+        "{e}"
+    );
+}
