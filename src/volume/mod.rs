@@ -6,6 +6,8 @@
 //! words on a little-endian machine, the same memory is the GPU's layout (bit `k % 32` of word
 //! `k / 32`).
 
+pub mod csg;
+
 use crate::grid::Grid;
 
 #[derive(Clone, Debug, PartialEq)]
@@ -160,6 +162,9 @@ impl BitVolume {
     }
     pub fn subtract(&mut self, other: &BitVolume) {
         self.zip_words(other, |a, b| a & !b)
+    }
+    pub fn xor_with(&mut self, other: &BitVolume) {
+        self.zip_words(other, |a, b| a ^ b)
     }
 
     fn zip_words(&mut self, other: &BitVolume, f: impl Fn(u64, u64) -> u64) {

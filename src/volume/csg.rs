@@ -1,0 +1,173 @@
+//! Boolean operations between bit volumes on aligned grids (equal voxel size, origins a whole
+//! number of voxels apart), combined by world position. The result's grid: union and xor, the
+//! bounding grid of the operands; intersection, their overlap; difference, the first operand's.
+//! Volumes are moved onto the result grid by whole columns and word-wise shifts along z.
+
+use super::{BitVolume, tail_mask};
+use crate::grid::Grid;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CsgOp {
+    Union,
+    Intersection,
+    Difference,
+    Xor,
+}
+
+impl CsgOp {
+    pub fn from_name(s: &str) -> Option<CsgOp> {
+        Some(match s {
+            "union" => CsgOp::Union,
+            "intersection" => CsgOp::Intersection,
+            "difference" => CsgOp::Difference,
+            "xor" => CsgOp::Xor,
+            _ => return None,
+        })
+    }
+}
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum CsgError {
+    #[error(
+        "grids are not aligned: voxel sizes {a} and {b} with origins {oa:?} and {ob:?}; CSG needs equal voxel sizes and origins a whole number of voxels apart (voxelize with an explicit grid)"
+    )]
+    Misaligned {
+        a: f64,
+        b: f64,
+        oa: [f64; 3],
+        ob: [f64; 3],
+    },
+    #[error("the operands do not overlap, so their intersection has no grid")]
+    NoOverlap,
+    #[error("an operation needs at least one operand")]
+    NoOperands,
+}
+
+/// Offset of `b`'s origin from `a`'s in whole voxels, if aligned.
+fn offset(a: &Grid, b: &Grid) -> Result<[i64; 3], CsgError> {
+    if !a.is_aligned_with(b) {
+        return Err(CsgError::Misaligned {
+            a: a.voxel_size,
+            b: b.voxel_size,
+            oa: a.origin,
+            ob: b.origin,
+        });
+    }
+    Ok([0, 1, 2].map(|i| ((b.origin[i] - a.origin[i]) / a.voxel_size).round() as i64))
+}
+
+/// The grid of `op` over operands on `grids` (aligned with the first).
+pub fn result_grid(op: CsgOp, grids: &[Grid]) -> Result<Grid, CsgError> {
+    let first = *grids.first().ok_or(CsgError::NoOperands)?;
+    if op == CsgOp::Difference {
+        for g in &grids[1..] {
+            offset(&first, g)?;
+        }
+        return Ok(first);
+    }
+    let (mut lo, mut hi) = ([0i64; 3], first.dims.map(i64::from));
+    for g in &grids[1..] {
+        let o = offset(&first, g)?;
+        for a in 0..3 {
+            let (glo, ghi) = (o[a], o[a] + g.dims[a] as i64);
+            if op == CsgOp::Intersection {
+                lo[a] = lo[a].max(glo);
+                hi[a] = hi[a].min(ghi);
+            } else {
+                lo[a] = lo[a].min(glo);
+                hi[a] = hi[a].max(ghi);
+            }
+        }
+    }
+    if (0..3).any(|a| hi[a] <= lo[a]) {
+        return Err(CsgError::NoOverlap);
+    }
+    let s = first.voxel_size;
+    Ok(Grid {
+        origin: [0, 1, 2].map(|a| first.origin[a] + lo[a] as f64 * s),
+        voxel_size: s,
+        dims: [0, 1, 2].map(|a| (hi[a] - lo[a]) as u32),
+    })
+}
+
+/// `v` moved onto the aligned grid `target`: same voxels by world position, zero elsewhere.
+pub fn regrid(v: &BitVolume, target: &Grid) -> Result<BitVolume, CsgError> {
+    let o = offset(target, v.grid())?;
+    let mut out = BitVolume::new(*target);
+    let [sx, sy, _] = v.dims();
+    let [tx, ty, tz] = target.dims;
+    let tail = tail_mask(tz);
+    for x in 0..tx {
+        let vx = x as i64 - o[0];
+        if vx < 0 || vx >= sx as i64 {
+            continue;
+        }
+        for y in 0..ty {
+            let vy = y as i64 - o[1];
+            if vy < 0 || vy >= sy as i64 {
+                continue;
+            }
+            let src = v.column(vx as u32, vy as u32);
+            let dst = out.column_mut(x, y);
+            shift_into(src, dst, o[2]);
+            if let Some(last) = dst.last_mut() {
+                *last &= tail;
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// dst bit k = src bit (k − shift) (src bits beyond its length are zero by the volume invariant).
+fn shift_into(src: &[u64], dst: &mut [u64], shift: i64) {
+    let (q, r) = (shift.div_euclid(64), shift.rem_euclid(64) as u32);
+    let get = |i: i64| {
+        if i >= 0 && (i as usize) < src.len() {
+            src[i as usize]
+        } else {
+            0
+        }
+    };
+    for (w, d) in dst.iter_mut().enumerate() {
+        let i = w as i64 - q;
+        *d = if r == 0 {
+            get(i)
+        } else {
+            (get(i) << r) | (get(i - 1) >> (64 - r))
+        };
+    }
+}
+
+/// `op` over the operands, n-ary: union/intersection/xor fold over all; difference removes every
+/// later operand from the first.
+pub fn apply(op: CsgOp, operands: &[&BitVolume]) -> Result<BitVolume, CsgError> {
+    let grids: Vec<Grid> = operands.iter().map(|v| *v.grid()).collect();
+    let grid = result_grid(op, &grids)?;
+    let mut acc = regrid(operands[0], &grid)?;
+    for v in &operands[1..] {
+        let b = regrid(v, &grid)?;
+        match op {
+            CsgOp::Union => acc.union_with(&b),
+            CsgOp::Intersection => acc.intersect_with(&b),
+            CsgOp::Difference => acc.subtract(&b),
+            CsgOp::Xor => acc.xor_with(&b),
+        }
+    }
+    Ok(acc)
+}
+
+/// Voxels set in both (aligned) volumes, without building the intersection.
+pub fn overlap_count(a: &BitVolume, b: &BitVolume) -> Result<u64, CsgError> {
+    let g = match result_grid(CsgOp::Intersection, &[*a.grid(), *b.grid()]) {
+        Ok(g) => g,
+        Err(CsgError::NoOverlap) => return Ok(0),
+        Err(e) => return Err(e),
+    };
+    let (ra, rb) = (regrid(a, &g)?, regrid(b, &g)?);
+    Ok(ra
+        .words()
+        .iter()
+        .zip(rb.words())
+        .map(|(x, y)| (x & y).count_ones() as u64)
+        .sum())
+}

@@ -1,0 +1,189 @@
+//! CSG between volumes: every op against a naive per-voxel implementation by world position,
+//! the identities, and exact booleans of boxes.
+
+mod common;
+
+use common::*;
+use voxd::engine::cpu::CpuEngine;
+use voxd::engine::{Engine, GridMesh, Method};
+use voxd::grid::Grid;
+use voxd::mesh::Mesh;
+use voxd::volume::BitVolume;
+use voxd::volume::csg::{CsgError, CsgOp, apply, overlap_count, result_grid};
+
+fn random_volume(rng: &mut Rng, origin: [i64; 3]) -> BitVolume {
+    let dims = [
+        1 + rng.below(9) as u32,
+        1 + rng.below(9) as u32,
+        [1, 7, 63, 64, 65, 129][rng.below(6) as usize],
+    ];
+    let g = Grid {
+        origin: origin.map(|o| o as f64 * 0.5),
+        voxel_size: 0.5,
+        dims,
+    };
+    let mut v = BitVolume::new(g);
+    let fill = rng.below(100);
+    for x in 0..dims[0] {
+        for y in 0..dims[1] {
+            for z in 0..dims[2] {
+                if rng.below(100) < fill {
+                    v.set(x, y, z, true);
+                }
+            }
+        }
+    }
+    v
+}
+
+/// Is the voxel of `v` at world-lattice index `p` (in voxels from the world origin) set?
+fn at(v: &BitVolume, p: [i64; 3]) -> bool {
+    let g = v.grid();
+    let i = [0, 1, 2].map(|a| p[a] - (g.origin[a] / g.voxel_size).round() as i64);
+    (0..3).all(|a| i[a] >= 0 && i[a] < g.dims[a] as i64)
+        && v.get(i[0] as u32, i[1] as u32, i[2] as u32)
+}
+
+#[test]
+fn every_op_matches_a_naive_per_voxel_implementation() {
+    for seed in 0..80u64 {
+        let mut rng = Rng::new(seed);
+        let n = 2 + rng.below(3) as usize;
+        let vols: Vec<BitVolume> = (0..n)
+            .map(|_| {
+                let o = [
+                    rng.below(9) as i64 - 4,
+                    rng.below(9) as i64 - 4,
+                    rng.below(140) as i64 - 70,
+                ];
+                random_volume(&mut rng, o)
+            })
+            .collect();
+        let refs: Vec<&BitVolume> = vols.iter().collect();
+        for op in [
+            CsgOp::Union,
+            CsgOp::Intersection,
+            CsgOp::Difference,
+            CsgOp::Xor,
+        ] {
+            let r = match apply(op, &refs) {
+                Ok(r) => r,
+                Err(CsgError::NoOverlap) => {
+                    assert_eq!(op, CsgOp::Intersection);
+                    continue;
+                }
+                Err(e) => panic!("{e}"),
+            };
+            let g = r.grid();
+            let base = g.origin.map(|o| (o / g.voxel_size).round() as i64);
+            for x in 0..g.dims[0] {
+                for y in 0..g.dims[1] {
+                    for z in 0..g.dims[2] {
+                        let p = [base[0] + x as i64, base[1] + y as i64, base[2] + z as i64];
+                        let ins: Vec<bool> = vols.iter().map(|v| at(v, p)).collect();
+                        let want = match op {
+                            CsgOp::Union => ins.iter().any(|&b| b),
+                            CsgOp::Intersection => ins.iter().all(|&b| b),
+                            CsgOp::Difference => ins[0] && !ins[1..].iter().any(|&b| b),
+                            CsgOp::Xor => ins.iter().filter(|&&b| b).count() % 2 == 1,
+                        };
+                        assert_eq!(r.get(x, y, z), want, "seed {seed} {op:?} at {p:?}");
+                    }
+                }
+            }
+            // Grid rules.
+            match op {
+                CsgOp::Difference => assert_eq!(g, vols[0].grid()),
+                CsgOp::Union | CsgOp::Xor => {
+                    for v in &vols {
+                        for a in 0..3 {
+                            assert!(
+                                v.grid().origin[a] >= g.origin[a]
+                                    && v.grid().max_corner()[a] <= g.max_corner()[a] + 1e-9
+                            );
+                        }
+                    }
+                }
+                CsgOp::Intersection => {}
+            }
+        }
+        if n == 2 {
+            let inter = apply(CsgOp::Intersection, &refs)
+                .map(|v| v.count_ones())
+                .unwrap_or(0);
+            assert_eq!(overlap_count(&vols[0], &vols[1]).unwrap(), inter);
+        }
+    }
+}
+
+#[test]
+fn identities() {
+    let mut rng = Rng::new(7);
+    let a = random_volume(&mut rng, [0, 0, 0]);
+    let b = random_volume(&mut rng, [1, -2, 3]);
+    let aa = apply(CsgOp::Union, &[&a, &a]).unwrap();
+    assert_eq!(aa, a);
+    assert_eq!(apply(CsgOp::Difference, &[&a, &a]).unwrap().count_ones(), 0);
+    let xor = apply(CsgOp::Xor, &[&a, &b]).unwrap();
+    let union = apply(CsgOp::Union, &[&a, &b]).unwrap();
+    let inter = apply(CsgOp::Intersection, &[&a, &b]);
+    let expected = match inter {
+        Ok(i) => apply(CsgOp::Difference, &[&union, &i]).unwrap(),
+        Err(_) => union.clone(),
+    };
+    assert_eq!(xor, expected);
+    // Misaligned grids are refused with the reason.
+    let mut c = a.clone();
+    let shifted = Grid {
+        origin: [0.25, 0.0, 0.0],
+        ..*a.grid()
+    };
+    c = BitVolume::from_words(shifted, c.into_words()).unwrap();
+    let e = apply(CsgOp::Union, &[&a, &c]).unwrap_err();
+    assert!(e.to_string().contains("not aligned"), "{e}");
+    assert!(matches!(
+        result_grid(CsgOp::Union, &[]),
+        Err(CsgError::NoOperands)
+    ));
+}
+
+fn box_mesh(lo: [f64; 3], hi: [f64; 3]) -> Mesh {
+    let (mut p, mut t) = (vec![], vec![]);
+    push_box(&mut p, &mut t, lo, hi);
+    Mesh::new(p, t).unwrap()
+}
+
+#[test]
+fn booleans_of_boxes_equal_voxelizing_the_boolean() {
+    // A shared explicit grid, as the API's CSG workflow uses.
+    let g = Grid {
+        origin: [0.0; 3],
+        voxel_size: 0.5,
+        dims: [30, 28, 26],
+    };
+    let vox = |lo, hi| {
+        CpuEngine
+            .voxelize(
+                &GridMesh::new(&box_mesh(lo, hi), &g).unwrap(),
+                Method::Solid,
+            )
+            .unwrap()
+    };
+    let a = vox([1.2, 1.1, 1.3], [9.3, 8.7, 9.1]);
+    let b = vox([5.4, 0.3, 0.2], [14.1, 13.2, 12.4]);
+    // A ∩ B is the box of the overlap; A − B, with B covering A beyond x = 5.4, is the rest of A.
+    assert_eq!(
+        apply(CsgOp::Intersection, &[&a, &b]).unwrap().words(),
+        vox([5.4, 1.1, 1.3], [9.3, 8.7, 9.1]).words()
+    );
+    assert_eq!(
+        apply(CsgOp::Difference, &[&a, &b]).unwrap(),
+        vox([1.2, 1.1, 1.3], [5.4, 8.7, 9.1])
+    );
+    let u = apply(CsgOp::Union, &[&a, &b]).unwrap();
+    let i = apply(CsgOp::Intersection, &[&a, &b]).unwrap();
+    assert_eq!(
+        u.count_ones(),
+        a.count_ones() + b.count_ones() - i.count_ones()
+    );
+}
