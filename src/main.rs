@@ -33,6 +33,16 @@ enum Command {
     Info { file: PathBuf },
     /// Convert a volume between formats, chosen by the files' extensions.
     Convert { input: PathBuf, output: PathBuf },
+    /// Combine bit volumes on aligned grids: union, intersection, difference (first minus the rest), xor.
+    Csg {
+        /// union | intersection | difference | xor
+        op: String,
+        /// Volumes (.vxl .binvox .npy), at least one.
+        #[arg(required = true)]
+        inputs: Vec<PathBuf>,
+        #[arg(short, long)]
+        output: PathBuf,
+    },
     /// Run the HTTP service.
     Serve(ServeArgs),
     /// Time the CPU and GPU engines per method and resolution on a mesh (a markdown table).
@@ -265,6 +275,7 @@ fn main() -> ExitCode {
         Command::Info { file } => info(&file),
         Command::Convert { input, output } => convert(&input, &output),
         Command::Serve(a) => serve(a),
+        Command::Csg { op, inputs, output } => csg(&op, &inputs, &output),
         Command::Bench {
             mesh,
             resolutions,
@@ -560,6 +571,40 @@ fn info(p: &Path) -> Result<(), String> {
         }
     }
     emit(out)
+}
+
+fn csg(op: &str, inputs: &[PathBuf], output: &Path) -> Result<(), String> {
+    use voxd::volume::csg::{CsgOp, apply};
+    let op = CsgOp::from_name(op).ok_or_else(|| {
+        format!("unknown operation {op:?}; expected union, intersection, difference or xor")
+    })?;
+    let f = volume_format_of(output)?;
+    let mut vols = Vec::new();
+    for p in inputs {
+        match read_volume(p)? {
+            Volume::Bits(b) => vols.push(b),
+            Volume::Density(_) => {
+                return Err(format!(
+                    "{}: a density volume; CSG combines bit volumes",
+                    p.display()
+                ));
+            }
+        }
+    }
+    let refs: Vec<&voxd::BitVolume> = vols.iter().collect();
+    let r = apply(op, &refs).map_err(|e| e.to_string())?;
+    let (g, n) = (*r.grid(), r.count_ones());
+    write_volume(output, f, &Volume::Bits(r), &serde_json::Map::new())?;
+    println!(
+        "{} -> {}: {}x{}x{} grid at {:?}, {n} voxels set",
+        inputs.len(),
+        output.display(),
+        g.dims[0],
+        g.dims[1],
+        g.dims[2],
+        g.origin
+    );
+    Ok(())
 }
 
 fn emit(out: String) -> Result<(), String> {

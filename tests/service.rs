@@ -1101,3 +1101,161 @@ fn density_over_http() {
     );
     assert_problem(&r, 422, "grid-too-large");
 }
+
+fn box_obj(lo: [f64; 3], hi: [f64; 3]) -> Vec<u8> {
+    let (mut p, mut t) = (vec![], vec![]);
+    push_box(&mut p, &mut t, lo, hi);
+    let mut s = String::new();
+    for v in &p {
+        s += &format!("v {} {} {}\n", v[0], v[1], v[2]);
+    }
+    for f in &t {
+        s += &format!("f {} {} {}\n", f[0] + 1, f[1] + 1, f[2] + 1);
+    }
+    s.into_bytes()
+}
+
+#[test]
+fn csg_and_intersect_over_http() {
+    let srv = Server::start(&tmpdir("csg"), &[]);
+    let obj = [("Content-Type", "model/obj")];
+    let grid = "origin=0,0,0&voxel_size=0.5&dims=30,28,26";
+    let up = |lo, hi| {
+        let r = srv.req(
+            "POST",
+            &format!("/v1/voxelize?{grid}&wait=60"),
+            &obj,
+            &box_obj(lo, hi),
+        );
+        assert_eq!(r.status, 201, "{}", String::from_utf8_lossy(&r.body));
+        r.json()["id"].as_str().unwrap().to_string()
+    };
+    let a = up([1.2, 1.1, 1.3], [9.3, 8.7, 9.1]);
+    let b = up([5.4, 0.3, 0.2], [14.1, 13.2, 12.4]);
+    let expr = serde_json::json!({"op": "difference", "operands": [a, {"op": "union", "operands": [b, b]}]});
+    let r = srv.req(
+        "POST",
+        "/v1/volumes/csg?name=a-minus-b",
+        &[("Content-Type", "application/json")],
+        expr.to_string().as_bytes(),
+    );
+    assert_eq!(r.status, 201, "{}", String::from_utf8_lossy(&r.body));
+    let meta = r.json();
+    assert_eq!(meta["provenance"], expr);
+    assert_eq!(meta["grid"]["dims"], serde_json::json!([30, 28, 26]));
+    let id = meta["id"].as_str().unwrap();
+    let got = decode(
+        &srv.req("GET", &format!("/v1/volumes/{id}/data"), &[], &[])
+            .body,
+    );
+    // Exactly the voxelization of the known boolean (A − B is the box of A left of x = 5.4).
+    let g = Grid {
+        origin: [0.0; 3],
+        voxel_size: 0.5,
+        dims: [30, 28, 26],
+    };
+    let mut p = vec![];
+    let mut t = vec![];
+    push_box(&mut p, &mut t, [1.2, 1.1, 1.3], [5.4, 8.7, 9.1]);
+    let want = CpuEngine
+        .voxelize(
+            &GridMesh::new(&voxd::mesh::Mesh::new(p, t).unwrap(), &g).unwrap(),
+            Method::Solid,
+        )
+        .unwrap();
+    assert_eq!(got, want);
+    let i = srv
+        .req(
+            "POST",
+            "/v1/volumes/intersect",
+            &[],
+            serde_json::json!({"a": a, "b": b}).to_string().as_bytes(),
+        )
+        .json();
+    let inter = srv
+        .req(
+            "POST",
+            "/v1/volumes/csg",
+            &[],
+            serde_json::json!({"op": "intersection", "operands": [a, b]})
+                .to_string()
+                .as_bytes(),
+        )
+        .json();
+    assert_eq!(i["voxels"], inter["solid_voxels"]);
+    assert!(i["voxels"].as_u64().unwrap() > 0);
+    // Errors: misaligned grids, a density operand, unknown ids, bad expressions.
+    let r = srv.req(
+        "POST",
+        "/v1/voxelize?origin=0.25,0,0&voxel_size=0.5&dims=4,4,4&wait=60",
+        &obj,
+        &box_obj([0.5; 3], [1.5; 3]),
+    );
+    let shifted = r.json()["id"].as_str().unwrap().to_string();
+    let bad =
+        |e: serde_json::Value| srv.req("POST", "/v1/volumes/csg", &[], e.to_string().as_bytes());
+    assert_problem(
+        &bad(serde_json::json!({"op": "union", "operands": [a, shifted]})),
+        422,
+        "misaligned-grids",
+    );
+    let d = srv
+        .req(
+            "POST",
+            &format!("/v1/voxelize?{grid}&method=density&wait=60"),
+            &obj,
+            &box_obj([1.0; 3], [2.0; 3]),
+        )
+        .json();
+    assert_problem(
+        &bad(serde_json::json!({"op": "union", "operands": [a, d["id"]]})),
+        422,
+        "wrong-volume-kind",
+    );
+    assert_problem(
+        &bad(serde_json::json!({"op": "union", "operands": [a, "nope"]})),
+        404,
+        "not-found",
+    );
+    assert_problem(
+        &bad(serde_json::json!({"op": "sum", "operands": [a]})),
+        400,
+        "invalid-parameter",
+    );
+    assert_problem(
+        &bad(serde_json::json!({"op": "union", "operands": []})),
+        400,
+        "invalid-parameter",
+    );
+    assert_problem(&bad(serde_json::json!(42)), 400, "invalid-parameter");
+    let far = srv
+        .req(
+            "POST",
+            "/v1/voxelize?origin=100,100,100&voxel_size=0.5&dims=4,4,4&wait=60",
+            &obj,
+            &box_obj([100.5; 3], [101.5; 3]),
+        )
+        .json();
+    assert_problem(
+        &bad(serde_json::json!({"op": "intersection", "operands": [a, far["id"]]})),
+        422,
+        "empty-intersection",
+    );
+    assert_eq!(
+        srv.req(
+            "POST",
+            "/v1/volumes/intersect",
+            &[],
+            serde_json::json!({"a": a, "b": far["id"]})
+                .to_string()
+                .as_bytes()
+        )
+        .json()["voxels"],
+        0
+    );
+    assert_problem(
+        &srv.req("POST", "/v1/volumes/intersect", &[], b"{}"),
+        400,
+        "invalid-parameter",
+    );
+}

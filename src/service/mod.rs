@@ -7,6 +7,7 @@
 // where its 144 bytes cost nothing measurable, and boxing it would clutter every handler.
 #![allow(clippy::result_large_err)]
 
+mod csg;
 pub mod jobs;
 mod metrics;
 pub mod problem;
@@ -245,6 +246,7 @@ fn run_job(
         created: jobs::rfc3339(std::time::SystemTime::now()),
         bytes: bytes.len() as u64,
         sha256: hex_sha256(&bytes),
+        provenance: None,
     };
     app.store.put(m, &bytes).map_err(|e| match e {
         store::StoreError::Full { .. } => Problem::new(Kind::StorageFull, e.to_string()),

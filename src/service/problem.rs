@@ -24,11 +24,17 @@ pub enum Kind {
     StorageFull,
     EngineFailure,
     ShuttingDown,
+    MisalignedGrids,
+    WrongVolumeKind,
+    EmptyIntersection,
     Internal,
 }
 
 impl Kind {
-    pub const ALL: [Kind; 14] = [
+    pub const ALL: [Kind; 17] = [
+        Kind::MisalignedGrids,
+        Kind::WrongVolumeKind,
+        Kind::EmptyIntersection,
         Kind::InvalidMesh,
         Kind::UnsupportedMediaType,
         Kind::ExternalResource,
@@ -60,6 +66,9 @@ impl Kind {
             Kind::StorageFull => "storage-full",
             Kind::EngineFailure => "engine-failure",
             Kind::ShuttingDown => "shutting-down",
+            Kind::MisalignedGrids => "misaligned-grids",
+            Kind::WrongVolumeKind => "wrong-volume-kind",
+            Kind::EmptyIntersection => "empty-intersection",
             Kind::Internal => "internal",
         }
     }
@@ -69,7 +78,10 @@ impl Kind {
             Kind::InvalidMesh | Kind::GridTooLarge | Kind::TooManyTriangles => {
                 StatusCode::UNPROCESSABLE_ENTITY
             }
-            Kind::ExternalResource => StatusCode::UNPROCESSABLE_ENTITY,
+            Kind::ExternalResource
+            | Kind::MisalignedGrids
+            | Kind::WrongVolumeKind
+            | Kind::EmptyIntersection => StatusCode::UNPROCESSABLE_ENTITY,
             Kind::UnsupportedMediaType => StatusCode::UNSUPPORTED_MEDIA_TYPE,
             Kind::BodyTooLarge => StatusCode::PAYLOAD_TOO_LARGE,
             Kind::InvalidParameter => StatusCode::BAD_REQUEST,
@@ -97,6 +109,9 @@ impl Kind {
             Kind::StorageFull => "Storage quota exhausted",
             Kind::EngineFailure => "Voxelization failed",
             Kind::ShuttingDown => "The server is shutting down",
+            Kind::MisalignedGrids => "The volumes' grids do not line up",
+            Kind::WrongVolumeKind => "Wrong kind of volume",
+            Kind::EmptyIntersection => "The intersection is empty",
             Kind::Internal => "Internal error",
         }
     }

@@ -34,6 +34,9 @@ pub struct VolumeMeta {
     pub bytes: u64,
     /// sha256 of the stored `.vxl`, the basis of download ETags.
     pub sha256: String,
+    /// For volumes computed from others: the CSG expression.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub provenance: Option<serde_json::Value>,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

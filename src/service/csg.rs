@@ -1,0 +1,190 @@
+//! `POST /v1/volumes/csg` and `POST /v1/volumes/intersect`: boolean algebra between stored
+//! volumes (src/volume/csg.rs), evaluated synchronously: word operations are fast next to a
+//! voxelization, and each stored operand is read and decoded once per request.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use axum::extract::{Query, State};
+use axum::http::{HeaderValue, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use serde_json::{Value, json};
+
+use super::App;
+use super::problem::{Kind, Problem};
+use super::store::{SourceInfo, VolumeMeta};
+use crate::codec::vxl;
+use crate::volume::csg::{self, CsgError, CsgOp};
+use crate::volume::{BitVolume, Volume};
+
+const MAX_DEPTH: usize = 32;
+const MAX_OPERANDS: usize = 256;
+
+fn bad(d: impl Into<String>) -> Problem {
+    Problem::new(Kind::InvalidParameter, d)
+}
+
+fn csg_problem(e: CsgError) -> Problem {
+    match e {
+        CsgError::Misaligned { .. } => Problem::new(Kind::MisalignedGrids, e.to_string()),
+        CsgError::NoOverlap => Problem::new(Kind::EmptyIntersection, e.to_string()),
+        CsgError::NoOperands => bad(e.to_string()),
+    }
+}
+
+/// Loads stored bit volumes by id, each once.
+struct Loader<'a> {
+    app: &'a App,
+    cache: HashMap<String, Arc<BitVolume>>,
+}
+
+impl Loader<'_> {
+    fn get(&mut self, id: &str) -> Result<Arc<BitVolume>, Problem> {
+        if let Some(v) = self.cache.get(id) {
+            return Ok(v.clone());
+        }
+        let bytes = self
+            .app
+            .store
+            .read(id)
+            .map_err(|e| Problem::new(Kind::Internal, e.to_string()))?
+            .ok_or_else(|| Problem::new(Kind::NotFound, format!("no volume with id {id:?}")))?;
+        let (v, _) = vxl::decode(&bytes)
+            .map_err(|e| Problem::new(Kind::Internal, format!("stored volume {id}: {e}")))?;
+        let Volume::Bits(b) = v else {
+            return Err(Problem::new(
+                Kind::WrongVolumeKind,
+                format!(
+                    "volume {id} is a density volume; CSG combines bit volumes (solid, surface, conservative, interior)"
+                ),
+            ));
+        };
+        let b = Arc::new(b);
+        self.cache.insert(id.to_string(), b.clone());
+        Ok(b)
+    }
+
+    fn eval(&mut self, e: &Value, depth: usize) -> Result<Arc<BitVolume>, Problem> {
+        if depth > MAX_DEPTH {
+            return Err(bad(format!(
+                "the expression is nested deeper than {MAX_DEPTH}"
+            )));
+        }
+        match e {
+            Value::String(id) => self.get(id),
+            Value::Object(o) => {
+                let op = o
+                    .get("op")
+                    .and_then(Value::as_str)
+                    .ok_or_else(|| bad("every expression node needs \"op\""))?;
+                let op = CsgOp::from_name(op).ok_or_else(|| {
+                    bad(format!(
+                        "op {op:?} is not one of union, intersection, difference, xor"
+                    ))
+                })?;
+                let operands = o
+                    .get("operands")
+                    .and_then(Value::as_array)
+                    .ok_or_else(|| bad("every expression node needs an \"operands\" array"))?;
+                if operands.is_empty() || operands.len() > MAX_OPERANDS {
+                    return Err(bad(format!(
+                        "an operation takes 1 to {MAX_OPERANDS} operands"
+                    )));
+                }
+                let vols: Vec<Arc<BitVolume>> = operands
+                    .iter()
+                    .map(|x| self.eval(x, depth + 1))
+                    .collect::<Result<_, _>>()?;
+                let refs: Vec<&BitVolume> = vols.iter().map(|v| &**v).collect();
+                Ok(Arc::new(csg::apply(op, &refs).map_err(csg_problem)?))
+            }
+            other => Err(bad(format!(
+                "an operand is a volume id (string) or an {{\"op\", \"operands\"}} object, not {other}"
+            ))),
+        }
+    }
+}
+
+fn json_body(body: &[u8]) -> Result<Value, Problem> {
+    serde_json::from_slice(body).map_err(|e| bad(format!("the body is not JSON: {e}")))
+}
+
+pub async fn csg(
+    State(app): State<Arc<App>>,
+    Query(q): Query<HashMap<String, String>>,
+    body: axum::body::Bytes,
+) -> Result<Response, Problem> {
+    let expr = json_body(&body)?;
+    let name = q.get("name").cloned();
+    let app2 = app.clone();
+    let meta = tokio::task::spawn_blocking(move || -> Result<VolumeMeta, Problem> {
+        let v = Loader {
+            app: &app2,
+            cache: HashMap::new(),
+        }
+        .eval(&expr, 0)?;
+        let bytes = vxl::encode(&Volume::Bits((*v).clone()), &Default::default())
+            .map_err(|e| Problem::new(Kind::Internal, e.to_string()))?;
+        let g = *v.grid();
+        let solid = v.count_ones();
+        let expr_bytes = serde_json::to_vec(&expr).unwrap_or_default();
+        let meta = VolumeMeta {
+            id: app2.new_id(),
+            name,
+            kind: "bits".into(),
+            method: "csg".into(),
+            grid: g,
+            solid_voxels: solid,
+            volume: solid as f64 * g.voxel_size.powi(3),
+            source: SourceInfo {
+                format: "csg".into(),
+                sha256: super::hex_sha256(&expr_bytes),
+                triangles: 0,
+            },
+            diagnostics: None,
+            engine: "cpu".into(),
+            created: super::jobs::rfc3339(std::time::SystemTime::now()),
+            bytes: bytes.len() as u64,
+            sha256: super::hex_sha256(&bytes),
+            provenance: Some(expr),
+        };
+        app2.store.put(meta.clone(), &bytes).map_err(|e| match e {
+            super::store::StoreError::Full { .. } => Problem::new(Kind::StorageFull, e.to_string()),
+            other => Problem::new(Kind::Internal, other.to_string()),
+        })?;
+        Ok(meta)
+    })
+    .await
+    .map_err(|e| Problem::new(Kind::Internal, e.to_string()))??;
+    let mut r = (StatusCode::CREATED, axum::Json(&meta)).into_response();
+    r.headers_mut().insert(
+        header::LOCATION,
+        HeaderValue::from_str(&format!("/v1/volumes/{}", meta.id)).expect("ascii"),
+    );
+    Ok(r)
+}
+
+pub async fn intersect(
+    State(app): State<Arc<App>>,
+    body: axum::body::Bytes,
+) -> Result<Response, Problem> {
+    let v = json_body(&body)?;
+    let (Some(a), Some(b)) = (
+        v.get("a").and_then(Value::as_str),
+        v.get("b").and_then(Value::as_str),
+    ) else {
+        return Err(bad(
+            "the body must be {\"a\": \"<volume id>\", \"b\": \"<volume id>\"}",
+        ));
+    };
+    let (a, b) = (a.to_string(), b.to_string());
+    let out = tokio::task::spawn_blocking(move || -> Result<Value, Problem> {
+        let mut l = Loader { app: &app, cache: HashMap::new() };
+        let (va, vb) = (l.get(&a)?, l.get(&b)?);
+        let n = csg::overlap_count(&va, &vb).map_err(csg_problem)?;
+        Ok(json!({ "a": a, "b": b, "voxels": n, "volume": n as f64 * va.grid().voxel_size.powi(3) }))
+    })
+    .await
+    .map_err(|e| Problem::new(Kind::Internal, e.to_string()))??;
+    Ok(axum::Json(out).into_response())
+}
