@@ -392,26 +392,13 @@ fn numpy_loads_the_npy() {
     let Volume::Bits(v) = read(&out) else {
         panic!()
     };
-    let sums = v.iter_ones().fold([0u64; 3], |a, p| {
-        [a[0] + p[0] as u64, a[1] + p[1] as u64, a[2] + p[2] as u64]
-    });
     let script = "import numpy as np, sys; a = np.load(sys.argv[1]); assert a.dtype == np.uint8; print(*a.shape, int(a.sum()), *np.argwhere(a).sum(axis=0).tolist())";
     let o = Command::new(python)
         .args(["-c", script, s(&out)])
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let d = v.dims();
-    let want = format!(
-        "{} {} {} {} {} {} {}",
-        d[0],
-        d[1],
-        d[2],
-        v.count_ones(),
-        sums[0],
-        sums[1],
-        sums[2]
-    );
+    let want = summary(&v);
     assert_eq!(String::from_utf8(o.stdout).unwrap().trim(), want);
 }
 
@@ -446,27 +433,17 @@ fn the_documented_python_reader_reads_vxl() {
     let Volume::Bits(v) = read(&out) else {
         panic!()
     };
-    let sums = v.iter_ones().fold([0u64; 3], |a, p| {
-        [a[0] + p[0] as u64, a[1] + p[1] as u64, a[2] + p[2] as u64]
-    });
     let o = Command::new(python)
         .args([s(&script), s(&out)])
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let d = v.dims();
-    let want = format!(
-        "bits {} {} {} {} {} {} {}",
-        d[0],
-        d[1],
-        d[2],
-        v.count_ones(),
-        sums[0],
-        sums[1],
-        sums[2]
-    );
+    let want = format!("bits {}", summary(&v));
     assert_eq!(String::from_utf8(o.stdout).unwrap().trim(), want);
-    assert!(d[2] > 64, "the check should span several words per column");
+    assert!(
+        v.dims()[2] > 64,
+        "the check should span several words per column"
+    );
 }
 
 #[test]

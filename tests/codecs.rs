@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::Rng;
+use common::{Rng, random_fill};
 use voxd::codec::{VolumeFormat, binvox, npy, vxl};
 use voxd::grid::Grid;
 use voxd::volume::{BitVolume, DensityVolume, Volume};
@@ -15,18 +15,7 @@ fn random_bits(rng: &mut Rng, dims: [u32; 3]) -> BitVolume {
         voxel_size: rng.range(0.01, 2.0),
         dims,
     };
-    let mut v = BitVolume::new(g);
-    let fill = rng.below(100);
-    for x in 0..dims[0] {
-        for y in 0..dims[1] {
-            for z in 0..dims[2] {
-                if rng.below(100) < fill {
-                    v.set(x, y, z, true);
-                }
-            }
-        }
-    }
-    v
+    random_fill(rng, g)
 }
 
 #[test]

@@ -22,18 +22,7 @@ fn random_volume(rng: &mut Rng, origin: [i64; 3]) -> BitVolume {
         voxel_size: 0.5,
         dims,
     };
-    let mut v = BitVolume::new(g);
-    let fill = rng.below(100);
-    for x in 0..dims[0] {
-        for y in 0..dims[1] {
-            for z in 0..dims[2] {
-                if rng.below(100) < fill {
-                    v.set(x, y, z, true);
-                }
-            }
-        }
-    }
-    v
+    random_fill(rng, g)
 }
 
 /// Is the voxel of `v` at world-lattice index `p` (in voxels from the world origin) set?

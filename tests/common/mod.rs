@@ -470,3 +470,37 @@ pub fn first_difference(a: &BitVolume, b: &BitVolume) -> Option<String> {
     }
     None
 }
+
+/// A volume on `g` with each voxel set with a random probability chosen per volume.
+pub fn random_fill(rng: &mut Rng, g: Grid) -> BitVolume {
+    let mut v = BitVolume::new(g);
+    let fill = rng.below(100);
+    for x in 0..g.dims[0] {
+        for y in 0..g.dims[1] {
+            for z in 0..g.dims[2] {
+                if rng.below(100) < fill {
+                    v.set(x, y, z, true);
+                }
+            }
+        }
+    }
+    v
+}
+
+/// "X Y Z count Σx Σy Σz" of a volume: what the Python checks print for it.
+pub fn summary(v: &BitVolume) -> String {
+    let s = v.iter_ones().fold([0u64; 3], |a, p| {
+        [a[0] + p[0] as u64, a[1] + p[1] as u64, a[2] + p[2] as u64]
+    });
+    let d = v.dims();
+    format!(
+        "{} {} {} {} {} {} {}",
+        d[0],
+        d[1],
+        d[2],
+        v.count_ones(),
+        s[0],
+        s[1],
+        s[2]
+    )
+}
