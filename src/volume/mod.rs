@@ -7,6 +7,7 @@
 //! `k / 32`).
 
 pub mod csg;
+pub mod morph;
 
 use crate::grid::Grid;
 
