@@ -43,6 +43,22 @@ enum Command {
         #[arg(short, long)]
         output: PathBuf,
     },
+    /// Dilate, erode, open or close a bit volume.
+    Morph {
+        /// dilate | erode | open | close
+        op: String,
+        input: PathBuf,
+        #[arg(short, long)]
+        output: PathBuf,
+        #[arg(long, default_value_t = 1)]
+        radius: u32,
+        /// cube | cross | sphere
+        #[arg(long, default_value = "cube")]
+        kernel: String,
+        /// Enlarge the grid by the radius so dilation is not clipped.
+        #[arg(long)]
+        grow: bool,
+    },
     /// Run the HTTP service.
     Serve(ServeArgs),
     /// Time the CPU and GPU engines per method and resolution on a mesh (a markdown table).
@@ -275,6 +291,14 @@ fn main() -> ExitCode {
         Command::Info { file } => info(&file),
         Command::Convert { input, output } => convert(&input, &output),
         Command::Serve(a) => serve(a),
+        Command::Morph {
+            op,
+            input,
+            output,
+            radius,
+            kernel,
+            grow,
+        } => morph(&op, &input, &output, radius, &kernel, grow),
         Command::Csg { op, inputs, output } => csg(&op, &inputs, &output),
         Command::Bench {
             mesh,
@@ -603,6 +627,47 @@ fn csg(op: &str, inputs: &[PathBuf], output: &Path) -> Result<(), String> {
         g.dims[1],
         g.dims[2],
         g.origin
+    );
+    Ok(())
+}
+
+fn morph(
+    op: &str,
+    input: &Path,
+    output: &Path,
+    radius: u32,
+    kernel: &str,
+    grow: bool,
+) -> Result<(), String> {
+    use voxd::volume::morph::{self, Kernel, MorphOp};
+    let op = MorphOp::from_name(op).ok_or_else(|| {
+        format!("unknown operation {op:?}; expected dilate, erode, open or close")
+    })?;
+    let kernel = Kernel::from_name(kernel)
+        .ok_or_else(|| format!("unknown kernel {kernel:?}; expected cube, cross or sphere"))?;
+    if radius > morph::MAX_RADIUS {
+        return Err(format!(
+            "radius {radius} is over the limit of {}",
+            morph::MAX_RADIUS
+        ));
+    }
+    let f = volume_format_of(output)?;
+    let Volume::Bits(v) = read_volume(input)? else {
+        return Err(format!(
+            "{}: a density volume; morphology works on bit volumes",
+            input.display()
+        ));
+    };
+    let r = morph::apply(&v, op, radius, kernel, grow);
+    let (d, n) = (r.dims(), r.count_ones());
+    write_volume(output, f, &Volume::Bits(r), &serde_json::Map::new())?;
+    println!(
+        "{} -> {}: {}x{}x{}, {n} voxels set",
+        input.display(),
+        output.display(),
+        d[0],
+        d[1],
+        d[2]
     );
     Ok(())
 }

@@ -488,3 +488,52 @@ fn csg_on_the_command_line() {
         Some(1)
     );
 }
+
+#[test]
+fn morph_on_the_command_line() {
+    let (a, out) = (tmp("morph-a.vxl"), tmp("morph-out.vxl"));
+    assert!(
+        voxd(&[
+            "voxelize",
+            s(&data("Box.gltf")),
+            "-o",
+            s(&a),
+            "--resolution",
+            "10",
+            "--padding",
+            "3",
+            "--engine",
+            "cpu"
+        ])
+        .status
+        .success()
+    );
+    let o = voxd(&[
+        "morph",
+        "erode",
+        s(&a),
+        "-o",
+        s(&out),
+        "--radius",
+        "2",
+        "--kernel",
+        "cross",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (Volume::Bits(v), Volume::Bits(e)) = (read(&a), read(&out)) else {
+        panic!()
+    };
+    let want = voxd::volume::morph::apply(
+        &v,
+        voxd::volume::morph::MorphOp::Erode,
+        2,
+        voxd::volume::morph::Kernel::Cross,
+        false,
+    );
+    assert_eq!(e, want);
+    assert!(e.count_ones() < v.count_ones() && e.count_ones() > 0);
+    assert_eq!(
+        voxd(&["morph", "melt", s(&a), "-o", s(&out)]).status.code(),
+        Some(1)
+    );
+}

@@ -1259,3 +1259,89 @@ fn csg_and_intersect_over_http() {
         "invalid-parameter",
     );
 }
+
+#[test]
+fn morphology_over_http() {
+    let srv = Server::start(&tmpdir("morph"), &["--max-voxels", "200000"]);
+    let r = srv.req(
+        "POST",
+        "/v1/voxelize?origin=0,0,0&voxel_size=1&dims=20,20,20&wait=60",
+        &[("Content-Type", "model/obj")],
+        &box_obj([5.0; 3], [12.0; 3]),
+    );
+    let id = r.json()["id"].as_str().unwrap().to_string();
+    let stored = decode(
+        &srv.req("GET", &format!("/v1/volumes/{id}/data"), &[], &[])
+            .body,
+    );
+    let body = serde_json::json!({"op": "dilate", "radius": 2, "kernel": "sphere", "grow": true});
+    let r = srv.req(
+        "POST",
+        &format!("/v1/volumes/{id}/morphology?name=fat"),
+        &[],
+        body.to_string().as_bytes(),
+    );
+    assert_eq!(r.status, 201, "{}", String::from_utf8_lossy(&r.body));
+    let meta = r.json();
+    assert_eq!(meta["grid"]["dims"], serde_json::json!([24, 24, 24]));
+    assert_eq!(meta["provenance"]["morphology"]["of"], id.as_str());
+    let got = decode(
+        &srv.req(
+            "GET",
+            &format!("/v1/volumes/{}/data", meta["id"].as_str().unwrap()),
+            &[],
+            &[],
+        )
+        .body,
+    );
+    let want = voxd::volume::morph::apply(
+        &stored,
+        voxd::volume::morph::MorphOp::Dilate,
+        2,
+        voxd::volume::morph::Kernel::Sphere,
+        true,
+    );
+    assert_eq!(got, want);
+    let post = |b: serde_json::Value| {
+        srv.req(
+            "POST",
+            &format!("/v1/volumes/{id}/morphology"),
+            &[],
+            b.to_string().as_bytes(),
+        )
+    };
+    assert_eq!(
+        post(serde_json::json!({"op": "erode", "radius": 1})).json()["solid_voxels"],
+        5 * 5 * 5
+    );
+    assert_problem(
+        &post(serde_json::json!({"op": "melt", "radius": 1})),
+        400,
+        "invalid-parameter",
+    );
+    assert_problem(
+        &post(serde_json::json!({"op": "erode", "radius": 99})),
+        400,
+        "invalid-parameter",
+    );
+    assert_problem(
+        &post(serde_json::json!({"op": "erode", "radius": 1, "kernel": "star"})),
+        400,
+        "invalid-parameter",
+    );
+    assert_problem(
+        &post(serde_json::json!({"op": "dilate", "radius": 30, "grow": true})),
+        422,
+        "grid-too-large",
+    );
+    assert_problem(
+        &srv.req(
+            "POST",
+            "/v1/volumes/nope/morphology",
+            &[],
+            br#"{"op":"erode","radius":1}"#,
+        ),
+        404,
+        "not-found",
+    );
+}

@@ -7,12 +7,12 @@
 // where its 144 bytes cost nothing measurable, and boxing it would clutter every handler.
 #![allow(clippy::result_large_err)]
 
-mod csg;
 pub mod jobs;
 mod metrics;
 pub mod problem;
 mod routes;
 pub mod store;
+mod volume_ops;
 
 use std::net::SocketAddr;
 use std::path::PathBuf;

@@ -40,8 +40,12 @@ pub fn router(app: Arc<App>) -> Router {
         )
         .route("/v1/jobs/{id}", get(get_job).delete(cancel_job))
         .route("/v1/volumes", get(list_volumes))
-        .route("/v1/volumes/csg", post(super::csg::csg))
-        .route("/v1/volumes/intersect", post(super::csg::intersect))
+        .route("/v1/volumes/csg", post(super::volume_ops::csg))
+        .route("/v1/volumes/intersect", post(super::volume_ops::intersect))
+        .route(
+            "/v1/volumes/{id}/morphology",
+            post(super::volume_ops::morphology),
+        )
         .route("/v1/volumes/{id}", get(get_volume).delete(delete_volume))
         .route("/v1/volumes/{id}/data", get(volume_data))
         .route("/healthz", get(healthz))

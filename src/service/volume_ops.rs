@@ -1,6 +1,7 @@
-//! `POST /v1/volumes/csg` and `POST /v1/volumes/intersect`: boolean algebra between stored
-//! volumes (src/volume/csg.rs), evaluated synchronously: word operations are fast next to a
-//! voxelization, and each stored operand is read and decoded once per request.
+//! Operations on stored volumes: `POST /v1/volumes/csg` and `/v1/volumes/intersect` (boolean
+//! algebra, src/volume/csg.rs) and `POST /v1/volumes/{id}/morphology` (src/volume/morph.rs).
+//! They run synchronously: word operations are fast next to a voxelization, and each stored
+//! operand is read and decoded once per request.
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -123,36 +124,7 @@ pub async fn csg(
             cache: HashMap::new(),
         }
         .eval(&expr, 0)?;
-        let bytes = vxl::encode(&Volume::Bits((*v).clone()), &Default::default())
-            .map_err(|e| Problem::new(Kind::Internal, e.to_string()))?;
-        let g = *v.grid();
-        let solid = v.count_ones();
-        let expr_bytes = serde_json::to_vec(&expr).unwrap_or_default();
-        let meta = VolumeMeta {
-            id: app2.new_id(),
-            name,
-            kind: "bits".into(),
-            method: "csg".into(),
-            grid: g,
-            solid_voxels: solid,
-            volume: solid as f64 * g.voxel_size.powi(3),
-            source: SourceInfo {
-                format: "csg".into(),
-                sha256: super::hex_sha256(&expr_bytes),
-                triangles: 0,
-            },
-            diagnostics: None,
-            engine: "cpu".into(),
-            created: super::jobs::rfc3339(std::time::SystemTime::now()),
-            bytes: bytes.len() as u64,
-            sha256: super::hex_sha256(&bytes),
-            provenance: Some(expr),
-        };
-        app2.store.put(meta.clone(), &bytes).map_err(|e| match e {
-            super::store::StoreError::Full { .. } => Problem::new(Kind::StorageFull, e.to_string()),
-            other => Problem::new(Kind::Internal, other.to_string()),
-        })?;
-        Ok(meta)
+        store_derived(&app2, (*v).clone(), name, "csg", expr)
     })
     .await
     .map_err(|e| Problem::new(Kind::Internal, e.to_string()))??;
@@ -162,6 +134,110 @@ pub async fn csg(
         HeaderValue::from_str(&format!("/v1/volumes/{}", meta.id)).expect("ascii"),
     );
     Ok(r)
+}
+
+/// Stores a volume computed from others, with `provenance` saying how.
+fn store_derived(
+    app: &App,
+    v: BitVolume,
+    name: Option<String>,
+    method: &str,
+    provenance: Value,
+) -> Result<VolumeMeta, Problem> {
+    let g = *v.grid();
+    let solid = v.count_ones();
+    let bytes = vxl::encode(&Volume::Bits(v), &Default::default())
+        .map_err(|e| Problem::new(Kind::Internal, e.to_string()))?;
+    let expr_bytes = serde_json::to_vec(&provenance).unwrap_or_default();
+    let meta = VolumeMeta {
+        id: app.new_id(),
+        name,
+        kind: "bits".into(),
+        method: method.into(),
+        grid: g,
+        solid_voxels: solid,
+        volume: solid as f64 * g.voxel_size.powi(3),
+        source: SourceInfo {
+            format: method.into(),
+            sha256: super::hex_sha256(&expr_bytes),
+            triangles: 0,
+        },
+        diagnostics: None,
+        engine: "cpu".into(),
+        created: super::jobs::rfc3339(std::time::SystemTime::now()),
+        bytes: bytes.len() as u64,
+        sha256: super::hex_sha256(&bytes),
+        provenance: Some(provenance),
+    };
+    app.store.put(meta.clone(), &bytes).map_err(|e| match e {
+        super::store::StoreError::Full { .. } => Problem::new(Kind::StorageFull, e.to_string()),
+        other => Problem::new(Kind::Internal, other.to_string()),
+    })?;
+    Ok(meta)
+}
+
+fn created(meta: &VolumeMeta) -> Response {
+    let mut r = (StatusCode::CREATED, axum::Json(meta)).into_response();
+    r.headers_mut().insert(
+        header::LOCATION,
+        HeaderValue::from_str(&format!("/v1/volumes/{}", meta.id)).expect("ascii"),
+    );
+    r
+}
+
+pub async fn morphology(
+    State(app): State<Arc<App>>,
+    axum::extract::Path(id): axum::extract::Path<String>,
+    Query(q): Query<HashMap<String, String>>,
+    body: axum::body::Bytes,
+) -> Result<Response, Problem> {
+    use crate::volume::morph::{self, Kernel, MorphOp};
+    let spec = json_body(&body)?;
+    let op = spec
+        .get("op")
+        .and_then(Value::as_str)
+        .and_then(MorphOp::from_name)
+        .ok_or_else(|| bad("\"op\" must be dilate, erode, open or close"))?;
+    let kernel = match spec.get("kernel") {
+        None => Kernel::Cube,
+        Some(k) => k
+            .as_str()
+            .and_then(Kernel::from_name)
+            .ok_or_else(|| bad("\"kernel\" must be cube, cross or sphere"))?,
+    };
+    let radius = spec
+        .get("radius")
+        .and_then(Value::as_u64)
+        .filter(|&r| r <= morph::MAX_RADIUS as u64)
+        .ok_or_else(|| {
+            bad(format!(
+                "\"radius\" must be a whole number from 0 to {}",
+                morph::MAX_RADIUS
+            ))
+        })? as u32;
+    let grow = match spec.get("grow") {
+        None => false,
+        Some(g) => g
+            .as_bool()
+            .ok_or_else(|| bad("\"grow\" must be true or false"))?,
+    };
+    let name = q.get("name").cloned();
+    let app2 = app.clone();
+    let meta = tokio::task::spawn_blocking(move || -> Result<VolumeMeta, Problem> {
+        let v = Loader { app: &app2, cache: HashMap::new() }.get(&id)?;
+        if grow && matches!(op, MorphOp::Dilate | MorphOp::Close) {
+            let g = morph::padded(v.grid(), radius);
+            if g.voxel_count() > app2.config.max_voxels {
+                return Err(Problem::new(Kind::GridTooLarge, format!("the grown grid {:?} has {} voxels, over the limit of {}", g.dims, g.voxel_count(), app2.config.max_voxels)));
+            }
+        }
+        let out = morph::apply(&v, op, radius, kernel, grow);
+        let provenance = json!({ "morphology": { "of": id, "op": format!("{op:?}").to_lowercase(), "radius": radius, "kernel": format!("{kernel:?}").to_lowercase(), "grow": grow } });
+        store_derived(&app2, out, name, "morphology", provenance)
+    })
+    .await
+    .map_err(|e| Problem::new(Kind::Internal, e.to_string()))??;
+    Ok(created(&meta))
 }
 
 pub async fn intersect(
