@@ -583,6 +583,22 @@ fn info(p: &Path) -> Result<(), String> {
                 }
                 None => outln!(out, "set bounds: empty"),
             }
+            let st = voxd::volume::stats::stats(b);
+            outln!(
+                out,
+                "surface:    {} voxels with an empty face neighbour",
+                st.surface_voxels
+            );
+            outln!(
+                out,
+                "components: {} (6-connected), {} (26-connected)",
+                st.components_6,
+                st.components_26
+            );
+            if let (Some(c), Some(i)) = (st.centre_of_mass, st.inertia) {
+                outln!(out, "centre of mass: {c:?}");
+                outln!(out, "inertia:    {:?}", i);
+            }
         }
         Volume::Density(d) => {
             outln!(

@@ -46,6 +46,7 @@ pub fn router(app: Arc<App>) -> Router {
             "/v1/volumes/{id}/morphology",
             post(super::volume_ops::morphology),
         )
+        .route("/v1/volumes/{id}/stats", get(super::volume_ops::stats))
         .route("/v1/volumes/{id}", get(get_volume).delete(delete_volume))
         .route("/v1/volumes/{id}/data", get(volume_data))
         .route("/healthz", get(healthz))

@@ -264,3 +264,21 @@ pub async fn intersect(
     .map_err(|e| Problem::new(Kind::Internal, e.to_string()))??;
     Ok(axum::Json(out).into_response())
 }
+
+pub async fn stats(
+    State(app): State<Arc<App>>,
+    axum::extract::Path(id): axum::extract::Path<String>,
+) -> Result<Response, Problem> {
+    let st =
+        tokio::task::spawn_blocking(move || -> Result<crate::volume::stats::Stats, Problem> {
+            let v = Loader {
+                app: &app,
+                cache: HashMap::new(),
+            }
+            .get(&id)?;
+            Ok(crate::volume::stats::stats(&v))
+        })
+        .await
+        .map_err(|e| Problem::new(Kind::Internal, e.to_string()))??;
+    Ok(axum::Json(st).into_response())
+}
