@@ -282,3 +282,91 @@ pub async fn stats(
         .map_err(|e| Problem::new(Kind::Internal, e.to_string()))??;
     Ok(axum::Json(st).into_response())
 }
+
+/// Points and rays per query request at most.
+const MAX_QUERIES: usize = 100_000;
+
+fn triple(v: &Value, what: &str) -> Result<[f64; 3], Problem> {
+    let a = v
+        .as_array()
+        .filter(|a| a.len() == 3)
+        .ok_or_else(|| bad(format!("{what} must be [x, y, z]")))?;
+    let mut out = [0.0; 3];
+    for (o, x) in out.iter_mut().zip(a) {
+        *o = x
+            .as_f64()
+            .filter(|f| f.is_finite())
+            .ok_or_else(|| bad(format!("{what} must hold three finite numbers")))?;
+    }
+    Ok(out)
+}
+
+pub async fn query(
+    State(app): State<Arc<App>>,
+    axum::extract::Path(id): axum::extract::Path<String>,
+    body: axum::body::Bytes,
+) -> Result<Response, Problem> {
+    use crate::volume::query::{point_value, ray};
+    let spec = json_body(&body)?;
+    let empty = vec![];
+    let points = spec
+        .get("points")
+        .map(|p| {
+            p.as_array()
+                .ok_or_else(|| bad("\"points\" must be an array"))
+        })
+        .transpose()?
+        .unwrap_or(&empty);
+    let rays = spec
+        .get("rays")
+        .map(|r| r.as_array().ok_or_else(|| bad("\"rays\" must be an array")))
+        .transpose()?
+        .unwrap_or(&empty);
+    if points.len() + rays.len() > MAX_QUERIES {
+        return Err(bad(format!(
+            "at most {MAX_QUERIES} points and rays per request"
+        )));
+    }
+    let points: Vec<[f64; 3]> = points
+        .iter()
+        .map(|p| triple(p, "a point"))
+        .collect::<Result<_, _>>()?;
+    let rays: Vec<([f64; 3], [f64; 3])> = rays
+        .iter()
+        .map(|r| {
+            Ok((
+                triple(r.get("origin").unwrap_or(&Value::Null), "a ray origin")?,
+                triple(
+                    r.get("direction").unwrap_or(&Value::Null),
+                    "a ray direction",
+                )?,
+            ))
+        })
+        .collect::<Result<_, Problem>>()?;
+    let out = tokio::task::spawn_blocking(move || -> Result<Value, Problem> {
+        let bytes = app
+            .store
+            .read(&id)
+            .map_err(|e| Problem::new(Kind::Internal, e.to_string()))?
+            .ok_or_else(|| Problem::new(Kind::NotFound, format!("no volume with id {id:?}")))?;
+        let (v, _) =
+            vxl::decode(&bytes).map_err(|e| Problem::new(Kind::Internal, e.to_string()))?;
+        let pts: Vec<Value> = points
+            .iter()
+            .map(|&p| {
+                let x = point_value(&v, p);
+                json!({ "inside": x > 0, "value": x })
+            })
+            .collect();
+        let mut hits = Vec::with_capacity(rays.len());
+        for (o, d) in rays {
+            let h =
+                ray(&v, o, d).ok_or_else(|| bad("a ray direction must be a non-zero vector"))?;
+            hits.push(serde_json::to_value(h).unwrap_or_default());
+        }
+        Ok(json!({ "points": pts, "rays": hits }))
+    })
+    .await
+    .map_err(|e| Problem::new(Kind::Internal, e.to_string()))??;
+    Ok(axum::Json(out).into_response())
+}

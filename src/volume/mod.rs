@@ -8,6 +8,7 @@
 
 pub mod csg;
 pub mod morph;
+pub mod query;
 pub mod stats;
 
 use crate::grid::Grid;

@@ -1,0 +1,125 @@
+//! Point and ray queries against a volume, in world coordinates.
+//!
+//! A point is in voxel `floor((p − origin) / voxel_size)`; points outside the grid are empty. A
+//! ray `origin + t · direction` (t ≥ 0, direction normalised here) is walked voxel by voxel
+//! (Amanatides & Woo) through the grid; it reports how many solid voxels it crosses, the distance
+//! at which it first enters solid and last leaves it, and the length it travels inside solid
+//! voxels (the thickness, for translucency).
+
+use serde::Serialize;
+
+use super::Volume;
+
+/// The value at a point: 0/1 for bits, 0..=max for density.
+pub fn point_value(v: &Volume, p: [f64; 3]) -> u8 {
+    let g = v.grid();
+    let mut idx = [0u32; 3];
+    for a in 0..3 {
+        let f = ((p[a] - g.origin[a]) / g.voxel_size).floor();
+        if !(f >= 0.0 && f < g.dims[a] as f64) {
+            return 0;
+        }
+        idx[a] = f as u32;
+    }
+    match v {
+        Volume::Bits(b) => b.get(idx[0], idx[1], idx[2]) as u8,
+        Volume::Density(d) => d.get(idx[0], idx[1], idx[2]),
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RayHit {
+    pub solid_voxels: u64,
+    /// Distance along the (normalised) ray where it first enters a solid voxel.
+    pub entry: Option<f64>,
+    /// Distance where it last leaves one.
+    pub exit: Option<f64>,
+    /// Length inside solid voxels.
+    pub thickness: f64,
+}
+
+/// Walks the ray through the grid. `None` for a zero or non-finite direction.
+pub fn ray(v: &Volume, origin: [f64; 3], direction: [f64; 3]) -> Option<RayHit> {
+    let len = direction.iter().map(|d| d * d).sum::<f64>().sqrt();
+    if !(len.is_finite() && len > 0.0) || origin.iter().any(|o| !o.is_finite()) {
+        return None;
+    }
+    let d = direction.map(|x| x / len);
+    let g = v.grid();
+    let s = g.voxel_size;
+    // Clip t to the grid box (slab test), t ≥ 0.
+    let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+    for a in 0..3 {
+        let (lo, hi) = (g.origin[a], g.origin[a] + g.dims[a] as f64 * s);
+        if d[a] == 0.0 {
+            if origin[a] < lo || origin[a] >= hi {
+                return Some(RayHit {
+                    solid_voxels: 0,
+                    entry: None,
+                    exit: None,
+                    thickness: 0.0,
+                });
+            }
+        } else {
+            let (ta, tb) = ((lo - origin[a]) / d[a], (hi - origin[a]) / d[a]);
+            t0 = t0.max(ta.min(tb));
+            t1 = t1.min(ta.max(tb));
+        }
+    }
+    let mut hit = RayHit {
+        solid_voxels: 0,
+        entry: None,
+        exit: None,
+        thickness: 0.0,
+    };
+    if t0 >= t1 {
+        return Some(hit);
+    }
+    // Start voxel: the one containing the point just inside the entry.
+    let tm = t0 + 1e-9 * s;
+    let mut idx = [0i64; 3];
+    let mut step = [0i64; 3];
+    let mut t_max = [f64::INFINITY; 3];
+    let mut t_delta = [f64::INFINITY; 3];
+    for a in 0..3 {
+        let p = (origin[a] + tm * d[a] - g.origin[a]) / s;
+        idx[a] = (p.floor() as i64).clamp(0, g.dims[a] as i64 - 1);
+        if d[a] > 0.0 {
+            step[a] = 1;
+            t_max[a] = (g.origin[a] + (idx[a] + 1) as f64 * s - origin[a]) / d[a];
+            t_delta[a] = s / d[a];
+        } else if d[a] < 0.0 {
+            step[a] = -1;
+            t_max[a] = (g.origin[a] + idx[a] as f64 * s - origin[a]) / d[a];
+            t_delta[a] = -s / d[a];
+        }
+    }
+    let mut t = t0;
+    let max_steps = g.dims.iter().map(|&n| n as u64).sum::<u64>() + 3;
+    for _ in 0..max_steps {
+        let a = (0..3)
+            .min_by(|&i, &j| t_max[i].total_cmp(&t_max[j]))
+            .unwrap();
+        let t_next = t_max[a].min(t1);
+        let solid = match v {
+            Volume::Bits(b) => b.get(idx[0] as u32, idx[1] as u32, idx[2] as u32),
+            Volume::Density(dv) => dv.get(idx[0] as u32, idx[1] as u32, idx[2] as u32) > 0,
+        };
+        if solid && t_next > t {
+            hit.solid_voxels += 1;
+            hit.entry.get_or_insert(t);
+            hit.exit = Some(t_next);
+            hit.thickness += t_next - t;
+        }
+        if t_next >= t1 {
+            break;
+        }
+        t = t_next;
+        idx[a] += step[a];
+        if idx[a] < 0 || idx[a] >= g.dims[a] as i64 {
+            break;
+        }
+        t_max[a] += t_delta[a];
+    }
+    Some(hit)
+}

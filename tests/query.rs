@@ -1,0 +1,108 @@
+//! Point and ray queries: exact cases on a box, and random rays against a fine-stepping march.
+
+mod common;
+
+use common::*;
+use voxd::grid::Grid;
+use voxd::volume::query::{point_value, ray};
+use voxd::volume::{BitVolume, Volume};
+
+fn box_volume() -> Volume {
+    let mut v = BitVolume::new(Grid {
+        origin: [0.0; 3],
+        voxel_size: 1.0,
+        dims: [8, 8, 8],
+    });
+    for x in 2..6 {
+        for y in 2..6 {
+            for z in 2..6 {
+                v.set(x, y, z, true);
+            }
+        }
+    }
+    Volume::Bits(v)
+}
+
+#[test]
+fn axis_rays_through_a_box() {
+    let v = box_volume();
+    let h = ray(&v, [-1.0, 3.5, 3.5], [2.0, 0.0, 0.0]).unwrap();
+    assert_eq!(
+        (h.solid_voxels, h.entry, h.exit, h.thickness),
+        (4, Some(3.0), Some(7.0), 4.0)
+    );
+    let h = ray(&v, [3.5, 3.5, 20.0], [0.0, 0.0, -1.0]).unwrap();
+    assert_eq!(
+        (h.solid_voxels, h.entry, h.exit, h.thickness),
+        (4, Some(14.0), Some(18.0), 4.0)
+    );
+    let miss = ray(&v, [-1.0, 0.5, 0.5], [1.0, 0.0, 0.0]).unwrap();
+    assert_eq!((miss.solid_voxels, miss.entry), (0, None));
+    let away = ray(&v, [-1.0, 3.5, 3.5], [-1.0, 0.0, 0.0]).unwrap();
+    assert_eq!(away.solid_voxels, 0);
+    assert!(ray(&v, [0.0; 3], [0.0; 3]).is_none());
+    // Starting inside the box.
+    let h = ray(&v, [3.5, 3.5, 3.5], [1.0, 0.0, 0.0]).unwrap();
+    assert_eq!(
+        (h.solid_voxels, h.entry, h.exit, h.thickness),
+        (3, Some(0.0), Some(2.5), 2.5)
+    );
+}
+
+#[test]
+fn random_rays_match_a_fine_march_and_points_match_indexing() {
+    for seed in 0..30u64 {
+        let mut rng = Rng::new(40 + seed);
+        let g = Grid {
+            origin: [rng.range(-2.0, 2.0), 1.0, -1.5],
+            voxel_size: rng.range(0.3, 1.7),
+            dims: [
+                1 + rng.below(7) as u32,
+                1 + rng.below(7) as u32,
+                1 + rng.below(70) as u32,
+            ],
+        };
+        let bits = random_fill(&mut rng, g);
+        let v = Volume::Bits(bits.clone());
+        let c = [0, 1, 2].map(|a| g.origin[a] + g.dims[a] as f64 * g.voxel_size / 2.0);
+        for _ in 0..20 {
+            let o = [0, 1, 2].map(|a| c[a] + rng.range(-60.0, 60.0));
+            let dir = [0, 1, 2].map(|a| c[a] + rng.range(-1.0, 1.0) - o[a]);
+            let h = ray(&v, o, dir).unwrap();
+            // March in tiny steps, summing the length in solid voxels.
+            let len = dir.iter().map(|x| x * x).sum::<f64>().sqrt();
+            let step = g.voxel_size * 1e-3;
+            let (mut thick, mut t) = (0.0, 0.0);
+            let mut seen = std::collections::HashSet::new();
+            while t < 200.0 {
+                let p = [0, 1, 2].map(|a| o[a] + (t + step / 2.0) * dir[a] / len);
+                if point_value(&v, p) == 1 {
+                    thick += step;
+                    seen.insert(
+                        [0, 1, 2].map(|a| ((p[a] - g.origin[a]) / g.voxel_size).floor() as i64),
+                    );
+                }
+                t += step;
+            }
+            assert!(
+                (h.thickness - thick).abs() < 4.0 * step * (g.dims.iter().sum::<u32>() as f64),
+                "seed {seed}: {} vs {thick}",
+                h.thickness
+            );
+            assert!(
+                h.solid_voxels >= seen.len() as u64 && h.solid_voxels <= seen.len() as u64 + 3,
+                "seed {seed}: {} vs {}",
+                h.solid_voxels,
+                seen.len()
+            );
+        }
+        for _ in 0..50 {
+            let p = [0, 1, 2]
+                .map(|a| g.origin[a] + rng.range(-1.0, g.dims[a] as f64 + 1.0) * g.voxel_size);
+            let i = [0, 1, 2].map(|a| ((p[a] - g.origin[a]) / g.voxel_size).floor());
+            let inside = (0..3).all(|a| i[a] >= 0.0 && i[a] < g.dims[a] as f64);
+            let want = inside && bits.get(i[0] as u32, i[1] as u32, i[2] as u32);
+            assert_eq!(point_value(&v, p), want as u8);
+        }
+    }
+}
