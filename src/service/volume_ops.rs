@@ -370,3 +370,45 @@ pub async fn query(
     .map_err(|e| Problem::new(Kind::Internal, e.to_string()))??;
     Ok(axum::Json(out).into_response())
 }
+
+pub async fn normals(
+    State(app): State<Arc<App>>,
+    axum::extract::Path(id): axum::extract::Path<String>,
+    Query(q): Query<HashMap<String, String>>,
+) -> Result<Response, Problem> {
+    let raw = q
+        .get("points")
+        .ok_or_else(|| bad("give points=x,y,z;x,y,z;... (world coordinates)"))?;
+    let points: Vec<[f64; 3]> = raw
+        .split(';')
+        .filter(|p| !p.trim().is_empty())
+        .map(|p| {
+            let v: Vec<f64> = p
+                .split(',')
+                .filter_map(|c| c.trim().parse::<f64>().ok())
+                .filter(|f| f.is_finite())
+                .collect();
+            <[f64; 3]>::try_from(v).map_err(|_| bad(format!("{p:?} is not x,y,z")))
+        })
+        .collect::<Result<_, _>>()?;
+    if points.len() > MAX_QUERIES {
+        return Err(bad(format!("at most {MAX_QUERIES} points per request")));
+    }
+    let out = tokio::task::spawn_blocking(move || -> Result<Value, Problem> {
+        let bytes = app
+            .store
+            .read(&id)
+            .map_err(|e| Problem::new(Kind::Internal, e.to_string()))?
+            .ok_or_else(|| Problem::new(Kind::NotFound, format!("no volume with id {id:?}")))?;
+        let (v, _) =
+            vxl::decode(&bytes).map_err(|e| Problem::new(Kind::Internal, e.to_string()))?;
+        let normals: Vec<Value> = points
+            .iter()
+            .map(|&p| json!(crate::volume::normals::normal_at(&v, p)))
+            .collect();
+        Ok(json!({ "normals": normals }))
+    })
+    .await
+    .map_err(|e| Problem::new(Kind::Internal, e.to_string()))??;
+    Ok(axum::Json(out).into_response())
+}

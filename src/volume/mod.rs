@@ -8,6 +8,7 @@
 
 pub mod csg;
 pub mod morph;
+pub mod normals;
 pub mod query;
 pub mod stats;
 

@@ -1,0 +1,41 @@
+//! Outward normals from the density gradient (Eisemann & Décoret §6): at the voxel holding a world
+//! point, ∇d by central differences over its six face neighbours (outside the grid counts as 0; a
+//! bit volume counts as 0/1), and n = −∇d / |∇d|. `None` where the gradient vanishes (deep inside,
+//! far outside, or a symmetric configuration).
+
+use super::Volume;
+
+/// The voxel value with the grid's outside as 0.
+fn value(v: &Volume, i: [i64; 3]) -> i32 {
+    let d = v.grid().dims;
+    if (0..3).any(|a| i[a] < 0 || i[a] >= d[a] as i64) {
+        return 0;
+    }
+    let (x, y, z) = (i[0] as u32, i[1] as u32, i[2] as u32);
+    match v {
+        Volume::Bits(b) => b.get(x, y, z) as i32,
+        Volume::Density(dv) => dv.get(x, y, z) as i32,
+    }
+}
+
+/// The gradient at voxel `i`, in value units per voxel, times two.
+pub fn gradient2(v: &Volume, i: [i64; 3]) -> [i32; 3] {
+    [0, 1, 2].map(|a| {
+        let (mut lo, mut hi) = (i, i);
+        lo[a] -= 1;
+        hi[a] += 1;
+        value(v, hi) - value(v, lo)
+    })
+}
+
+/// The unit outward normal at world point `p`, or `None` (outside the grid, or no gradient).
+pub fn normal_at(v: &Volume, p: [f64; 3]) -> Option<[f64; 3]> {
+    let g = v.grid();
+    let i = [0, 1, 2].map(|a| ((p[a] - g.origin[a]) / g.voxel_size).floor());
+    if (0..3).any(|a| !(i[a] >= 0.0 && i[a] < g.dims[a] as f64)) {
+        return None;
+    }
+    let gr = gradient2(v, i.map(|x| x as i64));
+    let len = (gr.iter().map(|&c| (c as f64) * (c as f64)).sum::<f64>()).sqrt();
+    (len > 0.0).then(|| gr.map(|c| -(c as f64) / len))
+}
