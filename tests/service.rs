@@ -1345,3 +1345,112 @@ fn morphology_over_http() {
         "not-found",
     );
 }
+
+/// Decodes an 8-bit grayscale PNG (checking every chunk's CRC): (width, height, pixels).
+fn decode_png(b: &[u8]) -> (u32, u32, Vec<u8>) {
+    assert_eq!(&b[..8], b"\x89PNG\r\n\x1a\n");
+    let (mut pos, mut w, mut h, mut idat) = (8, 0, 0, Vec::new());
+    loop {
+        let len = u32::from_be_bytes(b[pos..pos + 4].try_into().unwrap()) as usize;
+        let kind = &b[pos + 4..pos + 8];
+        let data = &b[pos + 8..pos + 8 + len];
+        let mut crc = flate2::Crc::new();
+        crc.update(kind);
+        crc.update(data);
+        assert_eq!(
+            crc.sum().to_be_bytes(),
+            b[pos + 8 + len..pos + 12 + len],
+            "CRC of {:?}",
+            String::from_utf8_lossy(kind)
+        );
+        match kind {
+            b"IHDR" => {
+                w = u32::from_be_bytes(data[..4].try_into().unwrap());
+                h = u32::from_be_bytes(data[4..8].try_into().unwrap());
+                assert_eq!(&data[8..], &[8, 0, 0, 0, 0]);
+            }
+            b"IDAT" => idat.extend_from_slice(data),
+            b"IEND" => break,
+            _ => {}
+        }
+        pos += 12 + len;
+    }
+    let mut raw = Vec::new();
+    flate2::read::ZlibDecoder::new(&idat[..])
+        .read_to_end(&mut raw)
+        .unwrap();
+    assert_eq!(raw.len(), (h * (w + 1)) as usize);
+    let pixels = raw
+        .chunks(w as usize + 1)
+        .flat_map(|r| {
+            assert_eq!(r[0], 0);
+            r[1..].to_vec()
+        })
+        .collect();
+    (w, h, pixels)
+}
+
+#[test]
+fn preview_pictures() {
+    let srv = Server::start(&tmpdir("preview"), &[]);
+    let r = srv.req(
+        "POST",
+        "/v1/voxelize?origin=0,0,0&voxel_size=1&dims=12,10,8&wait=60",
+        &[("Content-Type", "model/obj")],
+        &box_obj([2.0, 3.0, 1.0], [6.0, 9.0, 4.0]),
+    );
+    let id = r.json()["id"].as_str().unwrap().to_string();
+    let png = srv.req(
+        "GET",
+        &format!("/v1/volumes/{id}/preview.png?axis=z&slice=2"),
+        &[],
+        &[],
+    );
+    assert_eq!(png.header("content-type"), Some("image/png"));
+    let (w, h, px) = decode_png(&png.body);
+    assert_eq!((w, h), (12, 10));
+    // Row 0 is the top (y = 9): the box covers x 2..6, y 3..9 on slice z = 2.
+    for (i, &p) in px.iter().enumerate() {
+        let (x, y) = (i as u32 % w, h - 1 - i as u32 / w);
+        assert_eq!(
+            p,
+            if (2..6).contains(&x) && (3..9).contains(&y) {
+                255
+            } else {
+                0
+            },
+            "pixel ({x},{y})"
+        );
+    }
+    let (w, h, px) = decode_png(
+        &srv.req(
+            "GET",
+            &format!("/v1/volumes/{id}/preview.png?axis=x&projection=sum"),
+            &[],
+            &[],
+        )
+        .body,
+    );
+    assert_eq!((w, h), (10, 8));
+    assert_eq!(px.iter().filter(|&&p| p == 255).count(), 6 * 3);
+    assert_problem(
+        &srv.req(
+            "GET",
+            &format!("/v1/volumes/{id}/preview.png?slice=99"),
+            &[],
+            &[],
+        ),
+        400,
+        "invalid-parameter",
+    );
+    assert_problem(
+        &srv.req(
+            "GET",
+            &format!("/v1/volumes/{id}/preview.png?axis=w"),
+            &[],
+            &[],
+        ),
+        400,
+        "invalid-parameter",
+    );
+}

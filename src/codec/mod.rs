@@ -3,6 +3,7 @@
 
 pub mod binvox;
 pub mod npy;
+pub mod png;
 pub mod vxl;
 
 use std::path::Path;

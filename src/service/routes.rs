@@ -49,6 +49,10 @@ pub fn router(app: Arc<App>) -> Router {
         .route("/v1/volumes/{id}/stats", get(super::volume_ops::stats))
         .route("/v1/volumes/{id}/query", post(super::volume_ops::query))
         .route("/v1/volumes/{id}/normals", get(super::volume_ops::normals))
+        .route(
+            "/v1/volumes/{id}/preview.png",
+            get(super::volume_ops::preview),
+        )
         .route("/v1/volumes/{id}", get(get_volume).delete(delete_volume))
         .route("/v1/volumes/{id}/data", get(volume_data))
         .route("/healthz", get(healthz))

@@ -412,3 +412,67 @@ pub async fn normals(
     .map_err(|e| Problem::new(Kind::Internal, e.to_string()))??;
     Ok(axum::Json(out).into_response())
 }
+
+/// Largest preview, in pixels.
+const MAX_PREVIEW_PIXELS: u64 = 1 << 24;
+
+pub async fn preview(
+    State(app): State<Arc<App>>,
+    axum::extract::Path(id): axum::extract::Path<String>,
+    Query(q): Query<HashMap<String, String>>,
+) -> Result<Response, Problem> {
+    use crate::volume::preview::{self, Projection};
+    let axis = match q.get("axis").map(String::as_str).unwrap_or("z") {
+        "x" => 0,
+        "y" => 1,
+        "z" => 2,
+        a => return Err(bad(format!("axis={a:?} is not x, y or z"))),
+    };
+    let slice = q
+        .get("slice")
+        .map(|s| {
+            s.parse::<u32>()
+                .map_err(|_| bad(format!("slice={s:?} is not a whole number")))
+        })
+        .transpose()?;
+    let mode = match (slice, q.get("projection").map(String::as_str)) {
+        (Some(_), Some(_)) => return Err(bad("give slice or projection, not both")),
+        (Some(_), None) => None,
+        (None, None | Some("max")) => Some(Projection::Max),
+        (None, Some("sum")) => Some(Projection::Sum),
+        (None, Some(p)) => return Err(bad(format!("projection={p:?} is not max or sum"))),
+    };
+    let png = tokio::task::spawn_blocking(move || -> Result<Vec<u8>, Problem> {
+        let bytes = app
+            .store
+            .read(&id)
+            .map_err(|e| Problem::new(Kind::Internal, e.to_string()))?
+            .ok_or_else(|| Problem::new(Kind::NotFound, format!("no volume with id {id:?}")))?;
+        let (v, _) =
+            vxl::decode(&bytes).map_err(|e| Problem::new(Kind::Internal, e.to_string()))?;
+        let d = v.grid().dims;
+        let pixels: u64 = (0..3).filter(|&a| a != axis).map(|a| d[a] as u64).product();
+        if pixels > MAX_PREVIEW_PIXELS {
+            return Err(bad(format!(
+                "the picture would have {pixels} pixels, over the limit of {MAX_PREVIEW_PIXELS}"
+            )));
+        }
+        let pic = match (slice, mode) {
+            (Some(k), _) => preview::slice(&v, axis, k)
+                .ok_or_else(|| bad(format!("slice {k} is outside the grid (0..{})", d[axis])))?,
+            (None, Some(m)) => preview::projection(&v, axis, m),
+            (None, None) => unreachable!("mode is set when slice is not"),
+        };
+        Ok(crate::codec::png::encode_gray(
+            pic.width,
+            pic.height,
+            &pic.pixels,
+        ))
+    })
+    .await
+    .map_err(|e| Problem::new(Kind::Internal, e.to_string()))??;
+    let mut r = png.into_response();
+    r.headers_mut()
+        .insert(header::CONTENT_TYPE, HeaderValue::from_static("image/png"));
+    Ok(r)
+}

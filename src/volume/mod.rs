@@ -9,6 +9,7 @@
 pub mod csg;
 pub mod morph;
 pub mod normals;
+pub mod preview;
 pub mod query;
 pub mod stats;
 

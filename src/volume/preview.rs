@@ -1,0 +1,109 @@
+//! Pictures of a volume for people: one slice, or a projection along an axis. Images look along
+//! the chosen axis with the other two axes in their natural order (x before y before z), the
+//! second of them pointing up: rows run from its top index down.
+
+use super::Volume;
+
+/// An 8-bit grayscale picture.
+pub struct Picture {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<u8>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Projection {
+    /// 255 where any voxel along the line is occupied.
+    Max,
+    /// Occupancy summed along the line, scaled so the fullest line is white (a shaded thickness).
+    Sum,
+}
+
+fn value(v: &Volume, p: [u32; 3]) -> (u32, u32) {
+    match v {
+        Volume::Bits(b) => (b.get(p[0], p[1], p[2]) as u32, 1),
+        Volume::Density(d) => (d.get(p[0], p[1], p[2]) as u32, d.max() as u32),
+    }
+}
+
+/// (image width axis, image height axis) for a view along `axis`.
+fn plane(axis: usize) -> (usize, usize) {
+    match axis {
+        0 => (1, 2),
+        1 => (0, 2),
+        _ => (0, 1),
+    }
+}
+
+/// Slice `k` across `axis` (0 = x, 1 = y, 2 = z); `None` when k is outside the grid.
+pub fn slice(v: &Volume, axis: usize, k: u32) -> Option<Picture> {
+    let d = v.grid().dims;
+    if k >= d[axis] {
+        return None;
+    }
+    let (u, w) = plane(axis);
+    let (width, height) = (d[u], d[w]);
+    let mut pixels = Vec::with_capacity(width as usize * height as usize);
+    for row in (0..height).rev() {
+        for col in 0..width {
+            let mut p = [0u32; 3];
+            p[axis] = k;
+            p[u] = col;
+            p[w] = row;
+            let (x, max) = value(v, p);
+            pixels.push((x * 255 / max) as u8);
+        }
+    }
+    Some(Picture {
+        width,
+        height,
+        pixels,
+    })
+}
+
+/// A projection along `axis`.
+pub fn projection(v: &Volume, axis: usize, mode: Projection) -> Picture {
+    let d = v.grid().dims;
+    let (u, w) = plane(axis);
+    let (width, height) = (d[u], d[w]);
+    let mut sums = Vec::with_capacity(width as usize * height as usize);
+    let mut top = 0u64;
+    for row in (0..height).rev() {
+        for col in 0..width {
+            let mut s = 0u64;
+            for k in 0..d[axis] {
+                let mut p = [0u32; 3];
+                p[axis] = k;
+                p[u] = col;
+                p[w] = row;
+                s += value(v, p).0 as u64;
+            }
+            top = top.max(s);
+            sums.push(s);
+        }
+    }
+    let pixels = sums
+        .iter()
+        .map(|&s| match mode {
+            Projection::Max => {
+                if s > 0 {
+                    255
+                } else {
+                    0
+                }
+            }
+            Projection::Sum => {
+                if top == 0 {
+                    0
+                } else {
+                    (s * 255 / top) as u8
+                }
+            }
+        })
+        .collect();
+    Picture {
+        width,
+        height,
+        pixels,
+    }
+}
