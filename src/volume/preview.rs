@@ -92,13 +92,7 @@ pub fn projection(v: &Volume, axis: usize, mode: Projection) -> Picture {
                     0
                 }
             }
-            Projection::Sum => {
-                if top == 0 {
-                    0
-                } else {
-                    (s * 255 / top) as u8
-                }
-            }
+            Projection::Sum => (s * 255).checked_div(top).unwrap_or(0) as u8,
         })
         .collect();
     Picture {
