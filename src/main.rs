@@ -59,6 +59,12 @@ enum Command {
         #[arg(long)]
         grow: bool,
     },
+    /// Export outward normals of boundary voxels as .npy (int8, shape X×Y×Z×3, scaled to ±127).
+    Normals {
+        input: PathBuf,
+        #[arg(short, long)]
+        output: PathBuf,
+    },
     /// Run the HTTP service.
     Serve(ServeArgs),
     /// Time the CPU and GPU engines per method and resolution on a mesh (a markdown table).
@@ -291,6 +297,7 @@ fn main() -> ExitCode {
         Command::Info { file } => info(&file),
         Command::Convert { input, output } => convert(&input, &output),
         Command::Serve(a) => serve(a),
+        Command::Normals { input, output } => normals(&input, &output),
         Command::Morph {
             op,
             input,
@@ -684,6 +691,23 @@ fn morph(
         d[0],
         d[1],
         d[2]
+    );
+    Ok(())
+}
+
+fn normals(input: &Path, output: &Path) -> Result<(), String> {
+    if output.extension().is_none_or(|e| e != "npy") {
+        return Err(format!("{}: normals are written as .npy", output.display()));
+    }
+    let v = read_volume(input)?;
+    let n = voxd::volume::normals::boundary_normals(&v);
+    let count = n.iter().filter(|c| **c != [0; 3]).count();
+    let bytes = voxd::codec::npy::encode_normals(v.grid().dims, &n);
+    std::fs::write(output, bytes).map_err(|e| format!("{}: {e}", output.display()))?;
+    println!(
+        "{} -> {}: {count} boundary voxels with a normal",
+        input.display(),
+        output.display()
     );
     Ok(())
 }

@@ -537,3 +537,83 @@ fn morph_on_the_command_line() {
         Some(1)
     );
 }
+
+fn read_normals(path: &Path) -> (String, Vec<[i8; 3]>) {
+    let b = std::fs::read(path).unwrap();
+    let hlen = u16::from_le_bytes([b[8], b[9]]) as usize;
+    let header = String::from_utf8(b[10..10 + hlen].to_vec()).unwrap();
+    (
+        header,
+        b[10 + hlen..]
+            .chunks(3)
+            .map(|c| [c[0] as i8, c[1] as i8, c[2] as i8])
+            .collect(),
+    )
+}
+
+#[test]
+fn normals_export() {
+    let (v, out) = (tmp("normals-v.vxl"), tmp("normals.npy"));
+    // A bit volume: the unit box fills voxels 1..=6 of an 8³ grid.
+    assert!(
+        voxd(&[
+            "voxelize",
+            s(&data("Box.gltf")),
+            "-o",
+            s(&v),
+            "--resolution",
+            "6",
+            "--padding",
+            "1",
+            "--engine",
+            "cpu"
+        ])
+        .status
+        .success()
+    );
+    let o = voxd(&["normals", s(&v), "-o", s(&out)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (header, n) = read_normals(&out);
+    assert!(
+        header.contains("'descr': '|i1'") && header.contains("'shape': (8, 8, 8, 3)"),
+        "{header}"
+    );
+    let at = |x: usize, y: usize, z: usize| n[(x * 8 + y) * 8 + z];
+    assert_eq!(at(1, 4, 4), [-127, 0, 0], "the -x face");
+    assert_eq!(at(6, 4, 4), [127, 0, 0], "the +x face");
+    assert_eq!(
+        (at(4, 4, 4), at(0, 4, 4)),
+        ([0; 3], [0; 3]),
+        "inside and outside have none"
+    );
+    // A density volume: every partial voxel gets a unit normal (×127).
+    assert!(
+        voxd(&[
+            "voxelize",
+            s(&data("spot.obj")),
+            "-o",
+            s(&v),
+            "--resolution",
+            "20",
+            "--method",
+            "density",
+            "--engine",
+            "cpu"
+        ])
+        .status
+        .success()
+    );
+    assert!(voxd(&["normals", s(&v), "-o", s(&out)]).status.success());
+    let (_, n) = read_normals(&out);
+    let set: Vec<_> = n.iter().filter(|c| **c != [0; 3]).collect();
+    assert!(set.len() > 100);
+    assert!(set.iter().all(|c| {
+        ((c.iter().map(|&x| (x as f64).powi(2)).sum::<f64>()).sqrt() - 127.0).abs() < 2.0
+    }));
+    assert_eq!(
+        voxd(&["normals", s(&v), "-o", s(&tmp("n.vxl"))])
+            .status
+            .code(),
+        Some(1)
+    );
+}

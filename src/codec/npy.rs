@@ -134,3 +134,27 @@ pub fn decode(bytes: &[u8]) -> Result<Volume, CodecError> {
     }
     Ok(Volume::Bits(v))
 }
+
+/// A normals volume as `.npy`: dtype `|i1`, shape (X, Y, Z, 3), C order, each normal component
+/// scaled to −127..=127 (zero vectors where there is no normal).
+pub fn encode_normals(dims: [u32; 3], normals: &[[i8; 3]]) -> Vec<u8> {
+    assert_eq!(
+        normals.len() as u64,
+        dims.iter().map(|&d| d as u64).product::<u64>()
+    );
+    let mut header = format!(
+        "{{'descr': '|i1', 'fortran_order': False, 'shape': ({}, {}, {}, 3), }}",
+        dims[0], dims[1], dims[2]
+    );
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(' ');
+    }
+    header.push('\n');
+    let mut out = Vec::with_capacity(10 + header.len() + 3 * normals.len());
+    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(&[1, 0]);
+    out.extend_from_slice(&(header.len() as u16).to_le_bytes());
+    out.extend_from_slice(header.as_bytes());
+    out.extend(normals.iter().flatten().map(|&c| c as u8));
+    out
+}

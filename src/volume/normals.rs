@@ -39,3 +39,47 @@ pub fn normal_at(v: &Volume, p: [f64; 3]) -> Option<[f64; 3]> {
     let len = (gr.iter().map(|&c| (c as f64) * (c as f64)).sum::<f64>()).sqrt();
     (len > 0.0).then(|| gr.map(|c| -(c as f64) / len))
 }
+
+/// A normal per voxel, components scaled to −127..=127, for boundary voxels (value strictly
+/// between empty and full; for bit volumes, set voxels with an empty face neighbour); zero elsewhere.
+/// Order: (x · Y + y) · Z + z.
+pub fn boundary_normals(v: &Volume) -> Vec<[i8; 3]> {
+    let d = v.grid().dims;
+    let full = match v {
+        Volume::Bits(_) => 1,
+        Volume::Density(dv) => dv.max() as i32,
+    };
+    let mut out = Vec::with_capacity(v.grid().voxel_count() as usize);
+    for x in 0..d[0] as i64 {
+        for y in 0..d[1] as i64 {
+            for z in 0..d[2] as i64 {
+                let here = value(v, [x, y, z]);
+                let boundary = match v {
+                    Volume::Density(_) => here > 0 && here < full,
+                    Volume::Bits(_) => {
+                        let faces = [
+                            [-1, 0, 0],
+                            [1, 0, 0],
+                            [0, -1, 0],
+                            [0, 1, 0],
+                            [0, 0, -1],
+                            [0, 0, 1],
+                        ];
+                        here == 1
+                            && faces
+                                .iter()
+                                .any(|o| value(v, [x + o[0], y + o[1], z + o[2]]) == 0)
+                    }
+                };
+                let g = gradient2(v, [x, y, z]);
+                let len = (g.iter().map(|&c| (c as f64) * (c as f64)).sum::<f64>()).sqrt();
+                out.push(if boundary && len > 0.0 {
+                    g.map(|c| (-(c as f64) / len * 127.0).round() as i8)
+                } else {
+                    [0; 3]
+                });
+            }
+        }
+    }
+    out
+}
