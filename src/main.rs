@@ -9,7 +9,7 @@ use std::time::Instant;
 use clap::{Args, Parser, Subcommand};
 use voxd::codec::{VolumeFormat, vxl};
 use voxd::engine::gpu::{GpuOptions, SolidStrategy};
-use voxd::engine::{EngineChoice, GridMesh, Method};
+use voxd::engine::{EngineChoice, Method};
 use voxd::grid::{Grid, GridLimits, GridSpec};
 use voxd::mesh::{self, Format, MeshDiagnostics};
 use voxd::volume::Volume;
@@ -104,6 +104,10 @@ struct VoxelizeArgs {
     /// solid | surface | conservative | interior | density
     #[arg(long, default_value = "solid")]
     method: MethodArg,
+    /// How solid-based methods decide inside: parity (exact for watertight meshes), vote (parity
+    /// along x, y and z, majority) or flood (exterior flood fill outside the surface).
+    #[arg(long, default_value = "parity")]
+    fill: voxd::engine::fill::Fill,
     /// Sub-voxels per axis for density: 2 (values 0..8) or 4 (0..64).
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(2..=4))]
     density_factor: u32,
@@ -399,13 +403,15 @@ fn voxelize(a: VoxelizeArgs) -> Result<(), String> {
         return Err("--density-factor must be 2 or 4".into());
     }
     let vol = match a.method {
-        MethodArg::Bits(m) => {
-            let gm = GridMesh::new(&mesh, &grid).map_err(|e| format!("{name}: {e}"))?;
-            Volume::Bits(
-                engine
-                    .voxelize(&gm, m)
-                    .map_err(|e| format!("{name}: {e}"))?,
-            )
+        MethodArg::Bits(m) => Volume::Bits(
+            voxd::engine::fill::voxelize(&*engine, &mesh, &grid, m, a.fill)
+                .map_err(|e| format!("{name}: {e}"))?,
+        ),
+        MethodArg::Density if a.fill != voxd::engine::fill::Fill::Parity => {
+            return Err(format!(
+                "{name}: --fill {:?} is not available for density yet; use parity",
+                a.fill
+            ));
         }
         MethodArg::Density => Volume::Density(
             voxd::engine::density::density(

@@ -617,3 +617,64 @@ fn normals_export() {
         Some(1)
     );
 }
+
+#[test]
+fn fill_options() {
+    let out = tmp("fill.vxl");
+    for fill in ["parity", "vote", "flood"] {
+        let o = voxd(&[
+            "voxelize",
+            s(&data("spot.obj")),
+            "-o",
+            s(&out),
+            "--resolution",
+            "30",
+            "--fill",
+            fill,
+            "--engine",
+            "cpu",
+        ]);
+        assert!(
+            o.status.success(),
+            "{fill}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    // spot is watertight: vote agrees with parity; flood is solid ∪ surface.
+    let mesh = voxd::mesh::load_file(&data("spot.obj"), usize::MAX).unwrap();
+    let (lo, hi) = mesh.bounds();
+    let g = Grid::fit(
+        lo,
+        hi,
+        GridSpec::Resolution {
+            n: 30,
+            cubic: false,
+        },
+        0,
+        Default::default(),
+    )
+    .unwrap();
+    let Volume::Bits(flood) = read(&out) else {
+        panic!()
+    };
+    assert_eq!(
+        flood,
+        CpuEngine
+            .voxelize(&GridMesh::new(&mesh, &g).unwrap(), Method::Conservative)
+            .unwrap()
+    );
+    let o = voxd(&[
+        "voxelize",
+        s(&data("spot.obj")),
+        "-o",
+        s(&out),
+        "--fill",
+        "winding",
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "clap refuses a fill that does not exist yet"
+    );
+    assert!(String::from_utf8_lossy(&o.stderr).contains("not available yet"));
+}

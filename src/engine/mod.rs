@@ -5,6 +5,7 @@
 
 pub mod cpu;
 pub mod density;
+pub mod fill;
 pub mod gpu;
 mod snap;
 

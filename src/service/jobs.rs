@@ -73,6 +73,7 @@ pub struct Work {
     pub diagnostics: MeshDiagnostics,
     pub grid: Grid,
     pub method: MethodSpec,
+    pub fill: crate::engine::fill::Fill,
     pub name: Option<String>,
     pub format: String,
     pub sha256: String,

@@ -26,7 +26,7 @@ use store::{SourceInfo, Store, VolumeMeta};
 
 use crate::codec::vxl;
 use crate::engine::gpu::GpuOptions;
-use crate::engine::{Engine, EngineChoice, GridMesh};
+use crate::engine::{Engine, EngineChoice};
 use crate::volume::Volume;
 
 /// Everything `voxd serve` can be told (each also as a `VOXD_*` variable).
@@ -188,15 +188,15 @@ fn run_job(
     canceled: &std::sync::atomic::AtomicBool,
 ) -> Result<String, Problem> {
     let vol = match work.method {
-        jobs::MethodSpec::Bits(m) => {
-            let gm = GridMesh::new(&work.mesh, &work.grid)
-                .map_err(|e| Problem::new(Kind::InvalidMesh, e.to_string()))?;
-            Volume::Bits(
-                app.engine
-                    .voxelize(&gm, m)
-                    .map_err(|e| Problem::new(Kind::EngineFailure, e.to_string()))?,
-            )
-        }
+        jobs::MethodSpec::Bits(m) => Volume::Bits(
+            crate::engine::fill::voxelize(&*app.engine, &work.mesh, &work.grid, m, work.fill)
+                .map_err(|e| match e {
+                    crate::engine::EngineError::OutOfRange { .. } => {
+                        Problem::new(Kind::InvalidMesh, e.to_string())
+                    }
+                    _ => Problem::new(Kind::EngineFailure, e.to_string()),
+                })?,
+        ),
         jobs::MethodSpec::Density(f) => {
             let limits = crate::grid::GridLimits {
                 max_voxels: u64::MAX,
@@ -222,6 +222,10 @@ fn run_job(
     let kind = vol.kind();
     let mut meta = serde_json::Map::new();
     meta.insert("method".into(), work.method.name().into());
+    meta.insert(
+        "fill".into(),
+        format!("{:?}", work.fill).to_lowercase().into(),
+    );
     meta.insert("job".into(), id.into());
     meta.insert("source_sha256".into(), work.sha256.clone().into());
     let bytes =

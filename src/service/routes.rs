@@ -228,9 +228,15 @@ async fn voxelize(
                 .map_err(|e: String| bad(e.replace("interior", "interior, density")))?,
         ),
     };
-    match q.get("fill").map(String::as_str) {
-        None | Some("parity") => {}
-        Some(f) => return Err(bad(format!("fill={f:?} is not available yet; only parity"))),
+    let fill: crate::engine::fill::Fill = q
+        .get("fill")
+        .map(|f| f.parse().map_err(|e: String| bad(e)))
+        .transpose()?
+        .unwrap_or(crate::engine::fill::Fill::Parity);
+    if fill != crate::engine::fill::Fill::Parity && matches!(method, MethodSpec::Density(_)) {
+        return Err(bad(
+            "fill other than parity is not available for density yet",
+        ));
     }
     let padding = parse::<u32>(&q, "padding")?.unwrap_or(0);
     let cubic = parse::<bool>(&q, "cubic")?.unwrap_or(false);
@@ -322,6 +328,7 @@ async fn voxelize(
         diagnostics,
         grid,
         method,
+        fill,
         name: q.get("name").cloned(),
         format: format_name,
         sha256: sha,
