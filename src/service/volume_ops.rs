@@ -44,14 +44,7 @@ impl Loader<'_> {
         if let Some(v) = self.cache.get(id) {
             return Ok(v.clone());
         }
-        let bytes = self
-            .app
-            .store
-            .read(id)
-            .map_err(|e| Problem::new(Kind::Internal, e.to_string()))?
-            .ok_or_else(|| Problem::new(Kind::NotFound, format!("no volume with id {id:?}")))?;
-        let (v, _) = vxl::decode(&bytes)
-            .map_err(|e| Problem::new(Kind::Internal, format!("stored volume {id}: {e}")))?;
+        let v = read_any(self.app, id)?;
         let Volume::Bits(b) = v else {
             return Err(Problem::new(
                 Kind::WrongVolumeKind,
@@ -104,6 +97,18 @@ impl Loader<'_> {
             ))),
         }
     }
+}
+
+/// A stored volume of either kind.
+fn read_any(app: &App, id: &str) -> Result<Volume, Problem> {
+    let bytes = app
+        .store
+        .read(id)
+        .map_err(|e| Problem::new(Kind::Internal, e.to_string()))?
+        .ok_or_else(|| Problem::new(Kind::NotFound, format!("no volume with id {id:?}")))?;
+    vxl::decode(&bytes)
+        .map(|(v, _)| v)
+        .map_err(|e| Problem::new(Kind::Internal, format!("stored volume {id}: {e}")))
 }
 
 fn json_body(body: &[u8]) -> Result<Value, Problem> {
@@ -344,13 +349,7 @@ pub async fn query(
         })
         .collect::<Result<_, Problem>>()?;
     let out = tokio::task::spawn_blocking(move || -> Result<Value, Problem> {
-        let bytes = app
-            .store
-            .read(&id)
-            .map_err(|e| Problem::new(Kind::Internal, e.to_string()))?
-            .ok_or_else(|| Problem::new(Kind::NotFound, format!("no volume with id {id:?}")))?;
-        let (v, _) =
-            vxl::decode(&bytes).map_err(|e| Problem::new(Kind::Internal, e.to_string()))?;
+        let v = read_any(&app, &id)?;
         let pts: Vec<Value> = points
             .iter()
             .map(|&p| {
@@ -395,13 +394,7 @@ pub async fn normals(
         return Err(bad(format!("at most {MAX_QUERIES} points per request")));
     }
     let out = tokio::task::spawn_blocking(move || -> Result<Value, Problem> {
-        let bytes = app
-            .store
-            .read(&id)
-            .map_err(|e| Problem::new(Kind::Internal, e.to_string()))?
-            .ok_or_else(|| Problem::new(Kind::NotFound, format!("no volume with id {id:?}")))?;
-        let (v, _) =
-            vxl::decode(&bytes).map_err(|e| Problem::new(Kind::Internal, e.to_string()))?;
+        let v = read_any(&app, &id)?;
         let normals: Vec<Value> = points
             .iter()
             .map(|&p| json!(crate::volume::normals::normal_at(&v, p)))
@@ -443,13 +436,7 @@ pub async fn preview(
         (None, Some(p)) => return Err(bad(format!("projection={p:?} is not max or sum"))),
     };
     let png = tokio::task::spawn_blocking(move || -> Result<Vec<u8>, Problem> {
-        let bytes = app
-            .store
-            .read(&id)
-            .map_err(|e| Problem::new(Kind::Internal, e.to_string()))?
-            .ok_or_else(|| Problem::new(Kind::NotFound, format!("no volume with id {id:?}")))?;
-        let (v, _) =
-            vxl::decode(&bytes).map_err(|e| Problem::new(Kind::Internal, e.to_string()))?;
+        let v = read_any(&app, &id)?;
         let d = v.grid().dims;
         let pixels: u64 = (0..3).filter(|&a| a != axis).map(|a| d[a] as u64).product();
         if pixels > MAX_PREVIEW_PIXELS {

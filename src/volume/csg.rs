@@ -120,21 +120,8 @@ pub fn regrid(v: &BitVolume, target: &Grid) -> Result<BitVolume, CsgError> {
 
 /// dst bit k = src bit (k − shift) (src bits beyond its length are zero by the volume invariant).
 fn shift_into(src: &[u64], dst: &mut [u64], shift: i64) {
-    let (q, r) = (shift.div_euclid(64), shift.rem_euclid(64) as u32);
-    let get = |i: i64| {
-        if i >= 0 && (i as usize) < src.len() {
-            src[i as usize]
-        } else {
-            0
-        }
-    };
     for (w, d) in dst.iter_mut().enumerate() {
-        let i = w as i64 - q;
-        *d = if r == 0 {
-            get(i)
-        } else {
-            (get(i) << r) | (get(i - 1) >> (64 - r))
-        };
+        *d = super::shifted_word(src, w, shift);
     }
 }
 

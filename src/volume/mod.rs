@@ -183,6 +183,25 @@ impl BitVolume {
     }
 }
 
+/// Word `w` of a column shifted by `shift` bits along z (bit k of the result = bit k − shift of
+/// `src`; bits shifted in from outside the column are zero).
+pub(crate) fn shifted_word(src: &[u64], w: usize, shift: i64) -> u64 {
+    let (q, r) = (shift.div_euclid(64), shift.rem_euclid(64) as u32);
+    let get = |i: i64| {
+        if i >= 0 && (i as usize) < src.len() {
+            src[i as usize]
+        } else {
+            0
+        }
+    };
+    let i = w as i64 - q;
+    if r == 0 {
+        get(i)
+    } else {
+        (get(i) << r) | (get(i - 1) >> (64 - r))
+    }
+}
+
 /// Words needed for a column of `z` bits: always a whole number of `u64`, so the column is also a
 /// whole (even) number of `u32` words for the GPU.
 pub fn words_per_column(z: u32) -> usize {

@@ -84,21 +84,8 @@ fn maybe_grow(v: &BitVolume, r: u32, grow: bool) -> BitVolume {
 
 /// dst |= src shifted by `k` along z (dst bit z = src bit z − k), clipped to the column.
 fn or_shifted(src: &[u64], k: i64, dst: &mut [u64]) {
-    let (q, r) = (k.div_euclid(64), k.rem_euclid(64) as u32);
-    let get = |i: i64| {
-        if i >= 0 && (i as usize) < src.len() {
-            src[i as usize]
-        } else {
-            0
-        }
-    };
     for (w, d) in dst.iter_mut().enumerate() {
-        let i = w as i64 - q;
-        *d |= if r == 0 {
-            get(i)
-        } else {
-            (get(i) << r) | (get(i - 1) >> (64 - r))
-        };
+        *d |= super::shifted_word(src, w, k);
     }
 }
 
