@@ -35,19 +35,10 @@ fn read(p: &Path) -> Volume {
     VolumeFormat::sniff(&b).unwrap().decode(&b).unwrap()
 }
 
-fn expected(mesh: &Path, spec: GridSpec, padding: u32, m: Method) -> voxd::BitVolume {
-    let mesh = voxd::mesh::load_file(mesh, usize::MAX).unwrap();
-    let (lo, hi) = mesh.bounds();
-    let g = Grid::fit(lo, hi, spec, padding, Default::default()).unwrap();
-    CpuEngine
-        .voxelize(&GridMesh::new(&mesh, &g).unwrap(), m)
-        .unwrap()
-}
-
 #[test]
 fn voxelize_writes_every_format_with_the_engine_bits() {
     let fox = data("Fox.glb");
-    let want = expected(
+    let want = voxelize_file(
         &fox,
         GridSpec::Resolution { n: 40, cubic: true },
         0,
@@ -172,7 +163,7 @@ fn grid_options_and_methods() {
         "interior",
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let want = expected(
+    let want = voxelize_file(
         &spot,
         GridSpec::VoxelSize {
             size: 0.05,
@@ -206,7 +197,7 @@ fn grid_options_and_methods() {
             dims: [20, 30, 25]
         }
     );
-    let want = expected(
+    let want = voxelize_file(
         &spot,
         GridSpec::Explicit {
             origin: [-1.0; 3],
@@ -641,19 +632,14 @@ fn fill_options() {
         );
     }
     // spot is watertight: vote agrees with parity; flood is solid ∪ surface.
-    let mesh = voxd::mesh::load_file(&data("spot.obj"), usize::MAX).unwrap();
-    let (lo, hi) = mesh.bounds();
-    let g = Grid::fit(
-        lo,
-        hi,
+    let (mesh, g) = mesh_and_grid(
+        &data("spot.obj"),
         GridSpec::Resolution {
             n: 30,
             cubic: false,
         },
         0,
-        Default::default(),
-    )
-    .unwrap();
+    );
     let Volume::Bits(flood) = read(&out) else {
         panic!()
     };

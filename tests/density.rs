@@ -131,31 +131,8 @@ fn the_finer_grid_must_fit_the_budget() {
 fn normals_of_a_sphere_point_outward() {
     use voxd::volume::Volume;
     use voxd::volume::normals::normal_at;
-    let mut p = vec![];
-    let mut t = vec![];
     // An octahedron subdivided onto a sphere of radius 10 centred at (12, 12, 12).
-    push_octahedron(&mut p, &mut t, [0.0; 3], [1.0; 3]);
-    for _ in 0..4 {
-        let mut nt = vec![];
-        for tri in &t {
-            let [a, b, c]: [u32; 3] = *tri;
-            let mid = |i: u32, j: u32, p: &mut Vec<[f64; 3]>| {
-                let (u, v) = (p[i as usize], p[j as usize]);
-                p.push([0, 1, 2].map(|k| (u[k] + v[k]) / 2.0));
-                p.len() as u32 - 1
-            };
-            let (ab, bc, ca) = (mid(a, b, &mut p), mid(b, c, &mut p), mid(c, a, &mut p));
-            nt.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        t = nt;
-    }
-    let p: Vec<[f64; 3]> = p
-        .iter()
-        .map(|q| {
-            let l = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
-            q.map(|c| 12.0 + 10.0 * c / l)
-        })
-        .collect();
+    let (p, t) = sphere([12.0; 3], 10.0, 4);
     let mesh = Mesh::new(p, t).unwrap();
     let g = unit_grid([24, 24, 24]);
     let d = density(&CpuEngine, &mesh, &g, 2, GridLimits::default()).unwrap();

@@ -71,33 +71,7 @@ fn vote_equals_parity_and_flood_equals_conservative_on_closed_shapes() {
 /// column through the hole, vote and flood do not.
 #[test]
 fn small_holes_are_closed_by_vote_and_flood() {
-    let (mut p, mut t) = (vec![], vec![]);
-    push_octahedron(&mut p, &mut t, [0.0; 3], [1.0; 3]);
-    for _ in 0..5 {
-        let mut nt = vec![];
-        for tri in &t {
-            let [a, b, c]: [u32; 3] = *tri;
-            let mut mid = |i: u32, j: u32| {
-                let (u, v) = (p[i as usize], p[j as usize]);
-                p.push([0, 1, 2].map(|k| (u[k] + v[k]) / 2.0));
-                p.len() as u32 - 1
-            };
-            let (ab, bc, ca) = (mid(a, b), mid(b, c), mid(c, a));
-            nt.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        t = nt;
-    }
-    let p: Vec<[f64; 3]> = p
-        .iter()
-        .map(|q| {
-            let l = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
-            [
-                12.3 + 9.0 * q[0] / l,
-                11.8 + 9.0 * q[1] / l,
-                12.1 + 9.0 * q[2] / l,
-            ]
-        })
-        .collect();
+    let (p, t) = sphere([12.3, 11.8, 12.1], 9.0, 5);
     let closed = Mesh::new(p.clone(), t.clone()).unwrap();
     // Remove an upper-hemisphere triangle whose xy projection holds the column centre (12.5, 11.5):
     // a hole smaller than a voxel that the column's ray passes through.

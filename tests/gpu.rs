@@ -59,11 +59,7 @@ fn random_meshes_equal_the_cpu() {
             1 + rng.below(20) as u32,
             [1, 31, 32, 33, 64, 65, 100][rng.below(7) as usize],
         ];
-        let mesh = if seed % 2 == 0 {
-            random_closed(&mut rng, dims)
-        } else {
-            random_soup(&mut rng, dims)
-        };
+        let mesh = random_mesh(&mut rng, dims, seed);
         let g = if seed % 3 == 0 {
             Grid {
                 origin: [-0.37, 0.11, -0.5],
@@ -93,11 +89,7 @@ fn the_mask_strategy_equals_the_cpu_too() {
             1 + rng.below(16) as u32,
             [1, 31, 32, 33, 64, 65, 200][rng.below(7) as usize],
         ];
-        let mesh = if seed % 2 == 0 {
-            random_closed(&mut rng, dims)
-        } else {
-            random_soup(&mut rng, dims)
-        };
+        let mesh = random_mesh(&mut rng, dims, seed);
         check(
             &masks,
             &mesh,

@@ -169,16 +169,6 @@ fn tmpdir(name: &str) -> PathBuf {
     d
 }
 
-/// What the CLI/library gives for the same request.
-fn expected(mesh_path: &Path, spec: GridSpec, m: Method) -> voxd::BitVolume {
-    let mesh = voxd::mesh::load_file(mesh_path, usize::MAX).unwrap();
-    let (lo, hi) = mesh.bounds();
-    let g = Grid::fit(lo, hi, spec, 0, Default::default()).unwrap();
-    CpuEngine
-        .voxelize(&GridMesh::new(&mesh, &g).unwrap(), m)
-        .unwrap()
-}
-
 fn decode(bytes: &[u8]) -> voxd::BitVolume {
     match VolumeFormat::sniff(bytes).unwrap().decode(bytes).unwrap() {
         Volume::Bits(b) => b,
@@ -311,12 +301,13 @@ fn every_upload_format_and_download_format_matches_the_library() {
             r.header("location"),
             Some(format!("/v1/volumes/{id}").as_str())
         );
-        let want = expected(
+        let want = voxelize_file(
             &path,
             GridSpec::Resolution {
                 n: 40,
                 cubic: false,
             },
+            0,
             Method::Conservative,
         );
         assert_eq!(meta["solid_voxels"], want.count_ones(), "{what}");
@@ -630,9 +621,10 @@ fn concurrent_clients_get_their_own_results() {
         .collect();
     for h in handles {
         let (n, meta) = h.join().unwrap();
-        let want = expected(
+        let want = voxelize_file(
             &data("spot.obj"),
             GridSpec::Resolution { n, cubic: false },
+            0,
             Method::Solid,
         );
         assert_eq!(meta["solid_voxels"], want.count_ones(), "resolution {n}");
@@ -1030,19 +1022,14 @@ fn density_over_http() {
     let meta = r.json();
     assert_eq!(meta["kind"], "density");
     let id = meta["id"].as_str().unwrap();
-    let mesh = voxd::mesh::load_file(&data("spot.obj"), usize::MAX).unwrap();
-    let (lo, hi) = mesh.bounds();
-    let g = Grid::fit(
-        lo,
-        hi,
+    let (mesh, g) = mesh_and_grid(
+        &data("spot.obj"),
         GridSpec::Resolution {
             n: 30,
             cubic: false,
         },
         0,
-        Default::default(),
-    )
-    .unwrap();
+    );
     let want =
         voxd::engine::density::density(&CpuEngine, &mesh, &g, 2, Default::default()).unwrap();
     assert!(

@@ -4,7 +4,9 @@
 
 use std::path::PathBuf;
 
-use voxd::grid::Grid;
+use voxd::engine::cpu::CpuEngine;
+use voxd::engine::{Engine, GridMesh, Method};
+use voxd::grid::{Grid, GridSpec};
 use voxd::mesh::Mesh;
 use voxd::volume::BitVolume;
 
@@ -503,4 +505,57 @@ pub fn summary(v: &BitVolume) -> String {
         s[1],
         s[2]
     )
+}
+
+/// A random closed mesh on even seeds, a random triangle soup on odd ones.
+pub fn random_mesh(rng: &mut Rng, dims: [u32; 3], seed: u64) -> Mesh {
+    if seed.is_multiple_of(2) {
+        random_closed(rng, dims)
+    } else {
+        random_soup(rng, dims)
+    }
+}
+
+/// An octahedron subdivided `levels` times onto the sphere of `radius` around `centre`.
+pub fn sphere(centre: [f64; 3], radius: f64, levels: u32) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
+    let (mut p, mut t) = (vec![], vec![]);
+    push_octahedron(&mut p, &mut t, [0.0; 3], [1.0; 3]);
+    for _ in 0..levels {
+        let mut nt = vec![];
+        for tri in &t {
+            let [a, b, c]: [u32; 3] = *tri;
+            let mut mid = |i: u32, j: u32| {
+                let (u, v) = (p[i as usize], p[j as usize]);
+                p.push([0, 1, 2].map(|k| (u[k] + v[k]) / 2.0));
+                p.len() as u32 - 1
+            };
+            let (ab, bc, ca) = (mid(a, b), mid(b, c), mid(c, a));
+            nt.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        t = nt;
+    }
+    let p = p
+        .iter()
+        .map(|q| {
+            let l = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
+            [0, 1, 2].map(|k| centre[k] + radius * q[k] / l)
+        })
+        .collect();
+    (p, t)
+}
+
+/// A mesh file and the grid `spec` (plus `padding`) fits to it.
+pub fn mesh_and_grid(path: &std::path::Path, spec: GridSpec, padding: u32) -> (Mesh, Grid) {
+    let mesh = voxd::mesh::load_file(path, usize::MAX).unwrap();
+    let (lo, hi) = mesh.bounds();
+    let g = Grid::fit(lo, hi, spec, padding, Default::default()).unwrap();
+    (mesh, g)
+}
+
+/// What the library (and so the CLI and the service) gives for a mesh file, grid and method.
+pub fn voxelize_file(path: &std::path::Path, spec: GridSpec, padding: u32, m: Method) -> BitVolume {
+    let (mesh, g) = mesh_and_grid(path, spec, padding);
+    CpuEngine
+        .voxelize(&GridMesh::new(&mesh, &g).unwrap(), m)
+        .unwrap()
 }
