@@ -104,8 +104,10 @@ struct VoxelizeArgs {
     /// solid | surface | conservative | interior | density
     #[arg(long, default_value = "solid")]
     method: MethodArg,
-    /// How solid-based methods decide inside: parity (exact for watertight meshes), vote (parity
-    /// along x, y and z, majority) or flood (exterior flood fill outside the surface).
+    /// How solid-based methods (solid, conservative, interior, density) decide inside: parity
+    /// (exact for watertight meshes), vote (parity along x, y and z, majority), winding
+    /// (generalised winding number ≥ ½), flood (exterior flood fill outside the surface) or auto
+    /// (parity when the mesh is watertight, else winding).
     #[arg(long, default_value = "parity")]
     fill: voxd::engine::fill::Fill,
     /// Sub-voxels per axis for density: 2 (values 0..8) or 4 (0..64).
@@ -402,19 +404,14 @@ fn voxelize(a: VoxelizeArgs) -> Result<(), String> {
     if a.density_factor == 3 {
         return Err("--density-factor must be 2 or 4".into());
     }
-    let vol = match a.method {
-        MethodArg::Bits(m) => Volume::Bits(
-            voxd::engine::fill::voxelize(&*engine, &mesh, &grid, m, a.fill)
-                .map_err(|e| format!("{name}: {e}"))?,
-        ),
-        MethodArg::Density if a.fill != voxd::engine::fill::Fill::Parity => {
-            return Err(format!(
-                "{name}: --fill {:?} is not available for density yet; use parity",
-                a.fill
-            ));
+    let (vol, fill) = match a.method {
+        MethodArg::Bits(m) => {
+            let (v, r) = voxd::engine::fill::voxelize(&*engine, &mesh, &grid, m, a.fill, &diag)
+                .map_err(|e| format!("{name}: {e}"))?;
+            (Volume::Bits(v), r)
         }
-        MethodArg::Density => Volume::Density(
-            voxd::engine::density::density(
+        MethodArg::Density => {
+            let (d, r) = voxd::engine::density::density(
                 &*engine,
                 &mesh,
                 &grid,
@@ -422,9 +419,12 @@ fn voxelize(a: VoxelizeArgs) -> Result<(), String> {
                 GridLimits {
                     max_voxels: a.max_voxels,
                 },
+                a.fill,
+                &diag,
             )
-            .map_err(|e| format!("{name}: {e}"))?,
-        ),
+            .map_err(|e| format!("{name}: {e}"))?;
+            (Volume::Density(d), r)
+        }
     };
     let t_vox = t1.elapsed();
     let t2 = Instant::now();
@@ -443,8 +443,10 @@ fn voxelize(a: VoxelizeArgs) -> Result<(), String> {
             .into(),
     );
     meta.insert("triangles".into(), diag.triangles.into());
+    meta.insert("fill".into(), fill.used.name().into());
     write_volume(&a.output, out_format, &vol, &meta)?;
     let t_write = t2.elapsed();
+    eprintln!("{}", describe_fill(&name, &fill));
     let d = grid.dims;
     println!(
         "{name}: {}x{}x{} {} -> {}: {set} voxels set ({:.2}%), engine {}, {:.3} s (load {:.3}, diagnose {:.3}, voxelize {:.3}, write {:.3})",
@@ -462,6 +464,24 @@ fn voxelize(a: VoxelizeArgs) -> Result<(), String> {
         t_write.as_secs_f64(),
     );
     Ok(())
+}
+
+fn describe_fill(name: &str, f: &voxd::engine::fill::FillReport) -> String {
+    let mut s = format!("{name}: fill {}", f.used);
+    if f.requested != f.used {
+        s += &format!(" (asked for {})", f.requested);
+    }
+    s += &format!(", {} odd-parity columns", f.odd_parity_columns);
+    if let Some(w) = &f.winding {
+        s += &format!(
+            ", {} cap triangles; voxels decided by the exact crossing count {}, minus the caps' winding number {}, by the mesh's winding number {}",
+            w.cap_triangles, w.exact_voxels, w.cap_evaluated_voxels, w.mesh_evaluated_voxels
+        );
+    }
+    if let Some(w) = &f.warning {
+        s += &format!("\n{name}: WARNING: {w}");
+    }
+    s
 }
 
 fn describe_mesh(name: &str, d: &MeshDiagnostics) -> String {

@@ -4,9 +4,10 @@
 
 use rayon::prelude::*;
 
-use super::{Engine, EngineError, GridMesh, Method};
+use super::fill::{self, Fill, FillReport};
+use super::{Engine, EngineError};
 use crate::grid::{Grid, GridError, GridLimits};
-use crate::mesh::Mesh;
+use crate::mesh::{Mesh, MeshDiagnostics};
 use crate::volume::DensityVolume;
 
 #[derive(Debug, thiserror::Error)]
@@ -40,19 +41,24 @@ pub fn fine_grid(grid: &Grid, factor: u32, limits: GridLimits) -> Result<Grid, G
     })
 }
 
-/// Density of `mesh` on `grid` with `factor` ∈ {2, 4}, computed by `engine`; the finer grid must
-/// fit `limits`.
+/// Density of `mesh` on `grid` with `factor` ∈ {2, 4}, computed by `engine` with the sub-voxels
+/// classified by `fill` (the report's odd-parity columns are those of the finer grid); the finer
+/// grid must fit `limits`.
 pub fn density(
     engine: &dyn Engine,
     mesh: &Mesh,
     grid: &Grid,
     factor: u32,
     limits: GridLimits,
-) -> Result<DensityVolume, DensityError> {
+    fill: Fill,
+    diagnostics: &MeshDiagnostics,
+) -> Result<(DensityVolume, FillReport), DensityError> {
     assert!(factor == 2 || factor == 4, "density factor must be 2 or 4");
     let fine =
         fine_grid(grid, factor, limits).map_err(|source| DensityError::Grid { factor, source })?;
-    let solid = engine.voxelize(&GridMesh::new(mesh, &fine)?, Method::Solid)?;
+    let mut report = FillReport::new(fill, mesh, &fine, diagnostics);
+    let (solid, stats) = fill::solid(engine, mesh, &fine, report.used)?;
+    report.winding = stats;
     let [_, ny, nz] = grid.dims;
     let (fy, wpc) = (fine.dims[1] as usize, solid.words_per_column());
     let words = solid.words();
@@ -76,5 +82,8 @@ pub fn density(
                 }
             }
         });
-    Ok(DensityVolume::from_data(*grid, (f * f * f) as u8, data).expect("counts fit the grid"))
+    Ok((
+        DensityVolume::from_data(*grid, (f * f * f) as u8, data).expect("counts fit the grid"),
+        report,
+    ))
 }

@@ -3,22 +3,104 @@
 //! along y — the same exact rule on axis-rotated coordinates, on whichever engine — and keeps a
 //! voxel where at least two agree. `flood` marks the conservative surface, floods the exterior
 //! from the grid's border through unmarked voxels (6-connected), and calls everything unreached
-//! solid (so the surface voxels are solid too). The generalised winding number (`winding`,
-//! `auto`) is not here yet.
+//! solid (so the surface voxels are solid too). `winding` keeps a voxel where the generalised
+//! winding number of the mesh at its centre is at least ½ in magnitude ([`super::winding`]).
+//! `auto` is parity for a watertight mesh and winding otherwise.
+//!
+//! Every fill comes with a [`FillReport`]: the fill asked for and the one used, the number of
+//! odd-parity columns (columns the mesh covers an odd number of times: holes along z), and a
+//! warning when parity was used on a mesh that is not watertight.
 
 use std::collections::VecDeque;
 use std::str::FromStr;
 
+use serde::{Deserialize, Serialize};
+
+use super::winding::{self, WindingStats};
 use super::{Engine, EngineError, GridMesh, Method};
 use crate::grid::Grid;
-use crate::mesh::Mesh;
+use crate::mesh::{Mesh, MeshDiagnostics};
 use crate::volume::BitVolume;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Fill {
     Parity,
     Vote,
+    Winding,
     Flood,
+    Auto,
+}
+
+impl Fill {
+    pub const ALL: [Fill; 5] = [
+        Fill::Parity,
+        Fill::Vote,
+        Fill::Winding,
+        Fill::Flood,
+        Fill::Auto,
+    ];
+    pub fn name(self) -> &'static str {
+        match self {
+            Fill::Parity => "parity",
+            Fill::Vote => "vote",
+            Fill::Winding => "winding",
+            Fill::Flood => "flood",
+            Fill::Auto => "auto",
+        }
+    }
+    /// The fill `auto` resolves to for a mesh (others are themselves).
+    pub fn resolve(self, diagnostics: &MeshDiagnostics) -> Fill {
+        match self {
+            Fill::Auto if diagnostics.watertight => Fill::Parity,
+            Fill::Auto => Fill::Winding,
+            f => f,
+        }
+    }
+}
+
+impl std::fmt::Display for Fill {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// How a solid was filled, for summaries and volume metadata.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FillReport {
+    pub requested: Fill,
+    pub used: Fill,
+    /// Columns of the grid the mesh covers an odd number of times (holes along z); see
+    /// [`crate::engine::cpu::odd_parity_columns`].
+    pub odd_parity_columns: u64,
+    /// Set when parity was used on a mesh that is not watertight.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub warning: Option<String>,
+    /// For `winding`: how many voxels the exact count and the hierarchy decided.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub winding: Option<WindingStats>,
+}
+
+impl FillReport {
+    /// The report for `fill` on `mesh` (`grid` gives the columns counted), before any voxel is
+    /// computed; [`solid`] adds the winding statistics.
+    pub fn new(fill: Fill, mesh: &Mesh, grid: &Grid, diagnostics: &MeshDiagnostics) -> FillReport {
+        let used = fill.resolve(diagnostics);
+        let odd = super::cpu::odd_parity_columns(mesh, grid);
+        let warning = (used == Fill::Parity && !diagnostics.watertight).then(|| {
+            format!(
+                "parity fill on a mesh that is not watertight ({} boundary and {} non-manifold edges, {odd} odd-parity columns): the solid may be streaked or empty; fill=winding or fill=auto is robust",
+                diagnostics.boundary_edges, diagnostics.non_manifold_edges
+            )
+        });
+        FillReport {
+            requested: fill,
+            used,
+            odd_parity_columns: odd,
+            warning,
+            winding: None,
+        }
+    }
 }
 
 impl FromStr for Fill {
@@ -27,33 +109,38 @@ impl FromStr for Fill {
         match s {
             "parity" => Ok(Fill::Parity),
             "vote" => Ok(Fill::Vote),
+            "winding" => Ok(Fill::Winding),
             "flood" => Ok(Fill::Flood),
-            "winding" | "auto" => Err(format!(
-                "fill={s} is not available yet; use parity, vote or flood"
-            )),
+            "auto" => Ok(Fill::Auto),
             _ => Err(format!(
-                "unknown fill {s:?}; expected parity, vote or flood"
+                "unknown fill {s:?}; expected parity, vote, winding, flood or auto"
             )),
         }
     }
 }
 
 /// `method` with its solid part computed under `fill` (conservative = filled solid ∪ surface,
-/// interior = filled solid − surface). `surface` has no solid part, so its fill must be parity.
+/// interior = filled solid − surface; `surface` has no solid part and ignores the fill), and the
+/// report of the fill.
 pub fn voxelize(
     engine: &dyn Engine,
     mesh: &Mesh,
     grid: &Grid,
     method: Method,
     fill: Fill,
-) -> Result<BitVolume, EngineError> {
-    if fill == Fill::Parity {
-        return engine.voxelize(&GridMesh::new(mesh, grid)?, method);
+    diagnostics: &MeshDiagnostics,
+) -> Result<(BitVolume, FillReport), EngineError> {
+    let mut report = FillReport::new(fill, mesh, grid, diagnostics);
+    if report.used == Fill::Parity || method == Method::Surface {
+        return Ok((
+            engine.voxelize(&GridMesh::new(mesh, grid)?, method)?,
+            report,
+        ));
     }
-    let mut s = solid(engine, mesh, grid, fill)?;
+    let (mut s, stats) = solid(engine, mesh, grid, report.used)?;
+    report.winding = stats;
     match method {
-        Method::Solid => {}
-        Method::Surface => return engine.voxelize(&GridMesh::new(mesh, grid)?, Method::Surface),
+        Method::Solid | Method::Surface => {}
         Method::Conservative => {
             s.union_with(&engine.voxelize(&GridMesh::new(mesh, grid)?, Method::Surface)?)
         }
@@ -61,24 +148,32 @@ pub fn voxelize(
             s.subtract(&engine.voxelize(&GridMesh::new(mesh, grid)?, Method::Surface)?)
         }
     }
-    Ok(s)
+    Ok((s, report))
 }
 
-/// The solid of `mesh` on `grid` under `fill`.
+/// The solid of `mesh` on `grid` under `fill` (`auto` must be resolved first: it is treated as
+/// winding), with the winding statistics when the fill is winding.
 pub fn solid(
     engine: &dyn Engine,
     mesh: &Mesh,
     grid: &Grid,
     fill: Fill,
-) -> Result<BitVolume, EngineError> {
-    match fill {
-        Fill::Parity => engine.voxelize(&GridMesh::new(mesh, grid)?, Method::Solid),
-        Fill::Vote => vote(engine, mesh, grid),
+) -> Result<(BitVolume, Option<WindingStats>), EngineError> {
+    Ok(match fill {
+        Fill::Parity => (
+            engine.voxelize(&GridMesh::new(mesh, grid)?, Method::Solid)?,
+            None,
+        ),
+        Fill::Vote => (vote(engine, mesh, grid)?, None),
         Fill::Flood => {
             let surface = engine.voxelize(&GridMesh::new(mesh, grid)?, Method::Surface)?;
-            Ok(flood(&surface))
+            (flood(&surface), None)
         }
-    }
+        Fill::Winding | Fill::Auto => {
+            let (v, stats) = winding::solid(mesh, grid)?;
+            (v, Some(stats))
+        }
+    })
 }
 
 /// Parity along the axis that `rot` moves to z: `rot` maps output axis a to input axis rot[a].

@@ -8,6 +8,7 @@ pub mod density;
 pub mod fill;
 pub mod gpu;
 mod snap;
+pub mod winding;
 
 use std::str::FromStr;
 

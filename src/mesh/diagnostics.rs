@@ -23,26 +23,33 @@ pub struct MeshDiagnostics {
     pub bbox_max: [f64; 3],
 }
 
+/// For every position, the number of its class under exact equality (-0.0 = 0.0): positions
+/// that are equal get the same id, ids run from 0 without gaps.
+pub(crate) fn merged_ids(mesh: &Mesh) -> Vec<u32> {
+    // Sort (key, index) pairs and number the distinct keys.
+    let key = |p: &[f64; 3]| p.map(|c| if c == 0.0 { 0u64 } else { c.to_bits() });
+    let mut keyed: Vec<([u64; 3], u32)> = mesh
+        .positions
+        .par_iter()
+        .enumerate()
+        .map(|(i, p)| (key(p), i as u32))
+        .collect();
+    keyed.par_sort_unstable();
+    let mut remap = vec![0u32; mesh.positions.len()];
+    let mut distinct = 0u32;
+    for (i, (k, idx)) in keyed.iter().enumerate() {
+        if i > 0 && keyed[i - 1].0 != *k {
+            distinct += 1;
+        }
+        remap[*idx as usize] = distinct;
+    }
+    remap
+}
+
 impl MeshDiagnostics {
     pub fn of(mesh: &Mesh) -> MeshDiagnostics {
-        // Merge positions by bit pattern (-0.0 folded onto 0.0 so equal values merge): sort
-        // (key, index) pairs and number the distinct keys.
-        let key = |p: &[f64; 3]| p.map(|c| if c == 0.0 { 0u64 } else { c.to_bits() });
-        let mut keyed: Vec<([u64; 3], u32)> = mesh
-            .positions
-            .par_iter()
-            .enumerate()
-            .map(|(i, p)| (key(p), i as u32))
-            .collect();
-        keyed.par_sort_unstable();
-        let mut remap = vec![0u32; mesh.positions.len()];
-        let mut distinct = 0u32;
-        for (i, (k, idx)) in keyed.iter().enumerate() {
-            if i > 0 && keyed[i - 1].0 != *k {
-                distinct += 1;
-            }
-            remap[*idx as usize] = distinct;
-        }
+        let remap = merged_ids(mesh);
+        let distinct = remap.iter().copied().max().unwrap_or(0);
         let merged = |t: &[u32; 3]| t.map(|i| remap[i as usize]);
         let degenerate = mesh
             .triangles

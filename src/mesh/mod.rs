@@ -12,6 +12,7 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 
 pub use diagnostics::MeshDiagnostics;
+pub(crate) use diagnostics::merged_ids;
 
 /// Coordinates beyond this magnitude are refused: f64 has no sub-unit precision left there and
 /// such values are almost always garbage (uninitialised floats, unit mix-ups).

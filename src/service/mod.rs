@@ -187,31 +187,48 @@ fn run_job(
     work: &Work,
     canceled: &std::sync::atomic::AtomicBool,
 ) -> Result<String, Problem> {
-    let vol = match work.method {
-        jobs::MethodSpec::Bits(m) => Volume::Bits(
-            crate::engine::fill::voxelize(&*app.engine, &work.mesh, &work.grid, m, work.fill)
-                .map_err(|e| match e {
-                    crate::engine::EngineError::OutOfRange { .. } => {
-                        Problem::new(Kind::InvalidMesh, e.to_string())
-                    }
-                    _ => Problem::new(Kind::EngineFailure, e.to_string()),
-                })?,
-        ),
+    let engine_problem = |e: crate::engine::EngineError| match e {
+        crate::engine::EngineError::OutOfRange { .. } => {
+            Problem::new(Kind::InvalidMesh, e.to_string())
+        }
+        _ => Problem::new(Kind::EngineFailure, e.to_string()),
+    };
+    let (vol, fill) = match work.method {
+        jobs::MethodSpec::Bits(m) => {
+            let (v, r) = crate::engine::fill::voxelize(
+                &*app.engine,
+                &work.mesh,
+                &work.grid,
+                m,
+                work.fill,
+                &work.diagnostics,
+            )
+            .map_err(engine_problem)?;
+            (Volume::Bits(v), r)
+        }
         jobs::MethodSpec::Density(f) => {
             let limits = crate::grid::GridLimits {
                 max_voxels: u64::MAX,
             };
-            let d =
-                crate::engine::density::density(&*app.engine, &work.mesh, &work.grid, f, limits)
-                    .map_err(|e| match e {
-                        crate::engine::density::DensityError::Engine(
-                            crate::engine::EngineError::OutOfRange { .. },
-                        ) => Problem::new(Kind::InvalidMesh, e.to_string()),
-                        _ => Problem::new(Kind::EngineFailure, e.to_string()),
-                    })?;
-            Volume::Density(d)
+            let (d, r) = crate::engine::density::density(
+                &*app.engine,
+                &work.mesh,
+                &work.grid,
+                f,
+                limits,
+                work.fill,
+                &work.diagnostics,
+            )
+            .map_err(|e| match e {
+                crate::engine::density::DensityError::Engine(e) => engine_problem(e),
+                _ => Problem::new(Kind::EngineFailure, e.to_string()),
+            })?;
+            (Volume::Density(d), r)
         }
     };
+    if let Some(w) = &fill.warning {
+        tracing::warn!(warning = %w, "fill");
+    }
     if canceled.load(Ordering::SeqCst) {
         return Err(Problem::new(Kind::NotCancelable, "canceled"));
     }
@@ -222,10 +239,7 @@ fn run_job(
     let kind = vol.kind();
     let mut meta = serde_json::Map::new();
     meta.insert("method".into(), work.method.name().into());
-    meta.insert(
-        "fill".into(),
-        format!("{:?}", work.fill).to_lowercase().into(),
-    );
+    meta.insert("fill".into(), fill.used.name().into());
     meta.insert("job".into(), id.into());
     meta.insert("source_sha256".into(), work.sha256.clone().into());
     let bytes =
@@ -246,6 +260,7 @@ fn run_job(
             triangles: work.mesh.triangles().len(),
         },
         diagnostics: Some(work.diagnostics.clone()),
+        fill: Some(fill),
         engine: app.engine.describe(),
         created: jobs::rfc3339(std::time::SystemTime::now()),
         bytes: bytes.len() as u64,

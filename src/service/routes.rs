@@ -233,11 +233,6 @@ async fn voxelize(
         .map(|f| f.parse().map_err(|e: String| bad(e)))
         .transpose()?
         .unwrap_or(crate::engine::fill::Fill::Parity);
-    if fill != crate::engine::fill::Fill::Parity && matches!(method, MethodSpec::Density(_)) {
-        return Err(bad(
-            "fill other than parity is not available for density yet",
-        ));
-    }
     let padding = parse::<u32>(&q, "padding")?.unwrap_or(0);
     let cubic = parse::<bool>(&q, "cubic")?.unwrap_or(false);
     let wait = parse::<f64>(&q, "wait")?.unwrap_or(0.0);

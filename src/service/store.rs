@@ -27,6 +27,10 @@ pub struct VolumeMeta {
     pub volume: f64,
     pub source: SourceInfo,
     pub diagnostics: Option<MeshDiagnostics>,
+    /// How the solid was filled: the fill asked for and used, odd-parity columns, a warning
+    /// for parity on a mesh that is not watertight (absent for derived volumes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fill: Option<crate::engine::fill::FillReport>,
     pub engine: String,
     /// RFC 3339, UTC.
     pub created: String,

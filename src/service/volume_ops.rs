@@ -168,6 +168,7 @@ fn store_derived(
             triangles: 0,
         },
         diagnostics: None,
+        fill: None,
         engine: "cpu".into(),
         created: super::jobs::rfc3339(std::time::SystemTime::now()),
         bytes: bytes.len() as u64,

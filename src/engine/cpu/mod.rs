@@ -14,6 +14,8 @@ pub(crate) use super::{axis_bounds, box_range, centre_range};
 use crate::volume::BitVolume;
 
 pub use solid::crossing_voxel;
+pub use solid::odd_parity_columns;
+pub(crate) use solid::signed_counts;
 pub use surface::triangle_overlaps_voxel;
 
 #[derive(Clone, Copy, Debug, Default)]

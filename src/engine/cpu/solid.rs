@@ -75,16 +75,21 @@ impl Edge {
 }
 
 /// Orients the triangle counter-clockwise in xy; `None` for zero projected area.
-fn oriented(mut v: [[i64; 3]; 3]) -> Option<([[i64; 3]; 3], i64)> {
+fn oriented(v: [[i64; 3]; 3]) -> Option<([[i64; 3]; 3], i64)> {
+    oriented_signed(v).map(|(v, a, _)| (v, a))
+}
+
+/// [`oriented`] and +1 when the triangle had to be turned (it faced down), else −1.
+fn oriented_signed(mut v: [[i64; 3]; 3]) -> Option<([[i64; 3]; 3], i64, i32)> {
     let area2 =
         (v[1][0] - v[0][0]) * (v[2][1] - v[0][1]) - (v[1][1] - v[0][1]) * (v[2][0] - v[0][0]);
     match area2 {
         0 => None,
         a if a < 0 => {
             v.swap(1, 2);
-            Some((v, -a))
+            Some((v, -a, 1))
         }
-        a => Some((v, a)),
+        a => Some((v, a, -1)),
     }
 }
 
@@ -105,7 +110,27 @@ fn toggle_crossings(
     wpc: usize,
     words: &mut [u64],
 ) {
-    let Some((v, area2)) = oriented(*v) else {
+    let start = band.start;
+    for_each_crossing(v, band, ny, |x, y, k, _| {
+        if k < nz as i64 {
+            let k = k.max(0) as usize;
+            let col = (x - start) as usize * ny as usize + y as usize;
+            words[col * wpc + k / 64] ^= 1 << (k % 64);
+        }
+    });
+}
+
+/// Calls `f(x, y, k, sign)` for every column (x in `xs`, y < `ny`) whose centre lies inside the
+/// triangle's projection (tie rule above), with `k` the first voxel above the triangle there and
+/// `sign` = +1 when the triangle faces down (n_z < 0: the ray towards −z leaves through it, as it
+/// leaves a closed outward-oriented mesh), −1 when it faces up.
+fn for_each_crossing(
+    v: &[[i64; 3]; 3],
+    xs: Range<u32>,
+    ny: u32,
+    mut f: impl FnMut(u32, u32, i64, i32),
+) {
+    let Some((v, area2, sign)) = oriented_signed(*v) else {
         return;
     };
     let (xlo, xhi) = axis_bounds(&v, 0);
@@ -115,7 +140,7 @@ fn toggle_crossings(
     else {
         return;
     };
-    let (x0, x1) = (x0.max(band.start), x1.min(band.end - 1));
+    let (x0, x1) = (x0.max(xs.start), x1.min(xs.end - 1));
     if x0 > x1 {
         return;
     }
@@ -129,20 +154,102 @@ fn toggle_crossings(
     for x in x0..=x1 {
         let px = x as i64 * FIXED_ONE + FIXED_HALF;
         let mut w = [0, 1, 2].map(|i| edges[i].at(px, py0));
-        let col0 = (x - band.start) as usize * ny as usize;
         for y in y0..=y1 {
             if (0..3).all(|i| w[i] >= edges[i].bias) {
-                let k = first_voxel_above(&v, w, area2);
-                if k < nz as i64 {
-                    let k = k.max(0) as usize;
-                    words[(col0 + y as usize) * wpc + k / 64] ^= 1 << (k % 64);
-                }
+                f(x, y, first_voxel_above(&v, w, area2), sign);
             }
             for i in 0..3 {
                 w[i] += edges[i].ex * FIXED_ONE;
             }
         }
     }
+}
+
+/// Signed crossing counts: `decide(x, counts, row_words)` is called once per x-row with
+/// `counts[y · Z + z]` = the sum of the signs (see [`for_each_crossing`]) of the triangles that
+/// the ray from voxel (x, y, z)'s centre towards −z crosses, under the same tie rules as `solid`
+/// (so `counts` is odd exactly where `solid` is set). For a closed mesh (as a chain: every edge
+/// used as often in each direction) this is its winding number at the centre. `decide` writes the
+/// row's bits into `row_words` (Y columns of the volume's words).
+pub(crate) fn signed_counts(
+    mesh: &GridMesh,
+    decide: impl Fn(u32, &[i32], &mut [u64]) + Sync,
+) -> BitVolume {
+    let mut vol = BitVolume::new(mesh.grid);
+    let [nx, ny, nz] = mesh.grid.dims;
+    let wpc = vol.words_per_column();
+    let x_range = |v: &[[i64; 3]; 3]| {
+        let (lo, hi) = axis_bounds(v, 0);
+        let (ylo, yhi) = axis_bounds(v, 1);
+        centre_range(ylo, yhi, ny)?;
+        centre_range(lo, hi, nx)
+    };
+    let row_words = ny as usize * wpc;
+    for_each_band(mesh, &mut vol, &x_range, |band, tris, words| {
+        let mut counts = vec![0i32; ny as usize * nz as usize];
+        // Triangles per row of the band, so that each is set up once per row it covers.
+        let mut rows: Vec<Vec<u32>> = vec![Vec::new(); band.len()];
+        for &t in tris {
+            if let Some((x0, x1)) = x_range(&widen(&mesh.triangles[t as usize])) {
+                for x in x0.max(band.start)..=x1.min(band.end - 1) {
+                    rows[(x - band.start) as usize].push(t);
+                }
+            }
+        }
+        for x in band.clone() {
+            counts.fill(0);
+            for &t in &rows[(x - band.start) as usize] {
+                for_each_crossing(
+                    &widen(&mesh.triangles[t as usize]),
+                    x..x + 1,
+                    ny,
+                    |_, y, k, s| {
+                        if k < nz as i64 {
+                            counts[y as usize * nz as usize + k.max(0) as usize] += s;
+                        }
+                    },
+                );
+            }
+            for col in counts.chunks_exact_mut(nz as usize) {
+                let mut acc = 0;
+                for c in col.iter_mut() {
+                    acc += *c;
+                    *c = acc;
+                }
+            }
+            let r = (x - band.start) as usize * row_words;
+            decide(x, &counts, &mut words[r..r + row_words]);
+        }
+    });
+    vol
+}
+
+/// Columns of `grid` (X × Y) whose centre is covered by an odd number of triangles of `mesh`
+/// under `solid`'s tie rules, whatever their height: along such a column the ray towards −z from
+/// above the mesh ends inside, so the mesh has a hole there. Triangles with a coordinate beyond
+/// the lattice's range are left out (a voxelization that meets them fails with an error anyway).
+pub fn odd_parity_columns(mesh: &crate::mesh::Mesh, grid: &crate::grid::Grid) -> u64 {
+    let [nx, ny, _] = grid.dims;
+    let scale = FIXED_ONE as f64 / grid.voxel_size;
+    let snap = |p: &[f64; 3]| {
+        let v = [0, 1].map(|a| ((p[a] - grid.origin[a]) * scale).round());
+        v.iter()
+            .all(|c| c.abs() <= crate::engine::MAX_FIXED as f64)
+            .then(|| [v[0] as i64, v[1] as i64, 0])
+    };
+    let snapped: Vec<Option<[i64; 3]>> = mesh.positions().iter().map(snap).collect();
+    let mut bits = vec![0u64; (nx as usize * ny as usize).div_ceil(64)];
+    for t in mesh.triangles() {
+        let v = t.map(|i| snapped[i as usize]);
+        let (Some(a), Some(b), Some(c)) = (v[0], v[1], v[2]) else {
+            continue;
+        };
+        for_each_crossing(&[a, b, c], 0..nx, ny, |x, y, _, _| {
+            let i = x as usize * ny as usize + y as usize;
+            bits[i / 64] ^= 1 << (i % 64);
+        });
+    }
+    bits.iter().map(|w| w.count_ones() as u64).sum()
 }
 
 /// Turns toggles into parity: bit k becomes the XOR of toggles at 0..=k. Bits above Z are cleared.
