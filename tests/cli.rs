@@ -655,12 +655,63 @@ fn fill_options() {
         "-o",
         s(&out),
         "--fill",
-        "winding",
+        "blob",
     ]);
-    assert_eq!(
-        o.status.code(),
-        Some(2),
-        "clap refuses a fill that does not exist yet"
-    );
-    assert!(String::from_utf8_lossy(&o.stderr).contains("not available yet"));
+    assert_eq!(o.status.code(), Some(2), "clap refuses an unknown fill");
+    assert!(String::from_utf8_lossy(&o.stderr).contains("winding"));
+
+    // A mesh with holes: auto picks winding and says so, parity warns; the bits are the
+    // library's.
+    let bowl = open_bowl();
+    let obj = tmp("bowl.obj");
+    std::fs::write(&obj, to_obj(&bowl)).unwrap();
+    let (lo, hi) = bowl.bounds();
+    let g = voxd::grid::Grid::fit(
+        lo,
+        hi,
+        GridSpec::Resolution {
+            n: 20,
+            cubic: false,
+        },
+        0,
+        Default::default(),
+    )
+    .unwrap();
+    for (fill, used) in [
+        ("auto", "winding"),
+        ("parity", "parity"),
+        ("winding", "winding"),
+    ] {
+        let o = voxd(&[
+            "voxelize",
+            s(&obj),
+            "-o",
+            s(&out),
+            "--resolution",
+            "20",
+            "--fill",
+            fill,
+            "--engine",
+            "cpu",
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{err}");
+        assert!(err.contains(&format!("fill {used}")), "{err}");
+        assert!(err.contains("odd-parity columns"), "{err}");
+        assert_eq!(err.contains("WARNING"), used == "parity", "{err}");
+        assert_eq!(fill == "auto", err.contains("(asked for auto)"), "{err}");
+        let Volume::Bits(got) = read(&out) else {
+            panic!()
+        };
+        let (want, _) = voxd::engine::fill::voxelize(
+            &CpuEngine,
+            &bowl,
+            &g,
+            Method::Solid,
+            fill.parse().unwrap(),
+            &bowl.diagnostics(),
+        )
+        .unwrap();
+        assert_eq!(got, want, "{fill}");
+    }
 }

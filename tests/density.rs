@@ -6,6 +6,7 @@ mod common;
 use common::*;
 use voxd::engine::cpu::CpuEngine;
 use voxd::engine::density::{density, fine_grid};
+use voxd::engine::fill::Fill;
 use voxd::engine::{Engine, GridMesh, Method};
 use voxd::grid::{Grid, GridLimits};
 use voxd::mesh::Mesh;
@@ -28,7 +29,17 @@ fn a_box_has_the_analytic_partial_counts() {
     let mesh = Mesh::new(p, t).unwrap();
     let g = unit_grid([4, 4, 5]);
     for f in [2, 4] {
-        let d = density(&CpuEngine, &mesh, &g, f, GridLimits::default()).unwrap();
+        let d = density(
+            &CpuEngine,
+            &mesh,
+            &g,
+            f,
+            GridLimits::default(),
+            Fill::Parity,
+            &mesh.diagnostics(),
+        )
+        .unwrap()
+        .0;
         assert_eq!(d.max() as u32, f * f * f);
         for x in 0..4 {
             for y in 0..4 {
@@ -80,7 +91,17 @@ fn the_reduction_counts_the_fine_solid() {
             dims,
         };
         for f in [2u32, 4] {
-            let d = density(&CpuEngine, &mesh, &g, f, GridLimits::default()).unwrap();
+            let d = density(
+                &CpuEngine,
+                &mesh,
+                &g,
+                f,
+                GridLimits::default(),
+                Fill::Parity,
+                &mesh.diagnostics(),
+            )
+            .unwrap()
+            .0;
             let fine = fine_grid(&g, f, GridLimits::default()).unwrap();
             let s = CpuEngine
                 .voxelize(&GridMesh::new(&mesh, &fine).unwrap(), Method::Solid)
@@ -117,6 +138,8 @@ fn the_finer_grid_must_fit_the_budget() {
         GridLimits {
             max_voxels: 1 << 20,
         },
+        Fill::Parity,
+        &mesh.diagnostics(),
     )
     .unwrap_err();
     assert!(
@@ -135,7 +158,17 @@ fn normals_of_a_sphere_point_outward() {
     let (p, t) = sphere([12.0; 3], 10.0, 4);
     let mesh = Mesh::new(p, t).unwrap();
     let g = unit_grid([24, 24, 24]);
-    let d = density(&CpuEngine, &mesh, &g, 2, GridLimits::default()).unwrap();
+    let d = density(
+        &CpuEngine,
+        &mesh,
+        &g,
+        2,
+        GridLimits::default(),
+        Fill::Parity,
+        &mesh.diagnostics(),
+    )
+    .unwrap()
+    .0;
     let v = Volume::Density(d.clone());
     let (mut n, mut good) = (0, 0);
     for x in 0..24 {

@@ -226,9 +226,13 @@ fn density_equals_the_cpu() {
             Default::default(),
         )
         .unwrap();
-        let want =
-            voxd::engine::density::density(&CpuEngine, &m, &g, f, Default::default()).unwrap();
-        let got = voxd::engine::density::density(e, &m, &g, f, Default::default()).unwrap();
+        let (d, parity) = (m.diagnostics(), voxd::engine::fill::Fill::Parity);
+        let dens = |e: &dyn Engine| {
+            voxd::engine::density::density(e, &m, &g, f, Default::default(), parity, &d)
+                .unwrap()
+                .0
+        };
+        let (want, got) = (dens(&CpuEngine), dens(e));
         assert!(got == want, "density n={n} f={f}: GPU differs from CPU");
     }
 }

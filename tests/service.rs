@@ -495,11 +495,7 @@ fn every_error_is_a_problem_document() {
         400,
         "invalid-parameter",
     );
-    assert_problem(
-        &post("?fill=winding", &obj, small),
-        400,
-        "invalid-parameter",
-    );
+    assert_problem(&post("?fill=blob", &obj, small), 400, "invalid-parameter");
     assert_problem(
         &post("?resolution=-3", &obj, small),
         400,
@@ -911,6 +907,18 @@ fn real_responses_match_the_openapi_schemas() {
     );
     check("/v1/voxelize", "post", &r);
     let vid = r.json()["id"].as_str().unwrap().to_string();
+    let bowl = to_obj(&open_bowl());
+    let r = srv.req(
+        "POST",
+        "/v1/voxelize?resolution=20&wait=60&fill=auto",
+        obj,
+        &bowl,
+    );
+    assert!(r.json()["fill"]["winding"].is_object());
+    check("/v1/voxelize", "post", &r);
+    let r = srv.req("POST", "/v1/voxelize?resolution=20&wait=60", obj, &bowl);
+    assert!(r.json()["fill"]["warning"].is_string());
+    check("/v1/voxelize", "post", &r);
     let r = srv.req("POST", "/v1/voxelize?resolution=31", obj, &spot);
     check("/v1/voxelize", "post", &r);
     let jid = r.json()["id"].as_str().unwrap().to_string();
@@ -1005,7 +1013,7 @@ fn real_responses_match_the_openapi_schemas() {
         "delete",
         &srv.req("DELETE", &format!("/v1/volumes/{vid}"), &[], &[]),
     );
-    assert_eq!(checked, 20);
+    assert_eq!(checked, 22);
 }
 
 #[test]
@@ -1030,8 +1038,11 @@ fn density_over_http() {
         },
         0,
     );
-    let want =
-        voxd::engine::density::density(&CpuEngine, &mesh, &g, 2, Default::default()).unwrap();
+    let d = mesh.diagnostics();
+    let parity = voxd::engine::fill::Fill::Parity;
+    let (want, _) =
+        voxd::engine::density::density(&CpuEngine, &mesh, &g, 2, Default::default(), parity, &d)
+            .unwrap();
     assert!(
         (meta["volume"].as_f64().unwrap() - want.occupied_voxels() * g.voxel_size.powi(3)).abs()
             < 1e-12
@@ -1087,6 +1098,94 @@ fn density_over_http() {
         &spot,
     );
     assert_problem(&r, 422, "grid-too-large");
+}
+
+/// Every fill over HTTP gives the library's bits, and the volume says which fill was used.
+#[test]
+fn fills_over_http() {
+    use voxd::engine::fill::{Fill, voxelize};
+    let srv = Server::start(&tmpdir("fills"), &[]);
+    let mesh = open_bowl();
+    let bowl = to_obj(&mesh);
+    let d = mesh.diagnostics();
+    let (lo, hi) = mesh.bounds();
+    let spec = GridSpec::Resolution {
+        n: 24,
+        cubic: false,
+    };
+    let g = Grid::fit(lo, hi, spec, 0, Default::default()).unwrap();
+    for (fill, method, used) in [
+        ("auto", "solid", "winding"),
+        ("winding", "conservative", "winding"),
+        ("vote", "interior", "vote"),
+        ("flood", "solid", "flood"),
+        ("parity", "solid", "parity"),
+    ] {
+        let r = srv.req(
+            "POST",
+            &format!("/v1/voxelize?resolution=24&wait=60&fill={fill}&method={method}"),
+            &[("Content-Type", "model/obj")],
+            &bowl,
+        );
+        assert_eq!(r.status, 201, "{}", String::from_utf8_lossy(&r.body));
+        let meta = r.json();
+        assert_eq!(meta["fill"]["requested"], fill);
+        assert_eq!(meta["fill"]["used"], used);
+        assert!(meta["fill"]["odd_parity_columns"].as_u64().unwrap() > 0);
+        assert_eq!(meta["fill"]["warning"].is_string(), used == "parity");
+        assert_eq!(meta["fill"]["winding"].is_object(), used == "winding");
+        let id = meta["id"].as_str().unwrap();
+        let got = decode(
+            &srv.req("GET", &format!("/v1/volumes/{id}/data"), &[], &[])
+                .body,
+        );
+        let m: Method = method.parse().unwrap();
+        let (want, report) = voxelize(&CpuEngine, &mesh, &g, m, fill.parse().unwrap(), &d).unwrap();
+        assert_eq!(got, want, "{fill} {method}");
+        assert_eq!(meta["fill"], serde_json::to_value(&report).unwrap());
+    }
+    // Density under the winding fill.
+    let r = srv.req(
+        "POST",
+        "/v1/voxelize?resolution=12&wait=60&fill=winding&method=density",
+        &[("Content-Type", "model/obj")],
+        &bowl,
+    );
+    assert_eq!(r.status, 201, "{}", String::from_utf8_lossy(&r.body));
+    let meta = r.json();
+    assert_eq!(meta["fill"]["used"], "winding");
+    let id = meta["id"].as_str().unwrap();
+    let Volume::Density(got) = VolumeFormat::Vxl
+        .decode(
+            &srv.req("GET", &format!("/v1/volumes/{id}/data"), &[], &[])
+                .body,
+        )
+        .unwrap()
+    else {
+        panic!("density expected")
+    };
+    let g12 = Grid::fit(
+        lo,
+        hi,
+        GridSpec::Resolution {
+            n: 12,
+            cubic: false,
+        },
+        0,
+        Default::default(),
+    )
+    .unwrap();
+    let (want, _) = voxd::engine::density::density(
+        &CpuEngine,
+        &mesh,
+        &g12,
+        2,
+        Default::default(),
+        Fill::Winding,
+        &d,
+    )
+    .unwrap();
+    assert_eq!(got, want);
 }
 
 fn box_obj(lo: [f64; 3], hi: [f64; 3]) -> Vec<u8> {

@@ -149,7 +149,7 @@ pub fn solid(mesh: &Mesh, grid: &Grid) -> Result<(BitVolume, WindingStats), Engi
 }
 
 /// Triangles (and their apex positions, to be appended after the mesh's positions) whose boundary
-/// is minus the mesh's boundary chain: one fan per boundary cycle, from the mean of its vertices.
+/// is minus the mesh's boundary chain: each boundary cycle is capped by [`cap_cycle`].
 pub fn closing_caps(mesh: &Mesh) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
     let ids = merged_ids(mesh);
     // One representative position index per merged id.
@@ -209,24 +209,61 @@ pub fn closing_caps(mesh: &Mesh) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
                 cycle.push(next);
                 v = next;
             }
-            let mut c = [0.0; 3];
-            for &v in &cycle {
-                let p = positions[rep[v as usize] as usize];
-                for a in 0..3 {
-                    c[a] += p[a] / cycle.len() as f64;
-                }
-            }
-            let apex = (positions.len() + apexes.len()) as u32;
-            apexes.push(c);
-            for (i, &a) in cycle.iter().enumerate() {
-                let b = cycle[(i + 1) % cycle.len()];
-                // Boundary edge a→b closed by the cap triangle (apex, b, a).
-                caps.push([apex, rep[b as usize], rep[a as usize]]);
-            }
+            let cycle: Vec<u32> = cycle.iter().map(|&v| rep[v as usize]).collect();
+            cap_cycle(&cycle, positions, &mut apexes, &mut caps);
         }
     }
     debug_assert_eq!(remaining, 0);
     (apexes, caps)
+}
+
+/// Caps a cycle of position indices (edges `cycle[i] → cycle[i + 1]`, the last back to the
+/// first) with triangles whose boundary is minus the cycle. A long cycle is not fanned from one
+/// point (its long, thin triangles would make every nearby query expensive): it is cut into chunks
+/// of `CHUNK` consecutive edges, each chunk plus the chord back to its start is fanned from its
+/// own centroid, and the cycle of chords (`CHUNK` times shorter) is capped the same way. The fans
+/// give −(chunk edges) + (chords), the chords' cap −(chords): −(cycle) in total, with triangles
+/// about as large as the features they span.
+fn cap_cycle(
+    cycle: &[u32],
+    positions: &[[f64; 3]],
+    apexes: &mut Vec<[f64; 3]>,
+    caps: &mut Vec<[u32; 3]>,
+) {
+    const CHUNK: usize = 8;
+    let n = cycle.len();
+    let mut fan = |poly: &[u32], apexes: &mut Vec<[f64; 3]>| {
+        // A cycle of two vertices (a→b→a) bounds nothing.
+        if poly.len() < 3 {
+            return;
+        }
+        let mut c = [0.0; 3];
+        for &v in poly {
+            let p = positions[v as usize];
+            for a in 0..3 {
+                c[a] += p[a] / poly.len() as f64;
+            }
+        }
+        let apex = (positions.len() + apexes.len()) as u32;
+        apexes.push(c);
+        for (i, &a) in poly.iter().enumerate() {
+            let b = poly[(i + 1) % poly.len()];
+            // Edge a→b closed by the cap triangle (apex, b, a).
+            caps.push([apex, b, a]);
+        }
+    };
+    if n <= CHUNK {
+        fan(cycle, apexes);
+        return;
+    }
+    let mut coarse = Vec::with_capacity(n.div_ceil(CHUNK));
+    for start in (0..n).step_by(CHUNK) {
+        let end = (start + CHUNK).min(n);
+        let poly: Vec<u32> = (start..=end).map(|i| cycle[i % n]).collect();
+        fan(&poly, apexes);
+        coarse.push(cycle[start]);
+    }
+    cap_cycle(&coarse, positions, apexes, caps);
 }
 
 /// Exact signed solid angle of triangle (a, b, c) seen from q (Van Oosterom & Strackee), in
@@ -292,9 +329,8 @@ impl WindingTree {
         self.evaluate(q, -1.0).expect("no plane check")
     }
 
-    /// [`Self::winding_number`], or `None` when q lies within `eps` of the plane of a triangle
-    /// summed exactly and within `eps` of its bounding ball (where the sign of its solid angle is
-    /// a tie to break by other means).
+    /// [`Self::winding_number`], or `None` when q lies within `eps` of a triangle summed exactly
+    /// (where the sign of its solid angle is a tie to break by other means).
     pub fn winding_number_off_planes(&self, q: [f64; 3], eps: f64) -> Option<f64> {
         self.evaluate(q, eps)
     }
@@ -319,9 +355,8 @@ impl WindingTree {
                     if eps >= 0.0 {
                         let [a, b, c] = t.map(|v| sub(v, q));
                         let twice_area = norm(cross(sub(b, a), sub(c, a)));
-                        let (bc, br) = ball(t);
                         if dot(a, cross(b, c)).abs() <= eps * twice_area
-                            && norm(sub(bc, q)) <= br + eps
+                            && dist2_to_triangle(q, t) <= eps * eps
                         {
                             return None;
                         }
@@ -377,6 +412,7 @@ impl WindingTree {
 }
 
 /// 4π × the node's expanded winding number at q, with r = centre − q and d2 = |r|².
+#[allow(clippy::needless_range_loop)] // index notation of the moment formulas
 fn far_field(n: &Node, r: [f64; 3], d2: f64) -> f64 {
     let d = d2.sqrt();
     let (i3, i5) = (1.0 / (d2 * d), 1.0 / (d2 * d2 * d));
@@ -447,6 +483,7 @@ fn build(nodes: &mut Vec<Node>, tris: &mut [[[f64; 3]; 3]], offset: u32) -> u32 
     index
 }
 
+#[allow(clippy::needless_range_loop)] // index notation of the moment formulas
 fn leaf(tris: &[[[f64; 3]; 3]], offset: u32) -> Node {
     let mut area = 0.0;
     let mut n1 = [0.0; 3];
@@ -504,6 +541,7 @@ fn leaf(tris: &[[[f64; 3]; 3]], offset: u32) -> Node {
 
 /// The parent of two nodes: moments moved to the parent's centre (d = child centre − centre):
 /// M += n1 ⊗ d, C_ijk += d_j M_ik + d_k M_ij + d_j d_k n1_i.
+#[allow(clippy::needless_range_loop)] // index notation of the moment formulas
 fn combine(l: &Node, r: &Node, li: u32, ri: u32) -> Node {
     let area = l.area + r.area;
     let centre = if area > 0.0 {
@@ -549,6 +587,43 @@ fn ball(t: &[[f64; 3]; 3]) -> ([f64; 3], f64) {
     let c = [0, 1, 2].map(|k| (t[0][k] + t[1][k] + t[2][k]) / 3.0);
     let r = t.iter().map(|v| norm(sub(*v, c))).fold(0.0, f64::max);
     (c, r)
+}
+
+/// Squared distance from p to a triangle (Ericson, *Real-Time Collision Detection*, 5.1.5).
+fn dist2_to_triangle(p: [f64; 3], t: &[[f64; 3]; 3]) -> f64 {
+    let [a, b, c] = *t;
+    let at = |u: f64, v: f64| [0, 1, 2].map(|i| a[i] + u * (b[i] - a[i]) + v * (c[i] - a[i]));
+    let d = |q: [f64; 3]| dot(sub(p, q), sub(p, q));
+    let (ab, ac, ap) = (sub(b, a), sub(c, a), sub(p, a));
+    let (d1, d2) = (dot(ab, ap), dot(ac, ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return d(a);
+    }
+    let bp = sub(p, b);
+    let (d3, d4) = (dot(ab, bp), dot(ac, bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return d(b);
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return d(at(d1 / (d1 - d3), 0.0));
+    }
+    let cp = sub(p, c);
+    let (d5, d6) = (dot(ab, cp), dot(ac, cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return d(c);
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return d(at(0.0, d2 / (d2 - d6)));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return d([0, 1, 2].map(|i| b[i] + w * (c[i] - b[i])));
+    }
+    let den = 1.0 / (va + vb + vc);
+    d(at(vb * den, vc * den))
 }
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
@@ -699,5 +774,28 @@ mod tests {
         let closed = Mesh::new(p, t).unwrap();
         let d = closed.diagnostics();
         assert_eq!((d.boundary_edges, d.non_manifold_edges), (0, 0));
+    }
+
+    #[test]
+    fn long_cycles_are_capped_in_chunks() {
+        // A bumpy sheet has one boundary cycle of 160 edges: capped in 20 chunks of 8, then the
+        // 20 chords in 3, then those 3; the result is closed, and its winding number is an integer
+        // everywhere.
+        let (p, t) = sheet(40);
+        let open = Mesh::new(p, t).unwrap();
+        let (apexes, caps) = closing_caps(&open);
+        assert_eq!(apexes.len(), 20 + 3 + 1);
+        let mut p = open.positions().to_vec();
+        p.extend(apexes);
+        let mut t = open.triangles().to_vec();
+        t.extend(caps);
+        let closed = Mesh::new(p, t).unwrap();
+        // Closed as a chain (collinear chunks make degenerate, non-manifold fans): no boundary.
+        assert_eq!(closing_caps(&closed).1.len(), 0);
+        let tris: Vec<_> = (0..closed.triangles().len()).map(|i| closed.triangle(i)).collect();
+        for q in [[0.3, 0.6, 0.05], [0.5, 0.5, -0.3], [2.0, 0.1, 0.0], [0.2, 0.9, 0.4]] {
+            let w = exact_winding_number(tris.iter().copied(), q);
+            assert!((w - w.round()).abs() < 1e-9, "{q:?}: {w}");
+        }
     }
 }

@@ -559,3 +559,24 @@ pub fn voxelize_file(path: &std::path::Path, spec: GridSpec, padding: u32, m: Me
         .voxelize(&GridMesh::new(&mesh, &g).unwrap(), m)
         .unwrap()
 }
+
+/// The mesh as OBJ text.
+pub fn to_obj(mesh: &Mesh) -> Vec<u8> {
+    let mut s = String::new();
+    for p in mesh.positions() {
+        s += &format!("v {} {} {}\n", p[0], p[1], p[2]);
+    }
+    for t in mesh.triangles() {
+        s += &format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1);
+    }
+    s.into_bytes()
+}
+
+/// A sphere with its top cut off (an open bowl) and one more triangle missing: not watertight,
+/// and parity streaks on it.
+pub fn open_bowl() -> Mesh {
+    let (p, mut t) = sphere([0.1, -0.2, 0.05], 1.0, 3);
+    t.retain(|tri| tri.iter().map(|&v| p[v as usize][2]).sum::<f64>() / 3.0 < 0.6);
+    t.remove(7);
+    Mesh::new(p, t).unwrap()
+}

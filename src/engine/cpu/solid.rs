@@ -185,7 +185,7 @@ pub(crate) fn signed_counts(
         centre_range(lo, hi, nx)
     };
     let row_words = ny as usize * wpc;
-    for_each_band(mesh, &mut vol, &x_range, |band, tris, words| {
+    for_each_band(mesh, &mut vol, x_range, |band, tris, words| {
         let mut counts = vec![0i32; ny as usize * nz as usize];
         // Triangles per row of the band, so that each is set up once per row it covers.
         let mut rows: Vec<Vec<u32>> = vec![Vec::new(); band.len()];
