@@ -792,8 +792,15 @@ mod tests {
         let closed = Mesh::new(p, t).unwrap();
         // Closed as a chain (collinear chunks make degenerate, non-manifold fans): no boundary.
         assert_eq!(closing_caps(&closed).1.len(), 0);
-        let tris: Vec<_> = (0..closed.triangles().len()).map(|i| closed.triangle(i)).collect();
-        for q in [[0.3, 0.6, 0.05], [0.5, 0.5, -0.3], [2.0, 0.1, 0.0], [0.2, 0.9, 0.4]] {
+        let tris: Vec<_> = (0..closed.triangles().len())
+            .map(|i| closed.triangle(i))
+            .collect();
+        for q in [
+            [0.3, 0.6, 0.05],
+            [0.5, 0.5, -0.3],
+            [2.0, 0.1, 0.0],
+            [0.2, 0.9, 0.4],
+        ] {
             let w = exact_winding_number(tris.iter().copied(), q);
             assert!((w - w.round()).abs() < 1e-9, "{q:?}: {w}");
         }
