@@ -81,20 +81,50 @@ pub fn solid(mesh: &Mesh, grid: &Grid) -> Result<(BitVolume, WindingStats), Engi
         Some(t) => t.bound_exceeds(p, r, CAP_LIMIT * 4.0 * PI),
         None => false,
     };
-    // Blocks of BLOCK³ voxels whose every centre is proven away from the caps.
-    let [_, ny, nz] = grid.dims;
+    // The voxels not proven away from the caps: BLOCK³ blocks first, a failing block split into
+    // eight, down to single voxels.
+    let [nx, ny, nz] = grid.dims;
     let nb = grid.dims.map(|d| d.div_ceil(BLOCK));
-    let block_radius = 0.5 * 3f64.sqrt() * BLOCK as f64 * s;
-    let uncertain: Vec<bool> = (0..nb[0] * nb[1] * nb[2])
+    let refine = |lo: [u32; 3], out: &mut Vec<[u32; 3]>| {
+        let mut stack = vec![(lo, BLOCK)];
+        while let Some((lo, size)) = stack.pop() {
+            let hi = [0, 1, 2].map(|a| (lo[a] + size).min(grid.dims[a]));
+            if (0..3).any(|a| lo[a] >= hi[a]) {
+                continue;
+            }
+            let c = [0, 1, 2].map(|a| grid.origin[a] + (lo[a] as f64 + hi[a] as f64) * 0.5 * s);
+            let r = 0.5 * 3f64.sqrt() * (size - 1) as f64 * s;
+            if !near_caps(c, r) {
+                continue;
+            }
+            if size == 1 {
+                out.push(lo);
+                continue;
+            }
+            let h = size / 2;
+            for d in 0..8u32 {
+                stack.push(([0, 1, 2].map(|a| lo[a] + ((d >> a) & 1) * h), h));
+            }
+        }
+    };
+    let lists: Vec<Vec<[u32; 3]>> = (0..nb[0] * nb[1] * nb[2])
         .into_par_iter()
         .map(|b| {
-            let (bx, by, bz) = (b / (nb[1] * nb[2]), b / nb[2] % nb[1], b % nb[2]);
-            let lo = centre([bx, by, bz].map(|v| v * BLOCK));
-            let p = [0, 1, 2].map(|a| lo[a] + 0.5 * (BLOCK - 1) as f64 * s);
-            near_caps(p, block_radius)
+            let mut out = Vec::new();
+            if cap_tree.is_some() {
+                let (bx, by, bz) = (b / (nb[1] * nb[2]), b / nb[2] % nb[1], b % nb[2]);
+                refine([bx, by, bz].map(|v| v * BLOCK), &mut out);
+            }
+            out
         })
         .collect();
-    let mesh_tree = std::sync::OnceLock::new();
+    let mut uncertain = BitVolume::new(*grid);
+    for v in lists.iter().flatten() {
+        uncertain.set(v[0], v[1], v[2], true);
+    }
+    let _ = nx;
+    // Voxels at a cap's tie, decided after the pass by the mesh's own winding number.
+    let deferred = std::sync::Mutex::new(Vec::new());
     let counters = [0, 1, 2].map(|_| AtomicU64::new(0));
     let wpc = nz.div_ceil(64) as usize;
     let vol = crate::engine::cpu::signed_counts(&gm, |x, counts, words| {
@@ -104,9 +134,8 @@ pub fn solid(mesh: &Mesh, grid: &Grid) -> Result<(BitVolume, WindingStats), Engi
             let out = &mut words[y as usize * wpc..(y as usize + 1) * wpc];
             for (z, &count) in col.iter().enumerate() {
                 let z = z as u32;
-                let b = ((x / BLOCK) * nb[1] + y / BLOCK) * nb[2] + z / BLOCK;
                 let p = centre([x, y, z]);
-                let inside = if !uncertain[b as usize] || !near_caps(p, 0.0) {
+                let inside = if !uncertain.get(x, y, z) {
                     n[0] += 1;
                     count != 0
                 } else {
@@ -120,10 +149,11 @@ pub fn solid(mesh: &Mesh, grid: &Grid) -> Result<(BitVolume, WindingStats), Engi
                         }
                         None => {
                             n[2] += 1;
-                            let t = mesh_tree.get_or_init(|| {
-                                WindingTree::new(mesh.positions(), mesh.triangles())
-                            });
-                            t.winding_number(p).abs() >= 0.5
+                            deferred
+                                .lock()
+                                .expect("no panics while held")
+                                .push([x, y, z]);
+                            false
                         }
                     }
                 };
@@ -136,6 +166,27 @@ pub fn solid(mesh: &Mesh, grid: &Grid) -> Result<(BitVolume, WindingStats), Engi
             c.fetch_add(v, Ordering::Relaxed);
         }
     });
+    let mut vol = vol;
+    let deferred = deferred.into_inner().expect("no panics while held");
+    // A few voxels: exact sums over the mesh; many: the hierarchy over it is worth building.
+    let tris = mesh.triangles().len();
+    let winding: Vec<f64> = if (deferred.len() as u64) * (tris as u64) < 50_000_000 {
+        deferred
+            .par_iter()
+            .map(|&v| exact_winding_number((0..tris).map(|t| mesh.triangle(t)), centre(v)))
+            .collect()
+    } else {
+        let tree = WindingTree::new(mesh.positions(), mesh.triangles());
+        deferred
+            .par_iter()
+            .map(|&v| tree.winding_number(centre(v)))
+            .collect()
+    };
+    for (v, w) in deferred.iter().zip(winding) {
+        if w.abs() >= 0.5 {
+            vol.set(v[0], v[1], v[2], true);
+        }
+    }
     let [exact, cap_eval, mesh_eval] = counters.map(|c| c.into_inner());
     Ok((
         vol,
