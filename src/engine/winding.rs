@@ -76,14 +76,14 @@ pub fn solid(mesh: &Mesh, grid: &Grid) -> Result<(BitVolume, WindingStats), Engi
     };
     let cap_positions: Vec<[f64; 3]> = closed.positions().iter().map(|&p| lattice(p)).collect();
     let cap_tree = (!caps.is_empty()).then(|| WindingTree::new(&cap_positions, &caps));
-    let centre = |i: [u32; 3]| [0, 1, 2].map(|a| grid.origin[a] + (i[a] as f64 + 0.5) * s);
+    let centre = |[x, y, z]: [u32; 3]| grid.voxel_center(x, y, z);
     let near_caps = |p: [f64; 3], r: f64| match &cap_tree {
         Some(t) => t.bound_exceeds(p, r, CAP_LIMIT * 4.0 * PI),
         None => false,
     };
     // The voxels not proven away from the caps: BLOCK³ blocks first, a failing block split into
     // eight, down to single voxels.
-    let [nx, ny, nz] = grid.dims;
+    let [_, ny, nz] = grid.dims;
     let nb = grid.dims.map(|d| d.div_ceil(BLOCK));
     let refine = |lo: [u32; 3], out: &mut Vec<[u32; 3]>| {
         let mut stack = vec![(lo, BLOCK)];
@@ -122,7 +122,6 @@ pub fn solid(mesh: &Mesh, grid: &Grid) -> Result<(BitVolume, WindingStats), Engi
     for v in lists.iter().flatten() {
         uncertain.set(v[0], v[1], v[2], true);
     }
-    let _ = nx;
     // Voxels at a cap's tie, decided after the pass by the mesh's own winding number.
     let deferred = std::sync::Mutex::new(Vec::new());
     let counters = [0, 1, 2].map(|_| AtomicU64::new(0));

@@ -25,12 +25,7 @@ pub(super) fn voxelize(mesh: &GridMesh) -> BitVolume {
     let mut vol = BitVolume::new(mesh.grid);
     let [nx, ny, nz] = mesh.grid.dims;
     let wpc = vol.words_per_column();
-    let x_range = |v: &[[i64; 3]; 3]| {
-        let (lo, hi) = axis_bounds(v, 0);
-        let (ylo, yhi) = axis_bounds(v, 1);
-        centre_range(ylo, yhi, ny)?;
-        centre_range(lo, hi, nx)
-    };
+    let x_range = |v: &[[i64; 3]; 3]| covered_rows(v, nx, ny);
     for_each_band(mesh, &mut vol, x_range, |band, tris, words| {
         for &t in tris {
             toggle_crossings(
@@ -47,6 +42,15 @@ pub(super) fn voxelize(mesh: &GridMesh) -> BitVolume {
         }
     });
     vol
+}
+
+/// The inclusive range of x-rows whose column centres a triangle's xy box holds, `None` when it
+/// holds no column centre of an X × Y grid.
+fn covered_rows(v: &[[i64; 3]; 3], nx: u32, ny: u32) -> Option<(u32, u32)> {
+    let (lo, hi) = axis_bounds(v, 0);
+    let (ylo, yhi) = axis_bounds(v, 1);
+    centre_range(ylo, yhi, ny)?;
+    centre_range(lo, hi, nx)
 }
 
 /// Edge function pieces of a CCW triangle: `w(p) = ex · (p.y − a.y) − ey · (p.x − a.x)`, and the
@@ -178,12 +182,7 @@ pub(crate) fn signed_counts(
     let mut vol = BitVolume::new(mesh.grid);
     let [nx, ny, nz] = mesh.grid.dims;
     let wpc = vol.words_per_column();
-    let x_range = |v: &[[i64; 3]; 3]| {
-        let (lo, hi) = axis_bounds(v, 0);
-        let (ylo, yhi) = axis_bounds(v, 1);
-        centre_range(ylo, yhi, ny)?;
-        centre_range(lo, hi, nx)
-    };
+    let x_range = |v: &[[i64; 3]; 3]| covered_rows(v, nx, ny);
     let row_words = ny as usize * wpc;
     for_each_band(mesh, &mut vol, x_range, |band, tris, words| {
         let mut counts = vec![0i32; ny as usize * nz as usize];
