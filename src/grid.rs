@@ -8,9 +8,6 @@ use serde::{Deserialize, Serialize};
 /// (see [`crate::engine::snap`]).
 pub const MAX_DIM: u32 = 1 << 20;
 
-/// Default voxel budget of one grid: 2048³.
-pub const DEFAULT_MAX_VOXELS: u64 = 2048 * 2048 * 2048;
-
 /// A grid: voxel (i, j, k) is the closed box `origin + [i, i+1] × [j, j+1] × [k, k+1] · voxel_size`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Grid {
@@ -44,7 +41,7 @@ pub struct GridLimits {
 impl Default for GridLimits {
     fn default() -> Self {
         GridLimits {
-            max_voxels: DEFAULT_MAX_VOXELS,
+            max_voxels: crate::limits::Limits::LOCAL.max_voxels,
         }
     }
 }
@@ -147,7 +144,7 @@ impl Grid {
                 dims,
                 voxels,
                 limit: limits.max_voxels,
-                limit_desc: describe_budget(limits.max_voxels),
+                limit_desc: crate::limits::describe_voxels(limits.max_voxels),
             });
         }
         Ok(Grid {
@@ -161,27 +158,85 @@ impl Grid {
         self.dims.iter().map(|&d| d as u64).product()
     }
 
+    // Index ↔ world. Grid coordinates are continuous, in voxels from the origin: voxel i spans
+    // [i, i + 1] on each axis and its centre is i + ½. These are the only places that turn one
+    // into the other (`origin + index · s` and `(p − origin) / s`), so every caller rounds alike.
+
+    /// World position of the continuous grid coordinates `index`: `origin + index · voxel_size`.
+    pub fn world_of(&self, index: [f64; 3]) -> [f64; 3] {
+        [0, 1, 2].map(|a| self.origin[a] + index[a] * self.voxel_size)
+    }
+
+    /// World position of the min corner of voxel `i`; any `i`, so `dims` gives the far corner and
+    /// negative indices lie before the origin.
+    pub fn corner(&self, i: [i64; 3]) -> [f64; 3] {
+        self.world_of(i.map(|x| x as f64))
+    }
+
     /// World position of the centre of voxel (i, j, k).
     pub fn voxel_center(&self, i: u32, j: u32, k: u32) -> [f64; 3] {
-        let idx = [i, j, k];
-        [0, 1, 2].map(|a| self.origin[a] + (idx[a] as f64 + 0.5) * self.voxel_size)
+        self.world_of([i, j, k].map(|x| x as f64 + 0.5))
     }
 
     /// World position of the grid's far corner.
     pub fn max_corner(&self) -> [f64; 3] {
-        [0, 1, 2].map(|a| self.origin[a] + self.dims[a] as f64 * self.voxel_size)
+        self.corner(self.dims.map(i64::from))
+    }
+
+    /// Continuous grid coordinates of world point `p`: `(p − origin) / voxel_size`.
+    pub fn index_of(&self, p: [f64; 3]) -> [f64; 3] {
+        [0, 1, 2].map(|a| (p[a] - self.origin[a]) / self.voxel_size)
+    }
+
+    /// The voxel whose box `[i, i + 1)` (half open) holds `p`: `floor(index_of(p))`, `None`
+    /// outside the grid (or for a non-finite point).
+    pub fn voxel_containing(&self, p: [f64; 3]) -> Option<[u32; 3]> {
+        let f = self.index_of(p).map(f64::floor);
+        (0..3)
+            .all(|a| f[a] >= 0.0 && f[a] < self.dims[a] as f64)
+            .then(|| f.map(|x| x as u32))
+    }
+
+    /// Volume of one voxel, `voxel_size³`.
+    pub fn voxel_volume(&self) -> f64 {
+        self.voxel_size.powi(3)
+    }
+
+    /// Volume of `voxels` voxels, `voxels · voxel_size³`.
+    pub fn volume_of(&self, voxels: u64) -> f64 {
+        voxels as f64 * self.voxel_volume()
     }
 
     /// True when `other` has the same voxel size and its origin is a whole number of voxels away,
     /// so the two can be combined voxel by voxel.
     pub fn is_aligned_with(&self, other: &Grid) -> bool {
-        if self.voxel_size != other.voxel_size {
-            return false;
+        self.voxel_size == other.voxel_size
+            && self
+                .index_of(other.origin)
+                .iter()
+                .all(|d| (d - d.round()).abs() <= 1e-6)
+    }
+
+    /// Where `other`'s voxel 0 lies in this grid's indices, when the two are aligned
+    /// ([`Grid::is_aligned_with`]); `None` otherwise.
+    pub fn offset_to(&self, other: &Grid) -> Option<[i64; 3]> {
+        self.is_aligned_with(other)
+            .then(|| self.index_of(other.origin).map(|d| d.round() as i64))
+    }
+
+    /// The aligned grid of `dims` voxels whose voxel 0 is this grid's voxel `lo` (which may lie
+    /// outside this grid).
+    pub fn sub_grid(&self, lo: [i64; 3], dims: [u32; 3]) -> Grid {
+        Grid {
+            origin: self.corner(lo),
+            voxel_size: self.voxel_size,
+            dims,
         }
-        (0..3).all(|a| {
-            let d = (other.origin[a] - self.origin[a]) / self.voxel_size;
-            (d - d.round()).abs() <= 1e-6
-        })
+    }
+
+    /// This grid with `r` more voxels on every side.
+    pub fn padded(&self, r: u32) -> Grid {
+        self.sub_grid([-(r as i64); 3], self.dims.map(|d| d + 2 * r))
     }
 }
 
@@ -206,15 +261,6 @@ fn check_voxel_size(s: f64) -> Result<(), GridError> {
         Ok(())
     } else {
         Err(GridError::BadVoxelSize(s))
-    }
-}
-
-fn describe_budget(v: u64) -> String {
-    let c = (v as f64).cbrt().round() as u64;
-    if c * c * c == v {
-        format!("{c}³")
-    } else {
-        format!("{v} voxels")
     }
 }
 
@@ -378,5 +424,36 @@ mod tests {
         };
         assert!(a.is_aligned_with(&b));
         assert!(!a.is_aligned_with(&c));
+        assert_eq!(a.offset_to(&b), Some([3, -1, 4]));
+        assert_eq!(b.offset_to(&a), Some([-3, 1, -4]));
+        assert_eq!(a.offset_to(&c), None);
+        let sub = a.sub_grid([3, -1, 4], [2; 3]);
+        assert_eq!(sub, b);
+        assert_eq!(a.padded(2).offset_to(&a), Some([2; 3]));
+        assert_eq!(a.padded(2).dims, [8; 3]);
+    }
+
+    #[test]
+    fn index_world_conversions() {
+        let g = Grid {
+            origin: [1.0, -2.0, 0.5],
+            voxel_size: 0.25,
+            dims: [4, 2, 8],
+        };
+        assert_eq!(g.corner([0; 3]), g.origin);
+        assert_eq!(g.corner([4, 2, 8]), g.max_corner());
+        assert_eq!(g.max_corner(), [2.0, -1.5, 2.5]);
+        assert_eq!(g.corner([-1, 0, 0]), [0.75, -2.0, 0.5]);
+        assert_eq!(g.voxel_center(1, 0, 3), [1.375, -1.875, 1.375]);
+        assert_eq!(g.world_of([1.5, 0.5, 3.5]), g.voxel_center(1, 0, 3));
+        assert_eq!(g.index_of(g.voxel_center(1, 0, 3)), [1.5, 0.5, 3.5]);
+        assert_eq!(g.voxel_containing(g.voxel_center(3, 1, 7)), Some([3, 1, 7]));
+        // Boxes are half open: the far corner is outside, the origin inside.
+        assert_eq!(g.voxel_containing(g.origin), Some([0; 3]));
+        assert_eq!(g.voxel_containing(g.max_corner()), None);
+        assert_eq!(g.voxel_containing([0.99, -1.9, 0.6]), None);
+        assert_eq!(g.voxel_containing([f64::NAN, -1.9, 0.6]), None);
+        assert_eq!(g.voxel_volume(), 0.015625);
+        assert_eq!(g.volume_of(64), 1.0);
     }
 }

@@ -3,17 +3,27 @@
 //! Data moves one way: [`mesh`] loads and validates a triangle mesh, [`grid`] fits the grid the
 //! caller asked for, an [`engine`] turns the two into a [`volume`], and [`codec`] writes volumes as
 //! bytes. The definitions every engine must meet are in `docs/methods.md`.
+//!
+//! Above them, [`app`] is the application layer every front shares (typed requests, the
+//! voxelize pipeline, volume operations, metadata, errors), with volumes kept through
+//! [`store::VolumeStore`] and jobs through [`queue::JobQueue`]; [`limits`] holds every default
+//! and cap. [`service`] is the HTTP front; the command line is the `voxd` binary.
 
 #[cfg(not(target_endian = "little"))]
 compile_error!(
     "voxd stores bit volumes as little-endian words and runs on little-endian targets only"
 );
 
+pub mod app;
 pub mod codec;
 pub mod engine;
 pub mod grid;
+pub mod limits;
 pub mod mesh;
+pub mod names;
+pub mod queue;
 pub mod service;
+pub mod store;
 pub mod volume;
 
 pub use engine::Method;

@@ -1,11 +1,10 @@
 //! The `voxd` binary: voxelize, info, convert, and its errors.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+use std::sync::OnceLock;
 
-use common::*;
+use crate::common::*;
 use voxd::codec::VolumeFormat;
 use voxd::engine::cpu::CpuEngine;
 use voxd::engine::{Engine, GridMesh, Method};
@@ -20,10 +19,10 @@ fn voxd(args: &[&str]) -> Output {
         .unwrap()
 }
 
+/// A file in the scratch directory all the CLI tests share (emptied once, on first use).
 fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("voxd-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| tmpdir("cli")).join(name)
 }
 
 fn s(p: &Path) -> &str {
@@ -476,7 +475,8 @@ fn csg_on_the_command_line() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("not aligned"));
     assert_eq!(
         voxd(&["csg", "sum", s(&a), "-o", s(&out)]).status.code(),
-        Some(1)
+        Some(2),
+        "clap refuses an unknown operation"
     );
 }
 
@@ -525,7 +525,8 @@ fn morph_on_the_command_line() {
     assert!(e.count_ones() < v.count_ones() && e.count_ones() > 0);
     assert_eq!(
         voxd(&["morph", "melt", s(&a), "-o", s(&out)]).status.code(),
-        Some(1)
+        Some(2),
+        "clap refuses an unknown operation"
     );
 }
 

@@ -2,9 +2,7 @@
 // The index expressions spell out the documented layouts, (x·Y + y)·Z + z, even where x is 1.
 #![allow(clippy::identity_op)]
 
-mod common;
-
-use common::{Rng, random_fill};
+use crate::common::{Rng, random_fill};
 use voxd::codec::{VolumeFormat, binvox, npy, vxl};
 use voxd::grid::Grid;
 use voxd::volume::{BitVolume, DensityVolume, Volume};

@@ -1,13 +1,10 @@
 //! CSG between volumes: every op against a naive per-voxel implementation by world position,
 //! the identities, and exact booleans of boxes.
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use voxd::engine::cpu::CpuEngine;
 use voxd::engine::{Engine, GridMesh, Method};
 use voxd::grid::Grid;
-use voxd::mesh::Mesh;
 use voxd::volume::BitVolume;
 use voxd::volume::csg::{CsgError, CsgOp, apply, overlap_count, result_grid};
 
@@ -134,12 +131,6 @@ fn identities() {
         result_grid(CsgOp::Union, &[]),
         Err(CsgError::NoOperands)
     ));
-}
-
-fn box_mesh(lo: [f64; 3], hi: [f64; 3]) -> Mesh {
-    let (mut p, mut t) = (vec![], vec![]);
-    push_box(&mut p, &mut t, lo, hi);
-    Mesh::new(p, t).unwrap()
 }
 
 #[test]

@@ -1,9 +1,7 @@
 //! Density: analytic partial-voxel counts, the reduction against a naive count, and (with an
 //! adapter) GPU == CPU.
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use voxd::engine::cpu::CpuEngine;
 use voxd::engine::density::{density, fine_grid};
 use voxd::engine::fill::Fill;

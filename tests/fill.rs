@@ -1,9 +1,7 @@
 //! Robust fills: vote and flood against the parity solid and the winding number, on closed
 //! shapes and on meshes with holes smaller than a voxel.
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use voxd::engine::cpu::CpuEngine;
 use voxd::engine::fill::{Fill, solid};
 use voxd::engine::{Engine, GridMesh, Method};

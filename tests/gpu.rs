@@ -2,11 +2,9 @@
 //! without one these tests skip with a notice, unless VOXD_REQUIRE_GPU=1 (set by scripts/test.sh
 //! once it has installed a driver), where that is a failure.
 
-mod common;
-
 use std::sync::OnceLock;
 
-use common::*;
+use crate::common::*;
 use voxd::engine::cpu::CpuEngine;
 use voxd::engine::gpu::{GpuEngine, GpuOptions, SolidStrategy};
 use voxd::engine::{Engine, GridMesh, Method};

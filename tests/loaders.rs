@@ -1,11 +1,7 @@
 //! Every loader on every format, and every malformed-input error path.
 
-mod common;
-
-use std::io::Write;
-
+use crate::common::*;
 use base64::Engine as _;
-use common::*;
 use voxd::mesh::{self, ExternalResources, Format, LoadOptions, Mesh, MeshError};
 
 fn opts() -> LoadOptions {
@@ -134,12 +130,6 @@ fn ply(positions: &[[f64; 3]], faces: &[Vec<u32>], strips: Option<&[i32]>, enc: 
         }
     }
     b
-}
-
-fn gz(b: &[u8]) -> Vec<u8> {
-    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
-    e.write_all(b).unwrap();
-    e.finish().unwrap()
 }
 
 fn f32_positions(m: &Mesh) -> Vec<[f64; 3]> {
@@ -321,7 +311,7 @@ fn gltf_modes_transforms_and_glb() {
 
 #[test]
 fn gltf_external_buffers_are_read_only_beside_the_file_and_only_when_allowed() {
-    let dir = std::env::temp_dir().join(format!("voxd-gltf-{}", std::process::id()));
+    let dir = tmpdir("gltf");
     std::fs::create_dir_all(dir.join("sub")).unwrap();
     std::fs::write(dir.join("sub/quad data.bin"), quad_buffer()).unwrap();
     let tri = r#"[{"attributes":{"POSITION":0},"indices":1}]"#;

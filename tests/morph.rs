@@ -1,9 +1,7 @@
 //! Morphology against the per-voxel definitions on random volumes: every op, every kernel,
 //! radius 0..3, odd sizes that are not multiples of the word size.
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use voxd::grid::Grid;
 use voxd::volume::BitVolume;
 use voxd::volume::morph::{Kernel, MorphOp, apply, padded};

@@ -1,8 +1,6 @@
 //! The CPU engine against brute-force oracles and analytic shapes.
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use voxd::engine::cpu::CpuEngine;
 use voxd::engine::{Engine, GridMesh, Method};
 use voxd::grid::Grid;

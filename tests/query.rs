@@ -1,8 +1,6 @@
 //! Point and ray queries: exact cases on a box, and random rays against a fine-stepping march.
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use voxd::grid::Grid;
 use voxd::volume::query::{point_value, ray};
 use voxd::volume::{BitVolume, Volume};

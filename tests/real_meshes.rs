@@ -2,9 +2,7 @@
 //! oracles, and the watertight ones against the winding number. Skips with a notice when the
 //! folder is absent.
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use voxd::engine::cpu::CpuEngine;
 use voxd::engine::{Engine, GridMesh, Method};
 use voxd::grid::{Grid, GridSpec};

@@ -1,8 +1,6 @@
 //! The HTTP service, end to end: the real `voxd serve` binary on 127.0.0.1 with an ephemeral
 //! port, spoken to over TCP with a small HTTP/1.1 client. Loopback only; every loop is bounded.
 
-mod common;
-
 use std::collections::HashMap;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
@@ -10,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use common::*;
+use crate::common::*;
 use serde_json::Value;
 use voxd::codec::VolumeFormat;
 use voxd::engine::cpu::CpuEngine;
@@ -162,24 +160,11 @@ fn request(addr: &str, method: &str, path: &str, headers: &[(&str, &str)], body:
     }
 }
 
-fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("voxd-svc-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
 fn decode(bytes: &[u8]) -> voxd::BitVolume {
     match VolumeFormat::sniff(bytes).unwrap().decode(bytes).unwrap() {
         Volume::Bits(b) => b,
         Volume::Density(_) => panic!("density"),
     }
-}
-
-fn gz(b: &[u8]) -> Vec<u8> {
-    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
-    e.write_all(b).unwrap();
-    e.finish().unwrap()
 }
 
 fn assert_problem(r: &Resp, status: u16, slug: &str) -> Value {
@@ -736,7 +721,7 @@ fn health_metrics_and_the_openapi_document() {
     );
 }
 
-/// The router (src/service/routes.rs) and openapi.yaml list the same paths and methods, and every
+/// The route table (voxd::service::ROUTES) and openapi.yaml list the same paths and methods, and every
 /// documented operation answers on the live server (not the fallback).
 #[test]
 fn router_and_openapi_agree() {
@@ -759,24 +744,10 @@ fn router_and_openapi_agree() {
             }
         }
     }
-    let src = std::fs::read_to_string(root.join("src/service/routes.rs")).unwrap();
-    let mut routed = std::collections::BTreeSet::new();
-    // Each `.route(` call up to the next one (or the fallback), whatever rustfmt's layout.
-    for part in src.split(".route(").skip(1) {
-        let part = part.split(".fallback(").next().unwrap();
-        let Some((_, rest)) = part.split_once('"') else {
-            continue;
-        };
-        let (p, handlers) = rest.split_once('"').unwrap();
-        for m in ["get", "post", "delete", "put", "patch"] {
-            if [" ", ".", "("]
-                .iter()
-                .any(|pre| handlers.contains(&format!("{pre}{m}(")))
-            {
-                routed.insert((p.to_string(), m.to_uppercase()));
-            }
-        }
-    }
+    let routed: std::collections::BTreeSet<(String, String)> = voxd::service::ROUTES
+        .iter()
+        .flat_map(|(p, ms)| ms.iter().map(|m| (p.to_string(), m.to_string())))
+        .collect();
     assert_eq!(documented, routed, "openapi.yaml and the router disagree");
     let srv = Server::start(&tmpdir("openapi"), &[]);
     for (p, m) in &documented {
@@ -1189,16 +1160,7 @@ fn fills_over_http() {
 }
 
 fn box_obj(lo: [f64; 3], hi: [f64; 3]) -> Vec<u8> {
-    let (mut p, mut t) = (vec![], vec![]);
-    push_box(&mut p, &mut t, lo, hi);
-    let mut s = String::new();
-    for v in &p {
-        s += &format!("v {} {} {}\n", v[0], v[1], v[2]);
-    }
-    for f in &t {
-        s += &format!("f {} {} {}\n", f[0] + 1, f[1] + 1, f[2] + 1);
-    }
-    s.into_bytes()
+    to_obj(&box_mesh(lo, hi))
 }
 
 #[test]

@@ -1,10 +1,8 @@
 //! Volume statistics against naive per-voxel computations and an analytic box.
 
-mod common;
-
 use std::collections::VecDeque;
 
-use common::*;
+use crate::common::*;
 use voxd::grid::Grid;
 use voxd::volume::BitVolume;
 use voxd::volume::stats::stats;

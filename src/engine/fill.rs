@@ -11,10 +11,8 @@
 //! odd-parity columns (columns the mesh covers an odd number of times: holes along z), and a
 //! warning when parity was used on a mesh that is not watertight.
 
-use std::collections::VecDeque;
-use std::str::FromStr;
-
 use serde::{Deserialize, Serialize};
+use std::collections::VecDeque;
 
 use super::winding::{self, WindingStats};
 use super::{Engine, EngineError, GridMesh, Method};
@@ -22,8 +20,7 @@ use crate::grid::Grid;
 use crate::mesh::{Mesh, MeshDiagnostics};
 use crate::volume::BitVolume;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Fill {
     Parity,
     Vote,
@@ -59,11 +56,15 @@ impl Fill {
     }
 }
 
-impl std::fmt::Display for Fill {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
+impl crate::names::Named for Fill {
+    const WHAT: &'static str = "fill";
+    const ALL: &'static [Fill] = &Fill::ALL;
+    fn name(self) -> &'static str {
+        Fill::name(self)
     }
 }
+
+crate::impl_named!(Fill);
 
 /// How a solid was filled, for summaries and volume metadata.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -99,22 +100,6 @@ impl FillReport {
             odd_parity_columns: odd,
             warning,
             winding: None,
-        }
-    }
-}
-
-impl FromStr for Fill {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Fill, String> {
-        match s {
-            "parity" => Ok(Fill::Parity),
-            "vote" => Ok(Fill::Vote),
-            "winding" => Ok(Fill::Winding),
-            "flood" => Ok(Fill::Flood),
-            "auto" => Ok(Fill::Auto),
-            _ => Err(format!(
-                "unknown fill {s:?}; expected parity, vote, winding, flood or auto"
-            )),
         }
     }
 }

@@ -10,8 +10,6 @@ pub mod gpu;
 mod snap;
 pub mod winding;
 
-use std::str::FromStr;
-
 pub use snap::{FIXED_HALF, FIXED_ONE, FIXED_SHIFT, GridMesh, MAX_FIXED};
 
 use crate::volume::BitVolume;
@@ -46,23 +44,11 @@ impl Method {
     }
 }
 
-impl FromStr for Method {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Method, String> {
-        Method::ALL
-            .into_iter()
-            .find(|m| m.name() == s)
-            .ok_or_else(|| {
-                format!(
-                    "unknown method {s:?}; expected one of solid, surface, conservative, interior"
-                )
-            })
-    }
-}
-
-impl std::fmt::Display for Method {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
+impl crate::names::Named for Method {
+    const WHAT: &'static str = "method";
+    const ALL: &'static [Method] = &Method::ALL;
+    fn name(self) -> &'static str {
+        Method::name(self)
     }
 }
 
@@ -96,17 +82,20 @@ pub enum EngineChoice {
     Cpu,
 }
 
-impl FromStr for EngineChoice {
-    type Err = String;
-    fn from_str(s: &str) -> Result<EngineChoice, String> {
-        match s {
-            "auto" => Ok(EngineChoice::Auto),
-            "gpu" => Ok(EngineChoice::Gpu),
-            "cpu" => Ok(EngineChoice::Cpu),
-            _ => Err(format!("unknown engine {s:?}; expected auto, gpu or cpu")),
+impl crate::names::Named for EngineChoice {
+    const WHAT: &'static str = "engine";
+    const ALL: &'static [EngineChoice] =
+        &[EngineChoice::Auto, EngineChoice::Gpu, EngineChoice::Cpu];
+    fn name(self) -> &'static str {
+        match self {
+            EngineChoice::Auto => "auto",
+            EngineChoice::Gpu => "gpu",
+            EngineChoice::Cpu => "cpu",
         }
     }
 }
+
+crate::impl_named!(Method, EngineChoice);
 
 /// Opens the chosen engine. `Auto` never fails: without a usable adapter it falls back to the
 /// CPU engine and logs why.

@@ -28,6 +28,27 @@ pub const FIXED_HALF: i64 = FIXED_ONE / 2;
 /// projection inside i64 and every depth numerator inside i128.
 pub const MAX_FIXED: i64 = 1 << 29;
 
+/// World point `p` in lattice units before rounding: `(p − origin) · (FIXED_ONE / voxel_size)`.
+/// (Not `index_of(p) · FIXED_ONE`, which rounds differently.)
+pub(crate) fn lattice_units(grid: &Grid, p: [f64; 3]) -> [f64; 3] {
+    let scale = FIXED_ONE as f64 / grid.voxel_size;
+    [0, 1, 2].map(|a| (p[a] - grid.origin[a]) * scale)
+}
+
+/// The snap: world point `p` on the fixed-point lattice, [`lattice_units`] rounded half away
+/// from zero. Every engine sees a vertex at exactly these coordinates.
+pub(crate) fn to_lattice(grid: &Grid, p: [f64; 3]) -> [f64; 3] {
+    lattice_units(grid, p).map(f64::round)
+}
+
+/// `p` moved onto the lattice, in world coordinates: the point the engines see for `p`,
+/// `origin + to_lattice(p) / (FIXED_ONE / voxel_size)`.
+pub(crate) fn snapped_world(grid: &Grid, p: [f64; 3]) -> [f64; 3] {
+    let scale = FIXED_ONE as f64 / grid.voxel_size;
+    let l = to_lattice(grid, p);
+    [0, 1, 2].map(|a| grid.origin[a] + l[a] / scale)
+}
+
 /// A mesh on a grid: triangles with vertices on the fixed-point lattice, in grid units.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GridMesh {
@@ -37,11 +58,12 @@ pub struct GridMesh {
 
 impl GridMesh {
     pub fn new(mesh: &Mesh, grid: &Grid) -> Result<GridMesh, EngineError> {
-        let scale = FIXED_ONE as f64 / grid.voxel_size;
+        // Unrounded, because the culling below looks at the exact positions; the coordinates
+        // kept are these rounded, i.e. `to_lattice`.
         let g: Vec<[f64; 3]> = mesh
             .positions()
             .par_iter()
-            .map(|p| [0, 1, 2].map(|a| (p[a] - grid.origin[a]) * scale))
+            .map(|&p| lattice_units(grid, p))
             .collect();
         let d = grid.dims.map(|d| d as f64 * FIXED_ONE as f64);
         let one = FIXED_ONE as f64;

@@ -31,7 +31,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::{EngineError, FIXED_ONE, GridMesh};
+use super::snap::snapped_world;
+use super::{EngineError, GridMesh};
 use crate::grid::Grid;
 use crate::mesh::{Mesh, merged_ids};
 use crate::volume::BitVolume;
@@ -70,11 +71,11 @@ pub fn solid(mesh: &Mesh, grid: &Grid) -> Result<(BitVolume, WindingStats), Engi
     let gm = GridMesh::new(&closed, grid)?;
     // The caps exactly as the crossing count sees them: on the 1/256-voxel lattice.
     let s = grid.voxel_size;
-    let lattice = |p: [f64; 3]| {
-        let scale = FIXED_ONE as f64 / s;
-        [0, 1, 2].map(|a| grid.origin[a] + ((p[a] - grid.origin[a]) * scale).round() / scale)
-    };
-    let cap_positions: Vec<[f64; 3]> = closed.positions().iter().map(|&p| lattice(p)).collect();
+    let cap_positions: Vec<[f64; 3]> = closed
+        .positions()
+        .iter()
+        .map(|&p| snapped_world(grid, p))
+        .collect();
     let cap_tree = (!caps.is_empty()).then(|| WindingTree::new(&cap_positions, &caps));
     let centre = |[x, y, z]: [u32; 3]| grid.voxel_center(x, y, z);
     let near_caps = |p: [f64; 3], r: f64| match &cap_tree {
@@ -92,7 +93,7 @@ pub fn solid(mesh: &Mesh, grid: &Grid) -> Result<(BitVolume, WindingStats), Engi
             if (0..3).any(|a| lo[a] >= hi[a]) {
                 continue;
             }
-            let c = [0, 1, 2].map(|a| grid.origin[a] + (lo[a] as f64 + hi[a] as f64) * 0.5 * s);
+            let c = grid.world_of([0, 1, 2].map(|a| (lo[a] as f64 + hi[a] as f64) * 0.5));
             let r = 0.5 * 3f64.sqrt() * (size - 1) as f64 * s;
             if !near_caps(c, r) {
                 continue;

@@ -158,8 +158,8 @@ impl Default for LoadOptions {
     fn default() -> Self {
         LoadOptions {
             external: ExternalResources::Deny,
-            max_triangles: 200_000_000,
-            max_decompressed_bytes: 8 << 30,
+            max_triangles: crate::limits::Limits::LOCAL.max_triangles,
+            max_decompressed_bytes: crate::limits::Limits::LOCAL.max_decompressed_bytes,
         }
     }
 }

@@ -3,7 +3,7 @@
 use std::fmt::Write;
 use std::sync::Mutex;
 
-use super::jobs::Jobs;
+use crate::queue::QueueStats;
 
 const BUCKETS: [f64; 9] = [0.01, 0.05, 0.1, 0.25, 0.5, 1.0, 5.0, 10.0, 60.0];
 
@@ -46,15 +46,13 @@ impl Metrics {
         }
     }
 
-    pub async fn render(&self, jobs: &Jobs) -> String {
+    pub fn render(&self, q: &QueueStats) -> String {
         let mut s = String::new();
         let _ = writeln!(
             s,
             "# HELP voxd_jobs Jobs known to this process, by state and method.\n# TYPE voxd_jobs gauge"
         );
-        let mut counts: Vec<_> = jobs.count_by_state().await.into_iter().collect();
-        counts.sort_by(|a, b| (a.0.0.name(), &a.0.1).cmp(&(b.0.0.name(), &b.0.1)));
-        for ((state, method), n) in counts {
+        for (state, method, n) in &q.by_state {
             let _ = writeln!(
                 s,
                 "voxd_jobs{{state=\"{}\",method=\"{method}\"}} {n}",
@@ -64,7 +62,7 @@ impl Metrics {
         let _ = writeln!(
             s,
             "# HELP voxd_queue_depth Jobs waiting.\n# TYPE voxd_queue_depth gauge\nvoxd_queue_depth {}",
-            jobs.depth().await
+            q.depth
         );
         let m = self.inner.lock().unwrap();
         let _ = writeln!(

@@ -1,120 +1,60 @@
-//! Errors as RFC 9457 problem documents (`application/problem+json`), one stable `type` URI per
-//! kind of failure. The list is in `openapi.yaml` (components/schemas/Problem) and in the README.
+//! Errors as RFC 9457 problem documents (`application/problem+json`): one table gives every
+//! [`ErrorKind`] its HTTP status and title; its `type` is [`TYPE_BASE`] + the kind's code. The
+//! list is also in `openapi.yaml` (components/schemas/Problem) and in the README. Handlers return
+//! `Result<_, Problem>` and use `?` on application errors, which convert by `From`.
 
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde::{Deserialize, Serialize};
 
+use crate::app::{Error, ErrorKind};
+
 /// Base of every problem `type`.
 pub const TYPE_BASE: &str = "https://voxd.dev/problems/";
 
-/// Kinds of failure, each with its status and `type` slug.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Kind {
-    InvalidMesh,
-    UnsupportedMediaType,
-    ExternalResource,
-    TooManyTriangles,
-    BodyTooLarge,
-    GridTooLarge,
-    InvalidParameter,
-    QueueFull,
-    NotFound,
-    NotCancelable,
-    StorageFull,
-    EngineFailure,
-    ShuttingDown,
-    MisalignedGrids,
-    WrongVolumeKind,
-    EmptyIntersection,
-    Internal,
-}
+/// Every kind with its status and title.
+pub const KINDS: [(ErrorKind, u16, &str); 17] = [
+    (ErrorKind::InvalidMesh, 422, "The mesh cannot be used"),
+    (ErrorKind::UnsupportedMediaType, 415, "Unknown mesh format"),
+    (
+        ErrorKind::ExternalResource,
+        422,
+        "The glTF refers to external files",
+    ),
+    (ErrorKind::TooManyTriangles, 422, "Too many triangles"),
+    (ErrorKind::BodyTooLarge, 413, "Request body too large"),
+    (ErrorKind::GridTooLarge, 422, "Grid too large"),
+    (ErrorKind::InvalidParameter, 400, "Invalid parameter"),
+    (ErrorKind::QueueFull, 429, "The job queue is full"),
+    (ErrorKind::NotFound, 404, "Not found"),
+    (
+        ErrorKind::NotCancelable,
+        409,
+        "The job has already finished",
+    ),
+    (ErrorKind::StorageFull, 507, "Storage quota exhausted"),
+    (ErrorKind::EngineFailure, 500, "Voxelization failed"),
+    (ErrorKind::ShuttingDown, 503, "The server is shutting down"),
+    (
+        ErrorKind::MisalignedGrids,
+        422,
+        "The volumes' grids do not line up",
+    ),
+    (ErrorKind::WrongVolumeKind, 422, "Wrong kind of volume"),
+    (
+        ErrorKind::EmptyIntersection,
+        422,
+        "The intersection is empty",
+    ),
+    (ErrorKind::Internal, 500, "Internal error"),
+];
 
-impl Kind {
-    pub const ALL: [Kind; 17] = [
-        Kind::MisalignedGrids,
-        Kind::WrongVolumeKind,
-        Kind::EmptyIntersection,
-        Kind::InvalidMesh,
-        Kind::UnsupportedMediaType,
-        Kind::ExternalResource,
-        Kind::TooManyTriangles,
-        Kind::BodyTooLarge,
-        Kind::GridTooLarge,
-        Kind::InvalidParameter,
-        Kind::QueueFull,
-        Kind::NotFound,
-        Kind::NotCancelable,
-        Kind::StorageFull,
-        Kind::EngineFailure,
-        Kind::ShuttingDown,
-        Kind::Internal,
-    ];
-
-    pub fn slug(self) -> &'static str {
-        match self {
-            Kind::InvalidMesh => "invalid-mesh",
-            Kind::UnsupportedMediaType => "unsupported-media-type",
-            Kind::ExternalResource => "external-resource",
-            Kind::TooManyTriangles => "too-many-triangles",
-            Kind::BodyTooLarge => "body-too-large",
-            Kind::GridTooLarge => "grid-too-large",
-            Kind::InvalidParameter => "invalid-parameter",
-            Kind::QueueFull => "queue-full",
-            Kind::NotFound => "not-found",
-            Kind::NotCancelable => "not-cancelable",
-            Kind::StorageFull => "storage-full",
-            Kind::EngineFailure => "engine-failure",
-            Kind::ShuttingDown => "shutting-down",
-            Kind::MisalignedGrids => "misaligned-grids",
-            Kind::WrongVolumeKind => "wrong-volume-kind",
-            Kind::EmptyIntersection => "empty-intersection",
-            Kind::Internal => "internal",
-        }
-    }
-
-    pub fn status(self) -> StatusCode {
-        match self {
-            Kind::InvalidMesh | Kind::GridTooLarge | Kind::TooManyTriangles => {
-                StatusCode::UNPROCESSABLE_ENTITY
-            }
-            Kind::ExternalResource
-            | Kind::MisalignedGrids
-            | Kind::WrongVolumeKind
-            | Kind::EmptyIntersection => StatusCode::UNPROCESSABLE_ENTITY,
-            Kind::UnsupportedMediaType => StatusCode::UNSUPPORTED_MEDIA_TYPE,
-            Kind::BodyTooLarge => StatusCode::PAYLOAD_TOO_LARGE,
-            Kind::InvalidParameter => StatusCode::BAD_REQUEST,
-            Kind::QueueFull => StatusCode::TOO_MANY_REQUESTS,
-            Kind::NotFound => StatusCode::NOT_FOUND,
-            Kind::NotCancelable => StatusCode::CONFLICT,
-            Kind::StorageFull => StatusCode::INSUFFICIENT_STORAGE,
-            Kind::EngineFailure | Kind::Internal => StatusCode::INTERNAL_SERVER_ERROR,
-            Kind::ShuttingDown => StatusCode::SERVICE_UNAVAILABLE,
-        }
-    }
-
-    pub fn title(self) -> &'static str {
-        match self {
-            Kind::InvalidMesh => "The mesh cannot be used",
-            Kind::UnsupportedMediaType => "Unknown mesh format",
-            Kind::ExternalResource => "The glTF refers to external files",
-            Kind::TooManyTriangles => "Too many triangles",
-            Kind::BodyTooLarge => "Request body too large",
-            Kind::GridTooLarge => "Grid too large",
-            Kind::InvalidParameter => "Invalid parameter",
-            Kind::QueueFull => "The job queue is full",
-            Kind::NotFound => "Not found",
-            Kind::NotCancelable => "The job has already finished",
-            Kind::StorageFull => "Storage quota exhausted",
-            Kind::EngineFailure => "Voxelization failed",
-            Kind::ShuttingDown => "The server is shutting down",
-            Kind::MisalignedGrids => "The volumes' grids do not line up",
-            Kind::WrongVolumeKind => "Wrong kind of volume",
-            Kind::EmptyIntersection => "The intersection is empty",
-            Kind::Internal => "Internal error",
-        }
-    }
+fn row(kind: ErrorKind) -> (u16, &'static str) {
+    KINDS
+        .iter()
+        .find(|(k, _, _)| *k == kind)
+        .map(|&(_, s, t)| (s, t))
+        .expect("every kind is in the table")
 }
 
 /// A problem document.
@@ -129,26 +69,35 @@ pub struct Problem {
     pub instance: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub request_id: Option<String>,
-    /// Seconds to wait before retrying (queue-full).
+    /// Seconds to wait before retrying (queue-full), sent as `Retry-After`.
     #[serde(skip)]
     pub retry_after: Option<u64>,
 }
 
 impl Problem {
-    pub fn new(kind: Kind, detail: impl Into<String>) -> Problem {
+    pub fn new(kind: ErrorKind, detail: impl Into<String>) -> Problem {
+        let (status, title) = row(kind);
         Problem {
-            type_: format!("{TYPE_BASE}{}", kind.slug()),
-            title: kind.title().into(),
-            status: kind.status().as_u16(),
+            type_: format!("{TYPE_BASE}{}", kind.code()),
+            title: title.into(),
+            status,
             detail: detail.into(),
             instance: None,
             request_id: None,
             retry_after: None,
         }
     }
-    pub fn retry_after(mut self, secs: u64) -> Problem {
-        self.retry_after = Some(secs);
-        self
+
+    pub fn invalid(detail: impl Into<String>) -> Problem {
+        Problem::new(ErrorKind::InvalidParameter, detail)
+    }
+}
+
+impl From<Error> for Problem {
+    fn from(e: Error) -> Problem {
+        let mut p = Problem::new(e.kind, e.detail);
+        p.retry_after = e.retry_after;
+        p
     }
 }
 
@@ -166,5 +115,19 @@ impl IntoResponse for Problem {
                 .insert(header::RETRY_AFTER, HeaderValue::from(s));
         }
         r
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::names::Named;
+
+    #[test]
+    fn every_kind_has_one_row() {
+        for k in ErrorKind::ALL {
+            assert_eq!(KINDS.iter().filter(|(r, _, _)| r == k).count(), 1, "{k:?}");
+        }
+        assert_eq!(KINDS.len(), ErrorKind::ALL.len());
     }
 }

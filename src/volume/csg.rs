@@ -14,17 +14,25 @@ pub enum CsgOp {
     Xor,
 }
 
-impl CsgOp {
-    pub fn from_name(s: &str) -> Option<CsgOp> {
-        Some(match s {
-            "union" => CsgOp::Union,
-            "intersection" => CsgOp::Intersection,
-            "difference" => CsgOp::Difference,
-            "xor" => CsgOp::Xor,
-            _ => return None,
-        })
+impl crate::names::Named for CsgOp {
+    const WHAT: &'static str = "operation";
+    const ALL: &'static [CsgOp] = &[
+        CsgOp::Union,
+        CsgOp::Intersection,
+        CsgOp::Difference,
+        CsgOp::Xor,
+    ];
+    fn name(self) -> &'static str {
+        match self {
+            CsgOp::Union => "union",
+            CsgOp::Intersection => "intersection",
+            CsgOp::Difference => "difference",
+            CsgOp::Xor => "xor",
+        }
     }
 }
+
+crate::impl_named!(CsgOp);
 
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum CsgError {
@@ -45,15 +53,12 @@ pub enum CsgError {
 
 /// Offset of `b`'s origin from `a`'s in whole voxels, if aligned.
 fn offset(a: &Grid, b: &Grid) -> Result<[i64; 3], CsgError> {
-    if !a.is_aligned_with(b) {
-        return Err(CsgError::Misaligned {
-            a: a.voxel_size,
-            b: b.voxel_size,
-            oa: a.origin,
-            ob: b.origin,
-        });
-    }
-    Ok([0, 1, 2].map(|i| ((b.origin[i] - a.origin[i]) / a.voxel_size).round() as i64))
+    a.offset_to(b).ok_or(CsgError::Misaligned {
+        a: a.voxel_size,
+        b: b.voxel_size,
+        oa: a.origin,
+        ob: b.origin,
+    })
 }
 
 /// The grid of `op` over operands on `grids` (aligned with the first).
@@ -82,12 +87,7 @@ pub fn result_grid(op: CsgOp, grids: &[Grid]) -> Result<Grid, CsgError> {
     if (0..3).any(|a| hi[a] <= lo[a]) {
         return Err(CsgError::NoOverlap);
     }
-    let s = first.voxel_size;
-    Ok(Grid {
-        origin: [0, 1, 2].map(|a| first.origin[a] + lo[a] as f64 * s),
-        voxel_size: s,
-        dims: [0, 1, 2].map(|a| (hi[a] - lo[a]) as u32),
-    })
+    Ok(first.sub_grid(lo, [0, 1, 2].map(|a| (hi[a] - lo[a]) as u32)))
 }
 
 /// `v` moved onto the aligned grid `target`: same voxels by world position, zero elsewhere.

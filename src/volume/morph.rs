@@ -29,31 +29,40 @@ pub enum MorphOp {
     Close,
 }
 
-impl Kernel {
-    pub fn from_name(s: &str) -> Option<Kernel> {
-        Some(match s {
-            "cube" => Kernel::Cube,
-            "cross" => Kernel::Cross,
-            "sphere" => Kernel::Sphere,
-            _ => return None,
-        })
+impl crate::names::Named for Kernel {
+    const WHAT: &'static str = "kernel";
+    const ALL: &'static [Kernel] = &[Kernel::Cube, Kernel::Cross, Kernel::Sphere];
+    fn name(self) -> &'static str {
+        match self {
+            Kernel::Cube => "cube",
+            Kernel::Cross => "cross",
+            Kernel::Sphere => "sphere",
+        }
     }
 }
 
-impl MorphOp {
-    pub fn from_name(s: &str) -> Option<MorphOp> {
-        Some(match s {
-            "dilate" => MorphOp::Dilate,
-            "erode" => MorphOp::Erode,
-            "open" => MorphOp::Open,
-            "close" => MorphOp::Close,
-            _ => return None,
-        })
+impl crate::names::Named for MorphOp {
+    const WHAT: &'static str = "operation";
+    const ALL: &'static [MorphOp] = &[
+        MorphOp::Dilate,
+        MorphOp::Erode,
+        MorphOp::Open,
+        MorphOp::Close,
+    ];
+    fn name(self) -> &'static str {
+        match self {
+            MorphOp::Dilate => "dilate",
+            MorphOp::Erode => "erode",
+            MorphOp::Open => "open",
+            MorphOp::Close => "close",
+        }
     }
 }
+
+crate::impl_named!(Kernel, MorphOp);
 
 /// Largest radius accepted: keeps the sphere kernel's r² column offsets cheap.
-pub const MAX_RADIUS: u32 = 64;
+pub const MAX_RADIUS: u32 = crate::limits::Limits::LOCAL.max_morph_radius;
 
 pub fn apply(v: &BitVolume, op: MorphOp, r: u32, k: Kernel, grow: bool) -> BitVolume {
     assert!(r <= MAX_RADIUS);
@@ -67,11 +76,7 @@ pub fn apply(v: &BitVolume, op: MorphOp, r: u32, k: Kernel, grow: bool) -> BitVo
 
 /// `g` with `r` more voxels on every side.
 pub fn padded(g: &Grid, r: u32) -> Grid {
-    Grid {
-        origin: g.origin.map(|o| o - r as f64 * g.voxel_size),
-        voxel_size: g.voxel_size,
-        dims: g.dims.map(|d| d + 2 * r),
-    }
+    g.padded(r)
 }
 
 fn maybe_grow(v: &BitVolume, r: u32, grow: bool) -> BitVolume {

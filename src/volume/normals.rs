@@ -30,12 +30,8 @@ pub fn gradient2(v: &Volume, i: [i64; 3]) -> [i32; 3] {
 
 /// The unit outward normal at world point `p`, or `None` (outside the grid, or no gradient).
 pub fn normal_at(v: &Volume, p: [f64; 3]) -> Option<[f64; 3]> {
-    let g = v.grid();
-    let i = [0, 1, 2].map(|a| ((p[a] - g.origin[a]) / g.voxel_size).floor());
-    if (0..3).any(|a| !(i[a] >= 0.0 && i[a] < g.dims[a] as f64)) {
-        return None;
-    }
-    let gr = gradient2(v, i.map(|x| x as i64));
+    let i = v.grid().voxel_containing(p)?;
+    let gr = gradient2(v, i.map(i64::from));
     let len = (gr.iter().map(|&c| (c as f64) * (c as f64)).sum::<f64>()).sqrt();
     (len > 0.0).then(|| gr.map(|c| -(c as f64) / len))
 }

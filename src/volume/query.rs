@@ -12,15 +12,9 @@ use super::Volume;
 
 /// The value at a point: 0/1 for bits, 0..=max for density.
 pub fn point_value(v: &Volume, p: [f64; 3]) -> u8 {
-    let g = v.grid();
-    let mut idx = [0u32; 3];
-    for a in 0..3 {
-        let f = ((p[a] - g.origin[a]) / g.voxel_size).floor();
-        if !(f >= 0.0 && f < g.dims[a] as f64) {
-            return 0;
-        }
-        idx[a] = f as u32;
-    }
+    let Some(idx) = v.grid().voxel_containing(p) else {
+        return 0;
+    };
     match v {
         Volume::Bits(b) => b.get(idx[0], idx[1], idx[2]) as u8,
         Volume::Density(d) => d.get(idx[0], idx[1], idx[2]),
@@ -49,8 +43,9 @@ pub fn ray(v: &Volume, origin: [f64; 3], direction: [f64; 3]) -> Option<RayHit> 
     let s = g.voxel_size;
     // Clip t to the grid box (slab test), t ≥ 0.
     let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+    let far = g.max_corner();
     for a in 0..3 {
-        let (lo, hi) = (g.origin[a], g.origin[a] + g.dims[a] as f64 * s);
+        let (lo, hi) = (g.origin[a], far[a]);
         if d[a] == 0.0 {
             if origin[a] < lo || origin[a] >= hi {
                 return Some(RayHit {
@@ -81,16 +76,21 @@ pub fn ray(v: &Volume, origin: [f64; 3], direction: [f64; 3]) -> Option<RayHit> 
     let mut step = [0i64; 3];
     let mut t_max = [f64::INFINITY; 3];
     let mut t_delta = [f64::INFINITY; 3];
+    let start = g.index_of([0, 1, 2].map(|a| origin[a] + tm * d[a]));
     for a in 0..3 {
-        let p = (origin[a] + tm * d[a] - g.origin[a]) / s;
-        idx[a] = (p.floor() as i64).clamp(0, g.dims[a] as i64 - 1);
+        idx[a] = (start[a].floor() as i64).clamp(0, g.dims[a] as i64 - 1);
+    }
+    // The walk's first boundary on each axis: the start voxel's far corner going up, its min
+    // corner going down.
+    let (lo_corner, hi_corner) = (g.corner(idx), g.corner(idx.map(|i| i + 1)));
+    for a in 0..3 {
         if d[a] > 0.0 {
             step[a] = 1;
-            t_max[a] = (g.origin[a] + (idx[a] + 1) as f64 * s - origin[a]) / d[a];
+            t_max[a] = (hi_corner[a] - origin[a]) / d[a];
             t_delta[a] = s / d[a];
         } else if d[a] < 0.0 {
             step[a] = -1;
-            t_max[a] = (g.origin[a] + idx[a] as f64 * s - origin[a]) / d[a];
+            t_max[a] = (lo_corner[a] - origin[a]) / d[a];
             t_delta[a] = -s / d[a];
         }
     }

@@ -32,8 +32,8 @@ pub fn stats(v: &BitVolume) -> Stats {
     let bounds_index = v.solid_bounds();
     let bounds_world = bounds_index.map(|(lo, hi)| {
         (
-            [0, 1, 2].map(|a| g.origin[a] + lo[a] as f64 * s),
-            [0, 1, 2].map(|a| g.origin[a] + (hi[a] + 1) as f64 * s),
+            g.corner(lo.map(i64::from)),
+            g.corner(hi.map(|h| h as i64 + 1)),
         )
     });
     // Moments about the grid origin in voxel units (exact integer sums).
@@ -53,10 +53,10 @@ pub fn stats(v: &BitVolume) -> Stats {
         let nf = n as f64;
         // Mean voxel index + ½ is the centre in voxel units.
         let mean = m1.map(|x| x as f64 / nf);
-        let com = [0, 1, 2].map(|a| g.origin[a] + (mean[a] + 0.5) * s);
+        let com = g.world_of(mean.map(|m| m + 0.5));
         // Covariance of the voxel centres (voxel units), then the inertia of cubes about the com.
         let cov = |a: usize, b: usize| m2[a][b] as f64 / nf - mean[a] * mean[b];
-        let mass = nf * s.powi(3);
+        let mass = nf * g.voxel_volume();
         let trace = (0..3).map(|k| cov(k, k)).sum::<f64>();
         let i: [[f64; 3]; 3] = std::array::from_fn(|a| {
             std::array::from_fn(|b| {
@@ -72,7 +72,7 @@ pub fn stats(v: &BitVolume) -> Stats {
     };
     Stats {
         solid_voxels: n,
-        volume: n as f64 * s.powi(3),
+        volume: g.volume_of(n),
         bounds_index,
         bounds_world,
         surface_voxels: surface_count(v),

@@ -1,7 +1,12 @@
 //! Test helpers: independent oracles written as plainly as possible (no binning, no prefix
-//! scans, no pruning), random mesh generators and access to `../shared/meshes`.
-#![allow(dead_code)]
+//! scans, no pruning), random mesh generators and access to `../shared/meshes`. The oracles
+//! share no code with the library: where the library has a function for the same quantity
+//! (point-triangle distance, solid angle), the one here is a different formulation, itself
+//! checked against brute force in `checks`.
 
+mod checks;
+
+use std::io::Write;
 use std::path::PathBuf;
 
 use voxd::engine::cpu::CpuEngine;
@@ -28,6 +33,24 @@ pub fn data(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("tests/data")
         .join(name)
+}
+
+/// A fresh, empty scratch directory `$TMPDIR/voxd-tests-<pid>/<name>`; `name` keeps the tests'
+/// directories apart (they all run in one process).
+pub fn tmpdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir()
+        .join(format!("voxd-tests-{}", std::process::id()))
+        .join(name);
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// `b` gzipped.
+pub fn gz(b: &[u8]) -> Vec<u8> {
+    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    e.write_all(b).unwrap();
+    e.finish().unwrap()
 }
 
 /// xorshift64*: deterministic, dependency-free.
@@ -254,61 +277,92 @@ pub fn winding_and_distance(mesh: &Mesh, p: [f64; 3]) -> (f64, f64) {
     let mut w = 0.0;
     let mut d2 = f64::INFINITY;
     for t in 0..mesh.triangles().len() {
-        let [a, b, c] = mesh
-            .triangle(t)
-            .map(|q| [q[0] - p[0], q[1] - p[1], q[2] - p[2]]);
-        let (la, lb, lc) = (norm(a), norm(b), norm(c));
-        let det = a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
-            + a[2] * (b[0] * c[1] - b[1] * c[0]);
-        let den = la * lb * lc + dotf(a, b) * lc + dotf(b, c) * la + dotf(c, a) * lb;
-        w += 2.0 * det.atan2(den);
-        d2 = d2.min(dist2_to_triangle([0.0; 3], a, b, c));
+        let [a, b, c] = mesh.triangle(t);
+        w += solid_angle(p, a, b, c);
+        d2 = d2.min(dist2_to_triangle(p, a, b, c));
     }
     (w / (4.0 * std::f64::consts::PI), d2.sqrt())
 }
 
-fn norm(a: [f64; 3]) -> f64 {
-    dotf(a, a).sqrt()
+fn subf(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 fn dotf(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
+fn crossf(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
 
-/// Squared distance from p to triangle abc (Ericson, Real-Time Collision Detection 5.1.5).
+/// Signed solid angle of triangle abc seen from `p`, as the area of the spherical triangle the
+/// corners project to (L'Huilier's theorem on its three side arcs), with the sign of
+/// `(a − p) · ((b − p) × (c − p))`. (The library uses Van Oosterom and Strackee's formula.)
+pub fn solid_angle(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
+    use std::f64::consts::PI;
+    let [a, b, c] = [a, b, c].map(|q| subf(q, p));
+    let det = dotf(a, crossf(b, c));
+    if det == 0.0 {
+        // p in the triangle's plane: 0 unless p is on the triangle (where it is undefined).
+        return 0.0;
+    }
+    // The arc between two corners is the angle between their directions.
+    let arc = |u: [f64; 3], v: [f64; 3]| dotf(crossf(u, v), crossf(u, v)).sqrt().atan2(dotf(u, v));
+    let sides = [arc(b, c), arc(c, a), arc(a, b)];
+    // The semiperimeter is at most π; the clamps only undo rounding.
+    let s = ((sides[0] + sides[1] + sides[2]) / 2.0).min(PI);
+    let t = (s / 2.0).tan()
+        * sides
+            .iter()
+            .map(|&x| ((s - x) / 2.0).max(0.0).tan())
+            .product::<f64>();
+    4.0 * t.sqrt().atan() * det.signum()
+}
+
+/// Squared distance from p to triangle abc: to its plane where the foot of the perpendicular lies
+/// inside the triangle (sign test of the three sub-triangles against the normal), else to the
+/// nearest of its three edges. A triangle of zero area is its edges. (The library uses
+/// Ericson's Voronoi-region walk.)
 pub fn dist2_to_triangle(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
-    let s = |u: [f64; 3], v: [f64; 3]| [u[0] - v[0], u[1] - v[1], u[2] - v[2]];
-    let at = |u: f64, v: f64| [0, 1, 2].map(|i| a[i] + u * (b[i] - a[i]) + v * (c[i] - a[i]));
-    let (ab, ac, ap) = (s(b, a), s(c, a), s(p, a));
-    let d = |q: [f64; 3]| dotf(s(p, q), s(p, q));
-    let (d1, d2) = (dotf(ab, ap), dotf(ac, ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return d(a);
+    let n = crossf(subf(b, a), subf(c, a));
+    let nn = dotf(n, n);
+    if nn > 0.0 {
+        let h = dotf(subf(p, a), n);
+        let foot = [0, 1, 2].map(|i| p[i] - h / nn * n[i]);
+        let inside = [(a, b), (b, c), (c, a)]
+            .iter()
+            .all(|&(u, v)| dotf(crossf(subf(v, u), subf(foot, u)), n) >= 0.0);
+        if inside {
+            return h * h / nn;
+        }
     }
-    let bp = s(p, b);
-    let (d3, d4) = (dotf(ab, bp), dotf(ac, bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return d(b);
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return d(at(d1 / (d1 - d3), 0.0));
-    }
-    let cp = s(p, c);
-    let (d5, d6) = (dotf(ab, cp), dotf(ac, cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return d(c);
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return d(at(0.0, d2 / (d2 - d6)));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return d([0, 1, 2].map(|i| b[i] + w * (c[i] - b[i])));
-    }
-    let den = 1.0 / (va + vb + vc);
-    d(at(vb * den, vc * den))
+    [(a, b), (b, c), (c, a)]
+        .iter()
+        .map(|&(u, v)| dist2_to_segment(p, u, v))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Squared distance from p to the segment uv (a point when u = v).
+pub fn dist2_to_segment(p: [f64; 3], u: [f64; 3], v: [f64; 3]) -> f64 {
+    let d = subf(v, u);
+    let dd = dotf(d, d);
+    let s = if dd > 0.0 {
+        (dotf(subf(p, u), d) / dd).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let q = [0, 1, 2].map(|i| u[i] + s * d[i]);
+    dotf(subf(p, q), subf(p, q))
+}
+
+/// The closed, outward-oriented box [lo, hi] as a mesh.
+pub fn box_mesh(lo: [f64; 3], hi: [f64; 3]) -> Mesh {
+    let (mut p, mut t) = (vec![], vec![]);
+    push_box(&mut p, &mut t, lo, hi);
+    Mesh::new(p, t).unwrap()
 }
 
 /// Appends a closed, outward-oriented box [lo, hi] to a triangle list.

@@ -229,10 +229,10 @@ pub(crate) fn signed_counts(
 /// the lattice's range are left out (a voxelization that meets them fails with an error anyway).
 pub fn odd_parity_columns(mesh: &crate::mesh::Mesh, grid: &crate::grid::Grid) -> u64 {
     let [nx, ny, _] = grid.dims;
-    let scale = FIXED_ONE as f64 / grid.voxel_size;
-    let snap = |p: &[f64; 3]| {
-        let v = [0, 1].map(|a| ((p[a] - grid.origin[a]) * scale).round());
-        v.iter()
+    let snap = |&p: &[f64; 3]| {
+        let v = crate::engine::snap::to_lattice(grid, p);
+        v[..2]
+            .iter()
             .all(|c| c.abs() <= crate::engine::MAX_FIXED as f64)
             .then(|| [v[0] as i64, v[1] as i64, 0])
     };

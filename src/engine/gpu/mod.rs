@@ -45,6 +45,17 @@ pub enum SolidStrategy {
     Masks,
 }
 
+impl crate::names::Named for SolidStrategy {
+    const WHAT: &'static str = "solid strategy";
+    const ALL: &'static [SolidStrategy] = &[SolidStrategy::ToggleScan, SolidStrategy::Masks];
+    fn name(self) -> &'static str {
+        match self {
+            SolidStrategy::ToggleScan => "scan",
+            SolidStrategy::Masks => "masks",
+        }
+    }
+}
+
 /// Where the time of one voxelization went.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct GpuTimings {

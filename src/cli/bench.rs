@@ -1,23 +1,13 @@
 //! `voxd bench`: times the CPU and GPU engines per method and resolution on one mesh, with the
 //! GPU time split into upload, dispatch and readback, and checks that both give the same bits.
 
-use std::path::Path;
 use std::time::{Duration, Instant};
 
+use super::args::BenchArgs;
 use voxd::engine::cpu::CpuEngine;
-use voxd::engine::gpu::{GpuEngine, GpuOptions, SolidStrategy};
-use voxd::engine::{Engine, GridMesh, Method};
+use voxd::engine::gpu::{GpuEngine, GpuOptions};
+use voxd::engine::{Engine, GridMesh};
 use voxd::grid::{Grid, GridLimits, GridSpec};
-
-pub struct BenchArgs<'a> {
-    pub mesh: &'a Path,
-    pub resolutions: &'a [u32],
-    pub methods: &'a [Method],
-    pub runs: usize,
-    pub adapter: Option<String>,
-    pub cpu_only: bool,
-    pub solid_strategy: SolidStrategy,
-}
 
 fn median(mut v: Vec<Duration>) -> Duration {
     v.sort();
@@ -28,10 +18,11 @@ fn ms(d: Duration) -> String {
     format!("{:.1}", d.as_secs_f64() * 1000.0)
 }
 
-pub fn run(a: BenchArgs) -> Result<(), String> {
+pub fn run(a: &BenchArgs) -> Result<(), String> {
+    let runs = a.runs.max(1);
     let name = a.mesh.display().to_string();
     let t = Instant::now();
-    let mesh = voxd::mesh::load_file(a.mesh, usize::MAX).map_err(|e| format!("{name}: {e}"))?;
+    let mesh = voxd::mesh::load_file(&a.mesh, usize::MAX).map_err(|e| format!("{name}: {e}"))?;
     println!(
         "mesh: {name}, {} triangles, loaded in {} ms",
         mesh.triangles().len(),
@@ -43,7 +34,7 @@ pub fn run(a: BenchArgs) -> Result<(), String> {
         let t = Instant::now();
         let g = GpuEngine::new(GpuOptions {
             adapter: a.adapter.clone(),
-            solid_strategy: a.solid_strategy,
+            solid_strategy: a.gpu_solid,
             ..Default::default()
         })
         .map_err(|e| e.to_string())?;
@@ -51,7 +42,7 @@ pub fn run(a: BenchArgs) -> Result<(), String> {
             "gpu: {:?}, opened in {} ms, solid strategy {:?}",
             g.adapter(),
             ms(t.elapsed()),
-            a.solid_strategy
+            a.gpu_solid
         );
         Some(g)
     };
@@ -60,16 +51,13 @@ pub fn run(a: BenchArgs) -> Result<(), String> {
         rayon::current_num_threads(),
         std::env::consts::ARCH
     );
-    println!(
-        "medians of {} runs after one warm-up; times in ms\n",
-        a.runs
-    );
+    println!("medians of {} runs after one warm-up; times in ms\n", runs);
     println!(
         "| method | grid | snap | cpu | gpu total | gpu upload | gpu dispatch | gpu readback | cpu / gpu | identical |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|");
     let (lo, hi) = mesh.bounds();
-    for &n in a.resolutions {
+    for &n in &a.resolutions {
         let grid = Grid::fit(
             lo,
             hi,
@@ -81,10 +69,10 @@ pub fn run(a: BenchArgs) -> Result<(), String> {
         let t = Instant::now();
         let gm = GridMesh::new(&mesh, &grid).map_err(|e| e.to_string())?;
         let snap = t.elapsed();
-        for &m in a.methods {
+        for &m in &a.methods {
             let mut cpu_times = vec![];
             let mut cpu_vol = None;
-            for i in 0..=a.runs {
+            for i in 0..=runs {
                 let t = Instant::now();
                 let v = CpuEngine.voxelize(&gm, m).map_err(|e| e.to_string())?;
                 if i > 0 {
@@ -98,7 +86,7 @@ pub fn run(a: BenchArgs) -> Result<(), String> {
                 Some(g) => {
                     let (mut tot, mut up, mut disp, mut read) = (vec![], vec![], vec![], vec![]);
                     let mut same = true;
-                    for i in 0..=a.runs {
+                    for i in 0..=runs {
                         let t = Instant::now();
                         let (v, tm) = g.voxelize_timed(&gm, m).map_err(|e| e.to_string())?;
                         let el = t.elapsed();

@@ -1,0 +1,202 @@
+//! The application's one error type: a stable [`ErrorKind`] and a detail saying what to change.
+//! Every domain error (mesh, grid, engine, CSG, store) becomes one by `From`, classified here and
+//! nowhere else; the HTTP front turns the kind into a problem document (`service/problem.rs`),
+//! the command line prints the detail after the file's name.
+
+use serde::{Deserialize, Serialize};
+
+use crate::engine::EngineError;
+use crate::engine::density::DensityError;
+use crate::grid::GridError;
+use crate::mesh::MeshError;
+use crate::store::StoreError;
+use crate::volume::csg::CsgError;
+
+/// Kinds of failure. Their names (`code`) are stable: they are the last part of the problem
+/// `type` URIs and are kept in job records.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ErrorKind {
+    InvalidMesh,
+    /// The mesh's format is unknown or not a mesh format.
+    UnsupportedMediaType,
+    ExternalResource,
+    TooManyTriangles,
+    BodyTooLarge,
+    GridTooLarge,
+    InvalidParameter,
+    QueueFull,
+    NotFound,
+    NotCancelable,
+    StorageFull,
+    EngineFailure,
+    ShuttingDown,
+    MisalignedGrids,
+    WrongVolumeKind,
+    EmptyIntersection,
+    Internal,
+}
+
+impl crate::names::Named for ErrorKind {
+    const WHAT: &'static str = "error kind";
+    const ALL: &'static [ErrorKind] = &[
+        ErrorKind::InvalidMesh,
+        ErrorKind::UnsupportedMediaType,
+        ErrorKind::ExternalResource,
+        ErrorKind::TooManyTriangles,
+        ErrorKind::BodyTooLarge,
+        ErrorKind::GridTooLarge,
+        ErrorKind::InvalidParameter,
+        ErrorKind::QueueFull,
+        ErrorKind::NotFound,
+        ErrorKind::NotCancelable,
+        ErrorKind::StorageFull,
+        ErrorKind::EngineFailure,
+        ErrorKind::ShuttingDown,
+        ErrorKind::MisalignedGrids,
+        ErrorKind::WrongVolumeKind,
+        ErrorKind::EmptyIntersection,
+        ErrorKind::Internal,
+    ];
+    fn name(self) -> &'static str {
+        self.code()
+    }
+}
+
+crate::impl_named!(ErrorKind);
+
+impl ErrorKind {
+    pub fn code(self) -> &'static str {
+        match self {
+            ErrorKind::InvalidMesh => "invalid-mesh",
+            ErrorKind::UnsupportedMediaType => "unsupported-media-type",
+            ErrorKind::ExternalResource => "external-resource",
+            ErrorKind::TooManyTriangles => "too-many-triangles",
+            ErrorKind::BodyTooLarge => "body-too-large",
+            ErrorKind::GridTooLarge => "grid-too-large",
+            ErrorKind::InvalidParameter => "invalid-parameter",
+            ErrorKind::QueueFull => "queue-full",
+            ErrorKind::NotFound => "not-found",
+            ErrorKind::NotCancelable => "not-cancelable",
+            ErrorKind::StorageFull => "storage-full",
+            ErrorKind::EngineFailure => "engine-failure",
+            ErrorKind::ShuttingDown => "shutting-down",
+            ErrorKind::MisalignedGrids => "misaligned-grids",
+            ErrorKind::WrongVolumeKind => "wrong-volume-kind",
+            ErrorKind::EmptyIntersection => "empty-intersection",
+            ErrorKind::Internal => "internal",
+        }
+    }
+}
+
+/// An application error.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, thiserror::Error)]
+#[error("{detail}")]
+pub struct Error {
+    pub kind: ErrorKind,
+    pub detail: String,
+    /// Seconds after which retrying may succeed (a full queue, a store that is not ready).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub retry_after: Option<u64>,
+}
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+impl Error {
+    pub fn new(kind: ErrorKind, detail: impl Into<String>) -> Error {
+        Error {
+            kind,
+            detail: detail.into(),
+            retry_after: None,
+        }
+    }
+    pub fn invalid(detail: impl Into<String>) -> Error {
+        Error::new(ErrorKind::InvalidParameter, detail)
+    }
+    pub fn internal(detail: impl Into<String>) -> Error {
+        Error::new(ErrorKind::Internal, detail)
+    }
+    pub fn not_found(what: &str, id: &str) -> Error {
+        Error::new(ErrorKind::NotFound, format!("no {what} with id {id:?}"))
+    }
+    pub fn retry_after(mut self, secs: u64) -> Error {
+        self.retry_after = Some(secs);
+        self
+    }
+    /// The same error with `context: ` in front of the detail.
+    pub fn context(mut self, context: impl std::fmt::Display) -> Error {
+        self.detail = format!("{context}: {}", self.detail);
+        self
+    }
+}
+
+impl From<MeshError> for Error {
+    fn from(e: MeshError) -> Error {
+        let kind = match &e {
+            MeshError::ExternalRefused { .. } => ErrorKind::ExternalResource,
+            MeshError::TooManyTriangles { .. } => ErrorKind::TooManyTriangles,
+            MeshError::UnknownFormat => ErrorKind::UnsupportedMediaType,
+            MeshError::TooLarge(_) => ErrorKind::BodyTooLarge,
+            _ => ErrorKind::InvalidMesh,
+        };
+        Error::new(kind, e.to_string())
+    }
+}
+
+impl From<GridError> for Error {
+    fn from(e: GridError) -> Error {
+        let kind = match e {
+            GridError::TooManyVoxels { .. } | GridError::AxisTooLong { .. } => {
+                ErrorKind::GridTooLarge
+            }
+            _ => ErrorKind::InvalidParameter,
+        };
+        Error::new(kind, e.to_string())
+    }
+}
+
+impl From<EngineError> for Error {
+    fn from(e: EngineError) -> Error {
+        let kind = match e {
+            // A vertex too far from the grid for the fixed-point lattice: the mesh's fault.
+            EngineError::OutOfRange { .. } => ErrorKind::InvalidMesh,
+            _ => ErrorKind::EngineFailure,
+        };
+        Error::new(kind, e.to_string())
+    }
+}
+
+impl From<DensityError> for Error {
+    fn from(e: DensityError) -> Error {
+        match e {
+            DensityError::Engine(e) => e.into(),
+            DensityError::Grid { .. } => Error::new(ErrorKind::GridTooLarge, e.to_string()),
+        }
+    }
+}
+
+impl From<CsgError> for Error {
+    fn from(e: CsgError) -> Error {
+        let kind = match e {
+            CsgError::Misaligned { .. } => ErrorKind::MisalignedGrids,
+            CsgError::NoOverlap => ErrorKind::EmptyIntersection,
+            CsgError::NoOperands => ErrorKind::InvalidParameter,
+        };
+        Error::new(kind, e.to_string())
+    }
+}
+
+impl From<StoreError> for Error {
+    fn from(e: StoreError) -> Error {
+        let kind = match e {
+            StoreError::Full { .. } => ErrorKind::StorageFull,
+            StoreError::Io(_) | StoreError::Corrupt(_) => ErrorKind::Internal,
+        };
+        Error::new(kind, e.to_string())
+    }
+}
+
+impl From<crate::codec::CodecError> for Error {
+    fn from(e: crate::codec::CodecError) -> Error {
+        Error::new(ErrorKind::InvalidParameter, e.to_string())
+    }
+}

@@ -1,0 +1,139 @@
+//! The one builder of volume metadata: the keys a `.vxl` header carries (whichever front wrote
+//! it) and the [`VolumeMeta`] a store keeps, both from the same facts.
+
+use serde_json::{Map, Value};
+
+use super::error::Result;
+use super::voxelize::Prepared;
+use crate::codec::vxl;
+use crate::engine::fill::FillReport;
+use crate::store::{SourceInfo, VolumeMeta};
+use crate::volume::Volume;
+
+/// How a volume came to be.
+#[derive(Clone, Copy, Debug)]
+pub enum Origin<'a> {
+    /// Voxelized from a mesh (by `job`, when a queue ran it).
+    Mesh {
+        prepared: &'a Prepared,
+        fill: &'a FillReport,
+        job: Option<&'a str>,
+    },
+    /// Computed from other volumes: `method` is `csg` or `morphology`, `provenance` says how.
+    Derived {
+        method: &'a str,
+        provenance: &'a Value,
+    },
+}
+
+impl Origin<'_> {
+    pub fn method(&self) -> &str {
+        match self {
+            Origin::Mesh { prepared, .. } => prepared.method.name(),
+            Origin::Derived { method, .. } => method,
+        }
+    }
+}
+
+/// The `.vxl` header's `meta` (docs/format.md): `method`, and for a mesh `fill`, `source` (the
+/// file's name or `upload`), `source_format`, `source_sha256` (uploads), `triangles`, `job`;
+/// for a derived volume its `provenance`.
+pub fn vxl_header(origin: &Origin) -> Map<String, Value> {
+    let mut m = Map::new();
+    m.insert("method".into(), origin.method().into());
+    match origin {
+        Origin::Mesh {
+            prepared: p,
+            fill,
+            job,
+        } => {
+            m.insert("fill".into(), fill.used.name().into());
+            m.insert("source".into(), p.source.name.clone().into());
+            m.insert("source_format".into(), p.source.format.clone().into());
+            if let Some(sha) = &p.source.sha256 {
+                m.insert("source_sha256".into(), sha.clone().into());
+            }
+            m.insert("triangles".into(), p.diagnostics.triangles.into());
+            if let Some(job) = job {
+                m.insert("job".into(), (*job).into());
+            }
+        }
+        Origin::Derived { provenance, .. } => {
+            m.insert("provenance".into(), (*provenance).clone());
+        }
+    }
+    m
+}
+
+/// Set voxels (density: non-zero voxels) and occupied voxels (density: the sum of fractions).
+pub fn counts(v: &Volume) -> (u64, f64) {
+    match v {
+        Volume::Bits(b) => {
+            let n = b.count_ones();
+            (n, n as f64)
+        }
+        Volume::Density(d) => (d.count_nonzero(), d.occupied_voxels()),
+    }
+}
+
+/// A volume ready for a store: its metadata and its `.vxl` bytes.
+pub struct Built {
+    pub meta: VolumeMeta,
+    pub vxl: Vec<u8>,
+}
+
+/// Encodes `volume` as `.vxl` and describes it, under a new id.
+pub fn build(
+    volume: &Volume,
+    origin: &Origin,
+    name: Option<String>,
+    engine: &str,
+) -> Result<Built> {
+    let vxl = vxl::encode(volume, &vxl_header(origin))
+        .map_err(|e| super::Error::internal(e.to_string()))?;
+    let g = *volume.grid();
+    let (solid, occupied) = counts(volume);
+    let (source, diagnostics, fill) = match origin {
+        Origin::Mesh {
+            prepared: p, fill, ..
+        } => (
+            SourceInfo {
+                format: p.source.format.clone(),
+                sha256: p.source.sha256.clone().unwrap_or_default(),
+                triangles: p.mesh.triangles().len(),
+            },
+            Some(p.diagnostics.clone()),
+            Some((*fill).clone()),
+        ),
+        Origin::Derived { method, provenance } => (
+            SourceInfo {
+                format: (*method).into(),
+                sha256: super::sha256_hex(&serde_json::to_vec(provenance).unwrap_or_default()),
+                triangles: 0,
+            },
+            None,
+            None,
+        ),
+    };
+    let meta = VolumeMeta {
+        id: super::new_id(),
+        name,
+        kind: volume.kind().into(),
+        method: origin.method().into(),
+        grid: g,
+        solid_voxels: solid,
+        volume: occupied * g.voxel_size.powi(3),
+        source,
+        diagnostics,
+        fill,
+        engine: engine.into(),
+        created: super::rfc3339(std::time::SystemTime::now()),
+        bytes: vxl.len() as u64,
+        sha256: super::sha256_hex(&vxl),
+        provenance: match origin {
+            Origin::Derived { provenance, .. } => Some((*provenance).clone()),
+            Origin::Mesh { .. } => None,
+        },
+    };
+    Ok(Built { meta, vxl })
+}

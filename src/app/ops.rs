@@ -1,0 +1,386 @@
+//! Operations on volumes — CSG, morphology, overlap, statistics, point and ray queries, normals,
+//! previews, format conversion — in two layers: pure functions on volumes in memory (what the
+//! command line calls on files) and async functions on a [`VolumeStore`] (what the service
+//! calls), which read each operand once, compute on the blocking pool and store results.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use bytes::Bytes;
+use serde::Serialize;
+use serde_json::{Value, json};
+
+use super::error::{Error, ErrorKind, Result};
+use super::metadata::{self, Origin};
+use super::request::{CsgExpr, MorphologyRequest, PreviewRequest, PreviewView, QueryRequest};
+use crate::codec::{VolumeFormat, vxl};
+use crate::grid::Grid;
+use crate::limits::Limits;
+use crate::names::Named;
+use crate::store::{VolumeMeta, VolumeStore};
+use crate::volume::morph::{self, MorphOp};
+use crate::volume::{BitVolume, Volume, csg};
+
+/// The engine name derived volumes record.
+const DERIVED_ENGINE: &str = "cpu";
+
+/// Runs CPU work on the blocking pool.
+pub async fn blocking<T: Send + 'static>(
+    f: impl FnOnce() -> Result<T> + Send + 'static,
+) -> Result<T> {
+    tokio::task::spawn_blocking(f)
+        .await
+        .map_err(|e| Error::internal(format!("the operation panicked: {e}")))?
+}
+
+/// The bit volume, or why a density volume cannot be used for `what` (`CSG`, `morphology`).
+pub fn require_bits(v: Volume, what: &str) -> Result<BitVolume> {
+    match v {
+        Volume::Bits(b) => Ok(b),
+        Volume::Density(_) => Err(Error::new(
+            ErrorKind::WrongVolumeKind,
+            format!(
+                "a density volume; {what} works on bit volumes (solid, surface, conservative, interior)"
+            ),
+        )),
+    }
+}
+
+/// Evaluates a CSG expression over volumes already loaded (`volumes` holds every id it names).
+pub fn eval_csg(expr: &CsgExpr, volumes: &HashMap<String, Arc<BitVolume>>) -> Result<BitVolume> {
+    fn eval(e: &CsgExpr, vols: &HashMap<String, Arc<BitVolume>>) -> Result<Arc<BitVolume>> {
+        match e {
+            CsgExpr::Volume(id) => vols
+                .get(id)
+                .cloned()
+                .ok_or_else(|| Error::not_found("volume", id)),
+            CsgExpr::Op { op, operands } => {
+                let vs: Vec<Arc<BitVolume>> = operands
+                    .iter()
+                    .map(|o| eval(o, vols))
+                    .collect::<Result<_>>()?;
+                let refs: Vec<&BitVolume> = vs.iter().map(|v| &**v).collect();
+                Ok(Arc::new(csg::apply(*op, &refs)?))
+            }
+        }
+    }
+    let v = eval(expr, volumes)?;
+    Ok(Arc::try_unwrap(v).unwrap_or_else(|v| (*v).clone()))
+}
+
+/// The grid a morphology result lives on, checked against the voxel limit before any work.
+pub fn morphology_grid(v: &Grid, req: &MorphologyRequest, limits: &Limits) -> Result<Grid> {
+    req.check(limits)?;
+    if req.grow && matches!(req.op, MorphOp::Dilate | MorphOp::Close) {
+        let g = morph::padded(v, req.radius);
+        if g.voxel_count() > limits.max_voxels {
+            return Err(Error::new(
+                ErrorKind::GridTooLarge,
+                format!(
+                    "the grown grid {:?} has {} voxels, over the limit of {}",
+                    g.dims,
+                    g.voxel_count(),
+                    limits.max_voxels
+                ),
+            ));
+        }
+        return Ok(g);
+    }
+    Ok(*v)
+}
+
+/// Morphology within the limits.
+pub fn morphology(v: &BitVolume, req: &MorphologyRequest, limits: &Limits) -> Result<BitVolume> {
+    morphology_grid(v.grid(), req, limits)?;
+    Ok(morph::apply(v, req.op, req.radius, req.kernel, req.grow))
+}
+
+/// How a morphology result was made (its provenance).
+pub fn morphology_provenance(of: &str, req: &MorphologyRequest) -> Value {
+    json!({ "morphology": {
+        "of": of,
+        "op": req.op.name(),
+        "radius": req.radius,
+        "kernel": req.kernel.name(),
+        "grow": req.grow,
+    }})
+}
+
+/// Shared voxels of two volumes on aligned grids, and their world volume.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Overlap {
+    pub a: String,
+    pub b: String,
+    pub voxels: u64,
+    pub volume: f64,
+}
+
+/// The answers of a query: per point, inside and the voxel's value; per ray, what it crossed.
+#[derive(Clone, Debug, Serialize)]
+pub struct QueryAnswer {
+    pub points: Vec<PointAnswer>,
+    pub rays: Vec<crate::volume::query::RayHit>,
+}
+
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct PointAnswer {
+    pub inside: bool,
+    pub value: u8,
+}
+
+pub fn query(v: &Volume, q: &QueryRequest, limits: &Limits) -> Result<QueryAnswer> {
+    use crate::volume::query::{point_value, ray};
+    q.check(limits)?;
+    let points = q
+        .points
+        .iter()
+        .map(|&p| {
+            let x = point_value(v, p);
+            PointAnswer {
+                inside: x > 0,
+                value: x,
+            }
+        })
+        .collect();
+    let rays = q
+        .rays
+        .iter()
+        .map(|r| {
+            ray(v, r.origin, r.direction)
+                .ok_or_else(|| Error::invalid("a ray direction must be a non-zero vector"))
+        })
+        .collect::<Result<_>>()?;
+    Ok(QueryAnswer { points, rays })
+}
+
+/// Refuses more points than a request may ask normals for.
+pub fn check_normal_points(points: &[[f64; 3]], limits: &Limits) -> Result<()> {
+    if points.len() > limits.max_queries {
+        return Err(Error::invalid(format!(
+            "at most {} points per request",
+            limits.max_queries
+        )));
+    }
+    Ok(())
+}
+
+/// Outward normals at world points (`None` where the gradient vanishes).
+pub fn normals_at(
+    v: &Volume,
+    points: &[[f64; 3]],
+    limits: &Limits,
+) -> Result<Vec<Option<[f64; 3]>>> {
+    check_normal_points(points, limits)?;
+    Ok(points
+        .iter()
+        .map(|&p| crate::volume::normals::normal_at(v, p))
+        .collect())
+}
+
+/// A preview picture as PNG, within the pixel limit.
+pub fn preview_png(v: &Volume, req: &PreviewRequest, limits: &Limits) -> Result<Vec<u8>> {
+    use crate::volume::preview;
+    let d = v.grid().dims;
+    let pixels: u64 = (0..3)
+        .filter(|&a| a != req.axis)
+        .map(|a| d[a] as u64)
+        .product();
+    if pixels > limits.max_preview_pixels {
+        return Err(Error::invalid(format!(
+            "the picture would have {pixels} pixels, over the limit of {}",
+            limits.max_preview_pixels
+        )));
+    }
+    let pic = match req.view {
+        PreviewView::Slice(k) => preview::slice(v, req.axis, k).ok_or_else(|| {
+            Error::invalid(format!(
+                "slice {k} is outside the grid (0..{})",
+                d[req.axis]
+            ))
+        })?,
+        PreviewView::Projection(m) => preview::projection(v, req.axis, m),
+    };
+    Ok(crate::codec::png::encode_gray(
+        pic.width,
+        pic.height,
+        &pic.pixels,
+    ))
+}
+
+/// Can `format` hold a volume of `kind` (`bits`, `density`)?
+pub fn check_format(kind: &str, format: VolumeFormat) -> Result<()> {
+    if kind == "density" && format == VolumeFormat::Binvox {
+        return Err(Error::invalid(
+            "binvox holds one bit per voxel; download a density volume as vxl, npy or raw",
+        ));
+    }
+    Ok(())
+}
+
+/// What a conversion to `format` loses, said as a warning (binvox pads to a cube, npy and raw
+/// drop the grid's origin and voxel size).
+pub fn conversion_warning(grid: &Grid, format: VolumeFormat) -> Option<String> {
+    let d = grid.dims;
+    match format {
+        VolumeFormat::Binvox if d[0] != d[1] || d[1] != d[2] => Some(format!(
+            "binvox is cubic; the {}x{}x{} grid is padded with empty voxels to {n}x{n}x{n}",
+            d[0],
+            d[1],
+            d[2],
+            n = d.iter().max().expect("three dims")
+        )),
+        VolumeFormat::Npy | VolumeFormat::Raw => Some(format!(
+            "{} keeps only the voxels: the grid's origin {:?} and voxel size {} are not stored (keep the .vxl for them)",
+            format.name(),
+            grid.origin,
+            grid.voxel_size
+        )),
+        _ => None,
+    }
+}
+
+// ---- on a store ----
+
+/// A stored volume of either kind.
+pub async fn load(store: &dyn VolumeStore, id: &str) -> Result<Volume> {
+    let bytes = store
+        .read(id)
+        .await?
+        .ok_or_else(|| Error::not_found("volume", id))?;
+    let id = id.to_string();
+    blocking(move || {
+        vxl::decode(&bytes)
+            .map(|(v, _)| v)
+            .map_err(|e| Error::internal(format!("stored volume {id}: {e}")))
+    })
+    .await
+}
+
+/// A stored bit volume, for `what`.
+pub async fn load_bits(store: &dyn VolumeStore, id: &str, what: &str) -> Result<BitVolume> {
+    require_bits(load(store, id).await?, what).map_err(|e| e.context(format!("volume {id}")))
+}
+
+/// Stores a volume computed from others.
+pub async fn store_derived(
+    store: &dyn VolumeStore,
+    v: BitVolume,
+    name: Option<String>,
+    method: &'static str,
+    provenance: Value,
+) -> Result<VolumeMeta> {
+    let built = blocking(move || {
+        metadata::build(
+            &Volume::Bits(v),
+            &Origin::Derived {
+                method,
+                provenance: &provenance,
+            },
+            name,
+            DERIVED_ENGINE,
+        )
+    })
+    .await?;
+    store
+        .put(built.meta.clone(), Bytes::from(built.vxl))
+        .await?;
+    Ok(built.meta)
+}
+
+/// Evaluates a CSG expression over stored volumes (each read once) and stores the result.
+pub async fn csg_stored(
+    store: &dyn VolumeStore,
+    expr: CsgExpr,
+    name: Option<String>,
+) -> Result<VolumeMeta> {
+    let mut vols = HashMap::new();
+    for id in expr.volume_ids() {
+        let v = load_bits(store, &id, "CSG").await?;
+        vols.insert(id, Arc::new(v));
+    }
+    let provenance = expr.to_json();
+    let v = blocking(move || eval_csg(&expr, &vols)).await?;
+    store_derived(store, v, name, "csg", provenance).await
+}
+
+/// Morphology of a stored volume, stored.
+pub async fn morphology_stored(
+    store: &dyn VolumeStore,
+    id: &str,
+    req: MorphologyRequest,
+    name: Option<String>,
+    limits: Limits,
+) -> Result<VolumeMeta> {
+    req.check(&limits)?;
+    let v = load_bits(store, id, "morphology").await?;
+    let out = blocking(move || morphology(&v, &req, &limits)).await?;
+    store_derived(
+        store,
+        out,
+        name,
+        "morphology",
+        morphology_provenance(id, &req),
+    )
+    .await
+}
+
+/// Shared voxels of two stored volumes; nothing is stored.
+pub async fn intersect_stored(store: &dyn VolumeStore, a: &str, b: &str) -> Result<Overlap> {
+    let va = load_bits(store, a, "CSG").await?;
+    let vb = if a == b {
+        va.clone()
+    } else {
+        load_bits(store, b, "CSG").await?
+    };
+    let (a, b) = (a.to_string(), b.to_string());
+    blocking(move || {
+        let n = csg::overlap_count(&va, &vb)?;
+        Ok(Overlap {
+            a,
+            b,
+            voxels: n,
+            volume: n as f64 * va.grid().voxel_size.powi(3),
+        })
+    })
+    .await
+}
+
+/// Statistics of a stored bit volume.
+pub async fn stats_stored(
+    store: &dyn VolumeStore,
+    id: &str,
+) -> Result<crate::volume::stats::Stats> {
+    let v = load_bits(store, id, "statistics").await?;
+    blocking(move || Ok(crate::volume::stats::stats(&v))).await
+}
+
+/// Runs `f` on a stored volume of either kind on the blocking pool.
+pub async fn with_stored<T: Send + 'static>(
+    store: &dyn VolumeStore,
+    id: &str,
+    f: impl FnOnce(&Volume) -> Result<T> + Send + 'static,
+) -> Result<T> {
+    let v = load(store, id).await?;
+    blocking(move || f(&v)).await
+}
+
+/// A stored volume in `format` (the stored bytes themselves for `.vxl`).
+pub async fn download(store: &dyn VolumeStore, id: &str, format: VolumeFormat) -> Result<Bytes> {
+    let stored = store
+        .read(id)
+        .await?
+        .ok_or_else(|| Error::not_found("volume", id))?;
+    if format == VolumeFormat::Vxl {
+        return Ok(stored);
+    }
+    let id = id.to_string();
+    blocking(move || {
+        let (v, _) = vxl::decode(&stored)
+            .map_err(|e| Error::internal(format!("stored volume {id}: {e}")))?;
+        format
+            .encode(&v)
+            .map(Bytes::from)
+            .map_err(|e| Error::internal(format!("stored volume {id}: {e}")))
+    })
+    .await
+}

@@ -1,0 +1,344 @@
+//! Typed requests: what a front (the command line, an HTTP handler, a queue consumer) hands the
+//! application once it has translated its own input. Each request is checked here, against
+//! [`Limits`], before any work starts.
+
+use std::path::PathBuf;
+
+use bytes::Bytes;
+use serde::{Deserialize, Serialize};
+
+use super::error::{Error, Result};
+use crate::engine::Method;
+use crate::engine::fill::Fill;
+use crate::grid::GridSpec;
+use crate::limits::Limits;
+use crate::mesh::{ExternalResources, Format};
+use crate::names::Named;
+use crate::volume::csg::CsgOp;
+use crate::volume::morph::{Kernel, MorphOp};
+
+/// A bit method, or density with its sub-voxel factor (2 or 4).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MethodSpec {
+    Bits(Method),
+    Density { factor: u32 },
+}
+
+impl MethodSpec {
+    pub const DEFAULT_DENSITY_FACTOR: u32 = 2;
+
+    /// The method named `name`, with `density_factor` for density (2 when not given).
+    pub fn new(name: &str, density_factor: Option<u32>) -> Result<MethodSpec> {
+        match crate::names::parse::<MethodName>(name).map_err(Error::invalid)? {
+            MethodName::Bits(m) => Ok(MethodSpec::Bits(m)),
+            MethodName::Density => {
+                match density_factor.unwrap_or(MethodSpec::DEFAULT_DENSITY_FACTOR) {
+                    f @ (2 | 4) => Ok(MethodSpec::Density { factor: f }),
+                    f => Err(Error::invalid(format!(
+                        "density_factor must be 2 or 4, got {f}"
+                    ))),
+                }
+            }
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            MethodSpec::Bits(m) => m.name(),
+            MethodSpec::Density { .. } => "density",
+        }
+    }
+
+    /// Voxels the engine classifies per voxel of the grid.
+    pub fn voxels_per_voxel(self) -> u64 {
+        match self {
+            MethodSpec::Bits(_) => 1,
+            MethodSpec::Density { factor } => u64::from(factor).pow(3),
+        }
+    }
+}
+
+/// The names a user may give as a method: the bit methods and `density`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MethodName {
+    Bits(Method),
+    Density,
+}
+
+impl Named for MethodName {
+    const WHAT: &'static str = "method";
+    const ALL: &'static [MethodName] = &[
+        MethodName::Bits(Method::Solid),
+        MethodName::Bits(Method::Surface),
+        MethodName::Bits(Method::Conservative),
+        MethodName::Bits(Method::Interior),
+        MethodName::Density,
+    ];
+    fn name(self) -> &'static str {
+        match self {
+            MethodName::Bits(m) => m.name(),
+            MethodName::Density => "density",
+        }
+    }
+}
+
+crate::impl_named!(MethodName);
+
+/// Where a mesh comes from.
+#[derive(Clone, Debug)]
+pub enum MeshSource {
+    /// A file; its format from `format`, else its extension, else its content. A `.gltf` may
+    /// read buffers beside it.
+    File {
+        path: PathBuf,
+        format: Option<Format>,
+    },
+    /// Uploaded bytes (gzip'd or not); external glTF resources are refused.
+    Bytes {
+        bytes: Bytes,
+        format: Option<Format>,
+    },
+}
+
+impl MeshSource {
+    /// The name a volume records as its source: the file's name, or `upload`.
+    pub fn display_name(&self) -> String {
+        match self {
+            MeshSource::File { path, .. } => path
+                .file_name()
+                .map(|f| f.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+            MeshSource::Bytes { .. } => "upload".into(),
+        }
+    }
+
+    pub(crate) fn external(&self) -> ExternalResources {
+        match self {
+            MeshSource::File { path, .. } => {
+                ExternalResources::BesideFile(path.parent().map(PathBuf::from).unwrap_or_default())
+            }
+            MeshSource::Bytes { .. } => ExternalResources::Deny,
+        }
+    }
+}
+
+/// Everything a voxelization needs.
+#[derive(Clone, Debug)]
+pub struct VoxelizeRequest {
+    pub source: MeshSource,
+    pub grid: GridSpec,
+    /// Empty voxels added on every side.
+    pub padding: u32,
+    pub method: MethodSpec,
+    pub fill: Fill,
+    pub limits: Limits,
+}
+
+/// How the grid was asked for, as the fronts receive it: every option optional.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct GridOptions {
+    pub resolution: Option<u32>,
+    pub voxel_size: Option<f64>,
+    pub origin: Option<[f64; 3]>,
+    pub dims: Option<[u32; 3]>,
+    pub cubic: bool,
+}
+
+impl GridOptions {
+    /// The one precedence of grid options: an explicit grid needs origin, dims and voxel size
+    /// together (and no resolution); otherwise a voxel size or a resolution (not both), with
+    /// `default_resolution` when neither is given.
+    pub fn spec(&self, default_resolution: u32) -> Result<GridSpec> {
+        match (self.origin, self.dims, self.voxel_size, self.resolution) {
+            (Some(origin), Some(dims), Some(voxel_size), None) => Ok(GridSpec::Explicit {
+                origin,
+                voxel_size,
+                dims,
+            }),
+            (Some(_), _, _, _) | (_, Some(_), _, _) => Err(Error::invalid(
+                "an explicit grid needs origin, dims and voxel_size together (and no resolution)",
+            )),
+            (None, None, Some(size), None) => Ok(GridSpec::VoxelSize {
+                size,
+                cubic: self.cubic,
+            }),
+            (None, None, None, r) => Ok(GridSpec::Resolution {
+                n: r.unwrap_or(default_resolution),
+                cubic: self.cubic,
+            }),
+            (None, None, Some(_), Some(_)) => {
+                Err(Error::invalid("give resolution or voxel_size, not both"))
+            }
+        }
+    }
+}
+
+/// A boolean expression over stored volumes: a volume id, or an operation over operands.
+/// In JSON: `"<id>"` or `{"op": "union", "operands": [...]}`.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CsgExpr {
+    Volume(String),
+    Op { op: CsgOp, operands: Vec<CsgExpr> },
+}
+
+impl CsgExpr {
+    /// Parses and checks an expression against the depth and operand limits.
+    pub fn from_json(v: &serde_json::Value, limits: &Limits) -> Result<CsgExpr> {
+        Self::parse(v, 0, limits)
+    }
+
+    fn parse(v: &serde_json::Value, depth: usize, limits: &Limits) -> Result<CsgExpr> {
+        use serde_json::Value;
+        if depth > limits.max_csg_depth {
+            return Err(Error::invalid(format!(
+                "the expression is nested deeper than {}",
+                limits.max_csg_depth
+            )));
+        }
+        match v {
+            Value::String(id) => Ok(CsgExpr::Volume(id.clone())),
+            Value::Object(o) => {
+                if let Some(k) = o.keys().find(|k| *k != "op" && *k != "operands") {
+                    return Err(Error::invalid(format!(
+                        "unknown field {k:?} in an expression node; a node has \"op\" and \"operands\""
+                    )));
+                }
+                let op = o
+                    .get("op")
+                    .and_then(Value::as_str)
+                    .ok_or_else(|| Error::invalid("every expression node needs \"op\""))?;
+                let op = crate::names::parse::<CsgOp>(op).map_err(Error::invalid)?;
+                let operands = o.get("operands").and_then(Value::as_array).ok_or_else(|| {
+                    Error::invalid("every expression node needs an \"operands\" array")
+                })?;
+                if operands.is_empty() || operands.len() > limits.max_csg_operands {
+                    return Err(Error::invalid(format!(
+                        "an operation takes 1 to {} operands",
+                        limits.max_csg_operands
+                    )));
+                }
+                let operands = operands
+                    .iter()
+                    .map(|x| Self::parse(x, depth + 1, limits))
+                    .collect::<Result<_>>()?;
+                Ok(CsgExpr::Op { op, operands })
+            }
+            other => Err(Error::invalid(format!(
+                "an operand is a volume id (string) or an {{\"op\", \"operands\"}} object, not {other}"
+            ))),
+        }
+    }
+
+    /// The expression as JSON (what a derived volume keeps as its provenance).
+    pub fn to_json(&self) -> serde_json::Value {
+        match self {
+            CsgExpr::Volume(id) => id.clone().into(),
+            CsgExpr::Op { op, operands } => serde_json::json!({
+                "op": op.name(),
+                "operands": operands.iter().map(CsgExpr::to_json).collect::<Vec<_>>(),
+            }),
+        }
+    }
+
+    /// Every volume id the expression names, each once, in first-use order.
+    pub fn volume_ids(&self) -> Vec<String> {
+        fn walk(e: &CsgExpr, out: &mut Vec<String>) {
+            match e {
+                CsgExpr::Volume(id) => {
+                    if !out.contains(id) {
+                        out.push(id.clone())
+                    }
+                }
+                CsgExpr::Op { operands, .. } => operands.iter().for_each(|o| walk(o, out)),
+            }
+        }
+        let mut out = vec![];
+        walk(self, &mut out);
+        out
+    }
+}
+
+/// A morphology operation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MorphologyRequest {
+    pub op: MorphOp,
+    #[serde(default = "default_kernel")]
+    pub kernel: Kernel,
+    pub radius: u32,
+    /// Enlarge the grid by the radius (dilate and close), so nothing is clipped.
+    #[serde(default)]
+    pub grow: bool,
+}
+
+fn default_kernel() -> Kernel {
+    Kernel::Cube
+}
+
+impl MorphologyRequest {
+    pub fn check(&self, limits: &Limits) -> Result<()> {
+        if self.radius > limits.max_morph_radius {
+            return Err(Error::invalid(format!(
+                "radius {} is over the limit of {}",
+                self.radius, limits.max_morph_radius
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Points and rays to look up in a volume (world coordinates).
+#[derive(Clone, Debug, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct QueryRequest {
+    #[serde(default)]
+    pub points: Vec<[f64; 3]>,
+    #[serde(default)]
+    pub rays: Vec<Ray>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Ray {
+    pub origin: [f64; 3],
+    pub direction: [f64; 3],
+}
+
+impl QueryRequest {
+    pub fn check(&self, limits: &Limits) -> Result<()> {
+        if self.points.len() + self.rays.len() > limits.max_queries {
+            return Err(Error::invalid(format!(
+                "at most {} points and rays per request",
+                limits.max_queries
+            )));
+        }
+        let finite = |p: &[f64; 3]| p.iter().all(|c| c.is_finite());
+        if !self.points.iter().all(finite) {
+            return Err(Error::invalid("a point must hold three finite numbers"));
+        }
+        if !self
+            .rays
+            .iter()
+            .all(|r| finite(&r.origin) && finite(&r.direction))
+        {
+            return Err(Error::invalid(
+                "a ray's origin and direction must hold three finite numbers",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// A preview picture: one slice, or a projection along an axis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PreviewRequest {
+    /// 0, 1, 2 for x, y, z.
+    pub axis: usize,
+    pub view: PreviewView,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PreviewView {
+    Slice(u32),
+    Projection(crate::volume::preview::Projection),
+}

@@ -1,0 +1,203 @@
+//! The voxelize pipeline, once for every front: load the mesh, diagnose it, fit the grid, check
+//! the limits ([`prepare`], cheap next to the engine, so a front can refuse a request before it
+//! queues it), then dispatch method and fill on an engine ([`run`]).
+
+use std::time::Instant;
+
+use super::error::{Error, Result};
+use super::request::{MeshSource, MethodSpec, VoxelizeRequest};
+use crate::engine::Engine;
+use crate::engine::density::{self, DensityError};
+use crate::engine::fill::{self, Fill, FillReport};
+use crate::grid::{Grid, GridLimits};
+use crate::limits::Limits;
+use crate::mesh::{self, Format, LoadOptions, Mesh, MeshDiagnostics, MeshError};
+use crate::volume::Volume;
+
+/// A voxelization whose mesh is loaded and whose grid is fitted and within the limits: what a
+/// job carries from the request to the engine.
+#[derive(Clone, Debug)]
+pub struct Prepared {
+    pub mesh: Mesh,
+    pub diagnostics: MeshDiagnostics,
+    pub grid: Grid,
+    pub method: MethodSpec,
+    pub fill: Fill,
+    pub limits: Limits,
+    pub source: Source,
+    /// Seconds spent loading and diagnosing the mesh.
+    pub load_s: f64,
+    pub diagnose_s: f64,
+}
+
+/// Where the mesh came from, as a volume records it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Source {
+    /// The file's name, or `upload`.
+    pub name: String,
+    /// The format given or sniffed (`gzip` for a gzip'd upload of undeclared format).
+    pub format: String,
+    /// sha256 of the uploaded bytes (uploads only: files are not hashed).
+    pub sha256: Option<String>,
+}
+
+/// A computed volume and how it was computed.
+#[derive(Clone, Debug)]
+pub struct Voxelized {
+    pub volume: Volume,
+    pub fill: FillReport,
+    pub voxelize_s: f64,
+}
+
+impl Prepared {
+    /// The engine's work in classified voxels plus a share per triangle: what the scheduler
+    /// orders jobs by.
+    pub fn cost(&self) -> f64 {
+        self.method.voxels_per_voxel() as f64 * self.grid.voxel_count() as f64
+            + 64.0 * self.mesh.triangles().len() as f64
+    }
+}
+
+/// A loaded and diagnosed mesh, before its grid is fitted.
+#[derive(Clone, Debug)]
+pub struct Loaded {
+    pub mesh: Mesh,
+    pub diagnostics: MeshDiagnostics,
+    pub source: Source,
+    pub load_s: f64,
+    pub diagnose_s: f64,
+}
+
+/// Loads and diagnoses the request's mesh within its limits. Blocking (parsing is CPU work and
+/// a file source reads the disk): async callers run it on a blocking thread.
+pub fn load(req: &VoxelizeRequest) -> Result<Loaded> {
+    let t0 = Instant::now();
+    let opts = LoadOptions {
+        external: req.source.external(),
+        max_triangles: req.limits.max_triangles,
+        max_decompressed_bytes: req.limits.max_decompressed_bytes,
+    };
+    let (mesh, format, sha256) = match &req.source {
+        MeshSource::File { path, format } => {
+            let bytes = std::fs::read(path)
+                .map_err(|e| MeshError::Io(format!("{}: {e}", path.display())))?;
+            let format = format.or_else(|| Format::from_path(path));
+            let m = mesh::load_bytes(&bytes, format, &opts)?;
+            (m, format_name(format, &bytes), None)
+        }
+        MeshSource::Bytes { bytes, format } => {
+            if bytes.is_empty() {
+                return Err(Error::new(
+                    super::ErrorKind::InvalidMesh,
+                    "the request body is empty; send the mesh file as the body",
+                ));
+            }
+            let m = mesh::load_bytes(bytes, *format, &opts)?;
+            (
+                m,
+                format_name(*format, bytes),
+                Some(super::sha256_hex(bytes)),
+            )
+        }
+    };
+    let load_s = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let diagnostics = mesh.diagnostics();
+    Ok(Loaded {
+        mesh,
+        diagnostics,
+        source: Source {
+            name: req.source.display_name(),
+            format: format.to_string(),
+            sha256,
+        },
+        load_s,
+        diagnose_s: t1.elapsed().as_secs_f64(),
+    })
+}
+
+impl Loaded {
+    /// Fits the request's grid to the mesh and checks it (and a density's finer grid) against
+    /// the voxel limit.
+    pub fn fit(self, req: &VoxelizeRequest) -> Result<Prepared> {
+        let grid_limits = GridLimits {
+            max_voxels: req.limits.max_voxels,
+        };
+        let grid = Grid::fit(
+            self.diagnostics.bbox_min,
+            self.diagnostics.bbox_max,
+            req.grid,
+            req.padding,
+            grid_limits,
+        )?;
+        if let MethodSpec::Density { factor } = req.method {
+            density::fine_grid(&grid, factor, grid_limits)
+                .map_err(|source| DensityError::Grid { factor, source })?;
+        }
+        Ok(Prepared {
+            mesh: self.mesh,
+            diagnostics: self.diagnostics,
+            grid,
+            method: req.method,
+            fill: req.fill,
+            limits: req.limits,
+            source: self.source,
+            load_s: self.load_s,
+            diagnose_s: self.diagnose_s,
+        })
+    }
+}
+
+/// Loads, diagnoses and fits: everything but the engine ([`load`] then [`Loaded::fit`]).
+/// Blocking.
+pub fn prepare(req: &VoxelizeRequest) -> Result<Prepared> {
+    load(req)?.fit(req)
+}
+
+fn format_name(format: Option<Format>, bytes: &[u8]) -> &'static str {
+    format
+        .or_else(|| Format::sniff(bytes))
+        .map_or("gzip", Format::name)
+}
+
+/// Runs a prepared voxelization on `engine`: the method, with its solid part under the fill.
+/// Blocking.
+pub fn run(p: &Prepared, engine: &dyn Engine) -> Result<Voxelized> {
+    let t = Instant::now();
+    let (volume, fill) = match p.method {
+        MethodSpec::Bits(m) => {
+            let (v, r) = fill::voxelize(engine, &p.mesh, &p.grid, m, p.fill, &p.diagnostics)?;
+            (Volume::Bits(v), r)
+        }
+        MethodSpec::Density { factor } => {
+            let limits = GridLimits {
+                max_voxels: p.limits.max_voxels,
+            };
+            let (d, r) = density::density(
+                engine,
+                &p.mesh,
+                &p.grid,
+                factor,
+                limits,
+                p.fill,
+                &p.diagnostics,
+            )?;
+            (Volume::Density(d), r)
+        }
+    };
+    if let Some(w) = &fill.warning {
+        tracing::warn!(warning = %w, "fill");
+    }
+    Ok(Voxelized {
+        volume,
+        fill,
+        voxelize_s: t.elapsed().as_secs_f64(),
+    })
+}
+
+/// [`prepare`] then [`run`].
+pub fn voxelize(req: &VoxelizeRequest, engine: &dyn Engine) -> Result<(Prepared, Voxelized)> {
+    let p = prepare(req)?;
+    let v = run(&p, engine)?;
+    Ok((p, v))
+}

@@ -1,0 +1,249 @@
+//! The command line's arguments (clap), and their translation into the application's typed
+//! requests. Value lists come from the library's [`Named`] types, so `--help` lists them and a
+//! bad value is a usage error (exit 2) like every other.
+
+use std::path::PathBuf;
+
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+use clap::{Args, Parser, Subcommand};
+use voxd::app::request::MethodName;
+use voxd::app::{GridOptions, Limits, MeshSource, MethodSpec, VoxelizeRequest};
+use voxd::engine::fill::Fill;
+use voxd::engine::gpu::SolidStrategy;
+use voxd::engine::{EngineChoice, Method};
+use voxd::mesh::Format;
+use voxd::names::Named;
+use voxd::volume::csg::CsgOp;
+use voxd::volume::morph::{Kernel, MorphOp};
+
+/// A value parser for a [`Named`] type: its names are the possible values.
+fn named<T: Named + Clone + Send + Sync>() -> impl TypedValueParser<Value = T> {
+    PossibleValuesParser::new(T::ALL.iter().map(|v| PossibleValue::new(v.name())))
+        .map(|s| voxd::names::parse::<T>(&s).expect("clap checked the name"))
+}
+
+fn parse_f64x3(s: &str) -> Result<[f64; 3], String> {
+    voxd::names::parse_triple(s)
+}
+
+fn parse_u32x3(s: &str) -> Result<[u32; 3], String> {
+    voxd::names::parse_triple(s)
+}
+
+fn parse_format(s: &str) -> Result<Format, String> {
+    Format::from_name(s)
+        .ok_or_else(|| format!("unknown mesh format {s:?}; expected obj, gltf, glb, stl or ply"))
+}
+
+#[derive(Parser)]
+#[command(
+    name = "voxd",
+    version,
+    about = "Exact voxelization of triangle meshes"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand)]
+pub enum Command {
+    /// Voxelize a mesh (.obj .gltf .glb .stl .ply, optionally .gz) into a volume file.
+    Voxelize(VoxelizeArgs),
+    /// Describe a volume (.vxl .binvox .npy) or a mesh file.
+    Info { file: PathBuf },
+    /// Convert a volume between formats, chosen by the files' extensions.
+    Convert { input: PathBuf, output: PathBuf },
+    /// Combine bit volumes on aligned grids: union, intersection, difference (first minus the rest), xor.
+    Csg {
+        #[arg(value_parser = named::<CsgOp>())]
+        op: CsgOp,
+        /// Volumes (.vxl .binvox .npy), at least one.
+        #[arg(required = true)]
+        inputs: Vec<PathBuf>,
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// Dilate, erode, open or close a bit volume.
+    Morph {
+        #[arg(value_parser = named::<MorphOp>())]
+        op: MorphOp,
+        input: PathBuf,
+        #[arg(short, long)]
+        output: PathBuf,
+        #[arg(long, default_value_t = 1)]
+        radius: u32,
+        #[arg(long, default_value = "cube", value_parser = named::<Kernel>())]
+        kernel: Kernel,
+        /// Enlarge the grid by the radius so dilation is not clipped.
+        #[arg(long)]
+        grow: bool,
+    },
+    /// Export outward normals of boundary voxels as .npy (int8, shape X×Y×Z×3, scaled to ±127).
+    Normals {
+        input: PathBuf,
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// Run the HTTP service.
+    Serve(ServeArgs),
+    /// Time the CPU and GPU engines per method and resolution on a mesh (a markdown table).
+    Bench(BenchArgs),
+}
+
+#[derive(Args)]
+pub struct VoxelizeArgs {
+    /// Mesh file.
+    pub mesh: PathBuf,
+    /// Output volume; its extension picks the format (.vxl, .binvox, .npy, .raw).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    #[arg(long, default_value = "solid", value_parser = named::<MethodName>())]
+    pub method: MethodName,
+    /// How solid-based methods (solid, conservative, interior, density) decide inside: parity
+    /// (exact for watertight meshes), vote (parity along x, y and z, majority), winding
+    /// (generalised winding number ≥ ½), flood (exterior flood fill outside the surface) or auto
+    /// (parity when the mesh is watertight, else winding).
+    #[arg(long, default_value = "parity", value_parser = named::<Fill>())]
+    pub fill: Fill,
+    /// Sub-voxels per axis for density: 2 (values 0..8) or 4 (0..64).
+    #[arg(long, default_value_t = MethodSpec::DEFAULT_DENSITY_FACTOR, value_parser = clap::value_parser!(u32).range(2..=4))]
+    pub density_factor: u32,
+    /// Voxels along the mesh's longest axis (default 256 when no other grid option is given).
+    #[arg(long, conflicts_with = "voxel_size")]
+    pub resolution: Option<u32>,
+    /// Edge length of a voxel in mesh units.
+    #[arg(long)]
+    pub voxel_size: Option<f64>,
+    /// Explicit grid origin X,Y,Z (needs --voxel-size and --dims).
+    #[arg(long, value_parser = parse_f64x3, requires_all = ["voxel_size", "dims"], allow_hyphen_values = true)]
+    pub origin: Option<[f64; 3]>,
+    /// Explicit grid dims X,Y,Z (needs --origin and --voxel-size).
+    #[arg(long, value_parser = parse_u32x3, requires = "origin")]
+    pub dims: Option<[u32; 3]>,
+    /// Make every axis as long as the longest (N×N×N).
+    #[arg(long, conflicts_with = "origin")]
+    pub cubic: bool,
+    /// Empty voxels added on every side.
+    #[arg(long, default_value_t = 0)]
+    pub padding: u32,
+    /// auto (the GPU when an adapter exists, else the CPU), gpu or cpu.
+    #[arg(long, default_value = "auto", value_parser = named::<EngineChoice>())]
+    pub engine: EngineChoice,
+    /// Use the GPU adapter whose name contains this (e.g. llvmpipe); also VOXD_ADAPTER.
+    #[arg(long, env = "VOXD_ADAPTER")]
+    pub adapter: Option<String>,
+    /// Refuse grids with more voxels than this.
+    #[arg(long, default_value_t = Limits::LOCAL.max_voxels)]
+    pub max_voxels: u64,
+    /// Mesh format, when the extension does not say (obj, gltf, glb, stl, ply).
+    #[arg(long, value_parser = parse_format)]
+    pub format: Option<Format>,
+}
+
+impl VoxelizeArgs {
+    /// The request these arguments ask for.
+    pub fn request(&self) -> voxd::app::Result<VoxelizeRequest> {
+        let limits = Limits {
+            max_voxels: self.max_voxels,
+            ..Limits::LOCAL
+        };
+        Ok(VoxelizeRequest {
+            source: MeshSource::File {
+                path: self.mesh.clone(),
+                format: self.format,
+            },
+            grid: GridOptions {
+                resolution: self.resolution,
+                voxel_size: self.voxel_size,
+                origin: self.origin,
+                dims: self.dims,
+                cubic: self.cubic,
+            }
+            .spec(limits.default_resolution)?,
+            padding: self.padding,
+            method: MethodSpec::new(self.method.name(), Some(self.density_factor))?,
+            fill: self.fill,
+            limits,
+        })
+    }
+}
+
+#[derive(Args)]
+pub struct ServeArgs {
+    /// Address to listen on (port 0 picks a free port; the bound address is printed).
+    #[arg(long, env = "VOXD_ADDR", default_value = "127.0.0.1:8080")]
+    pub addr: std::net::SocketAddr,
+    /// Where volumes and job records are stored.
+    #[arg(long, env = "VOXD_DATA_DIR", default_value = "./voxd-data")]
+    pub data_dir: PathBuf,
+    /// auto, gpu or cpu.
+    #[arg(long, env = "VOXD_ENGINE", default_value = "auto", value_parser = named::<EngineChoice>())]
+    pub engine: EngineChoice,
+    #[arg(long, env = "VOXD_ADAPTER")]
+    pub adapter: Option<String>,
+    /// Jobs that may wait; more are refused with 429.
+    #[arg(long, env = "VOXD_QUEUE_CAPACITY", default_value_t = 64)]
+    pub queue_capacity: usize,
+    /// Jobs run at once on the CPU engine (a GPU engine runs one at a time).
+    #[arg(long, env = "VOXD_WORKERS", default_value_t = 1)]
+    pub workers: usize,
+    /// Largest request body in bytes (gzip'd meshes may expand 16× this).
+    #[arg(long, env = "VOXD_MAX_BODY_BYTES", default_value_t = Limits::SERVICE.max_body_bytes)]
+    pub max_body_bytes: usize,
+    #[arg(long, env = "VOXD_MAX_TRIANGLES", default_value_t = Limits::SERVICE.max_triangles)]
+    pub max_triangles: usize,
+    /// Voxel budget of one job.
+    #[arg(long, env = "VOXD_MAX_VOXELS", default_value_t = Limits::SERVICE.max_voxels)]
+    pub max_voxels: u64,
+    /// Total bytes of stored volumes.
+    #[arg(long, env = "VOXD_MAX_STORE_BYTES", default_value_t = 10 << 30)]
+    pub max_store_bytes: u64,
+}
+
+impl ServeArgs {
+    pub fn config(&self) -> voxd::service::Config {
+        voxd::service::Config {
+            addr: self.addr,
+            data_dir: self.data_dir.clone(),
+            engine: self.engine,
+            adapter: self.adapter.clone(),
+            queue_capacity: self.queue_capacity.max(1),
+            workers: self.workers.max(1),
+            limits: Limits {
+                max_triangles: self.max_triangles,
+                max_voxels: self.max_voxels,
+                ..Limits::SERVICE
+            }
+            .with_body_bytes(self.max_body_bytes),
+            max_store_bytes: self.max_store_bytes,
+        }
+    }
+}
+
+#[derive(Args)]
+pub struct BenchArgs {
+    pub mesh: PathBuf,
+    /// Cubic resolutions, comma-separated.
+    #[arg(long, default_value = "256,512,1024", value_delimiter = ',')]
+    pub resolutions: Vec<u32>,
+    /// Methods, comma-separated.
+    #[arg(
+        long,
+        default_value = "solid,surface,conservative",
+        value_delimiter = ',',
+        value_parser = named::<Method>()
+    )]
+    pub methods: Vec<Method>,
+    /// Timed runs per cell (after one warm-up).
+    #[arg(long, default_value_t = 3)]
+    pub runs: usize,
+    #[arg(long, env = "VOXD_ADAPTER")]
+    pub adapter: Option<String>,
+    /// Only the CPU engine.
+    #[arg(long)]
+    pub cpu_only: bool,
+    /// GPU solid strategy: scan (toggle bits + prefix XOR) or masks (XOR every word above).
+    #[arg(long, default_value = "scan", value_parser = named::<SolidStrategy>())]
+    pub gpu_solid: SolidStrategy,
+}

@@ -1,0 +1,258 @@
+//! The commands: each turns its arguments into application requests, calls the application
+//! layer and prints the result. Errors are one line naming the file (`voxd: error: FILE: …`).
+
+use std::collections::HashMap;
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Instant;
+
+use voxd::app::metadata::{self, Origin};
+use voxd::app::{self, CsgExpr, MorphologyRequest, ops};
+use voxd::codec::VolumeFormat;
+use voxd::engine::EngineChoice;
+use voxd::engine::gpu::GpuOptions;
+use voxd::limits::Limits;
+use voxd::mesh::{self, Format};
+use voxd::volume::Volume;
+use voxd::volume::csg::CsgOp;
+use voxd::volume::morph::{Kernel, MorphOp};
+
+use super::args::VoxelizeArgs;
+use super::output::{describe_fill, describe_mesh, emit, outln, read_volume, write_volume};
+
+pub fn voxelize(a: &VoxelizeArgs) -> Result<(), String> {
+    let t0 = Instant::now();
+    let out_format = volume_format_of(&a.output)?;
+    let name = a.mesh.display().to_string();
+    let named = |e: app::Error| format!("{name}: {e}");
+    let req = a.request().map_err(named)?;
+    let loaded = app::voxelize::load(&req).map_err(named)?;
+    eprintln!("{}", describe_mesh(&name, &loaded.diagnostics));
+    let prepared = loaded.fit(&req).map_err(named)?;
+    let engine = open_engine(a.engine, a.adapter.clone()).map_err(|e| format!("{name}: {e}"))?;
+    let v = app::voxelize::run(&prepared, &*engine).map_err(named)?;
+    let t_write = Instant::now();
+    let header = metadata::vxl_header(&Origin::Mesh {
+        prepared: &prepared,
+        fill: &v.fill,
+        job: None,
+    });
+    write_volume(&a.output, out_format, &v.volume, &header)?;
+    let write_s = t_write.elapsed().as_secs_f64();
+    eprintln!("{}", describe_fill(&name, &v.fill));
+    let (set, _) = metadata::counts(&v.volume);
+    let g = prepared.grid;
+    let d = g.dims;
+    println!(
+        "{name}: {}x{}x{} {} -> {}: {set} voxels set ({:.2}%), engine {}, {:.3} s (load {:.3}, diagnose {:.3}, voxelize {:.3}, write {:.3})",
+        d[0],
+        d[1],
+        d[2],
+        prepared.method.name(),
+        a.output.display(),
+        100.0 * set as f64 / g.voxel_count() as f64,
+        engine.describe(),
+        t0.elapsed().as_secs_f64(),
+        prepared.load_s,
+        prepared.diagnose_s,
+        v.voxelize_s,
+        write_s,
+    );
+    Ok(())
+}
+
+fn open_engine(
+    choice: EngineChoice,
+    adapter: Option<String>,
+) -> Result<Box<dyn voxd::engine::Engine>, voxd::engine::EngineError> {
+    voxd::engine::open(
+        choice,
+        GpuOptions {
+            adapter,
+            ..Default::default()
+        },
+    )
+}
+
+pub fn volume_format_of(p: &Path) -> Result<VolumeFormat, String> {
+    VolumeFormat::from_path(p).ok_or_else(|| {
+        format!(
+            "{}: unknown volume format; use the extension .vxl, .binvox or .npy",
+            p.display()
+        )
+    })
+}
+
+pub fn info(p: &Path) -> Result<(), String> {
+    // Built first and written once: a reader that closes early (`| head`) is not an error.
+    let mut out = String::new();
+    if VolumeFormat::from_path(p).is_none() && Format::from_path(p).is_some() {
+        let m = mesh::load_file(p, usize::MAX).map_err(|e| format!("{}: {e}", p.display()))?;
+        outln!(
+            out,
+            "{}",
+            describe_mesh(&p.display().to_string(), &m.diagnostics())
+        );
+        return emit(out);
+    }
+    let v = read_volume(p)?;
+    let g = v.grid();
+    outln!(out, "file:       {}", p.display());
+    outln!(out, "kind:       {}", v.kind());
+    outln!(
+        out,
+        "dims:       {} x {} x {} ({} voxels)",
+        g.dims[0],
+        g.dims[1],
+        g.dims[2],
+        g.voxel_count()
+    );
+    outln!(out, "origin:     {:?}", g.origin);
+    outln!(out, "voxel size: {}", g.voxel_size);
+    outln!(out, "extent:     {:?} .. {:?}", g.origin, g.max_corner());
+    match &v {
+        Volume::Bits(b) => {
+            let n = b.count_ones();
+            outln!(
+                out,
+                "set voxels: {n} ({:.3}%), volume {}",
+                100.0 * n as f64 / g.voxel_count() as f64,
+                n as f64 * g.voxel_size.powi(3)
+            );
+            match b.solid_bounds() {
+                Some((lo, hi)) => {
+                    let wlo = [0, 1, 2].map(|a| g.origin[a] + lo[a] as f64 * g.voxel_size);
+                    let whi = [0, 1, 2].map(|a| g.origin[a] + (hi[a] + 1) as f64 * g.voxel_size);
+                    outln!(
+                        out,
+                        "set bounds: index {lo:?} ..= {hi:?}, world {wlo:?} .. {whi:?}"
+                    );
+                }
+                None => outln!(out, "set bounds: empty"),
+            }
+            let st = voxd::volume::stats::stats(b);
+            outln!(
+                out,
+                "surface:    {} voxels with an empty face neighbour",
+                st.surface_voxels
+            );
+            outln!(
+                out,
+                "components: {} (6-connected), {} (26-connected)",
+                st.components_6,
+                st.components_26
+            );
+            if let (Some(c), Some(i)) = (st.centre_of_mass, st.inertia) {
+                outln!(out, "centre of mass: {c:?}");
+                outln!(out, "inertia:    {:?}", i);
+            }
+        }
+        Volume::Density(d) => {
+            outln!(
+                out,
+                "density:    0..={}, {} voxels occupied, {:.3} voxels of volume",
+                d.max(),
+                d.count_nonzero(),
+                d.occupied_voxels()
+            );
+        }
+    }
+    emit(out)
+}
+
+/// A bit volume from a file, or why not (named after the file).
+fn read_bits(p: &Path, what: &str) -> Result<voxd::BitVolume, String> {
+    ops::require_bits(read_volume(p)?, what).map_err(|e| format!("{}: {e}", p.display()))
+}
+
+pub fn csg(op: CsgOp, inputs: &[std::path::PathBuf], output: &Path) -> Result<(), String> {
+    let f = volume_format_of(output)?;
+    let mut vols = HashMap::new();
+    let mut operands = vec![];
+    for p in inputs {
+        let id = p.display().to_string();
+        vols.insert(id.clone(), Arc::new(read_bits(p, "CSG")?));
+        operands.push(CsgExpr::Volume(id));
+    }
+    let expr = CsgExpr::Op { op, operands };
+    let r = ops::eval_csg(&expr, &vols).map_err(|e| e.to_string())?;
+    let (g, n) = (*r.grid(), r.count_ones());
+    let provenance = expr.to_json();
+    let header = metadata::vxl_header(&Origin::Derived {
+        method: "csg",
+        provenance: &provenance,
+    });
+    write_volume(output, f, &Volume::Bits(r), &header)?;
+    println!(
+        "{} -> {}: {}x{}x{} grid at {:?}, {n} voxels set",
+        inputs.len(),
+        output.display(),
+        g.dims[0],
+        g.dims[1],
+        g.dims[2],
+        g.origin
+    );
+    Ok(())
+}
+
+pub fn morph(
+    op: MorphOp,
+    input: &Path,
+    output: &Path,
+    radius: u32,
+    kernel: Kernel,
+    grow: bool,
+) -> Result<(), String> {
+    let req = MorphologyRequest {
+        op,
+        kernel,
+        radius,
+        grow,
+    };
+    let limits = Limits::LOCAL;
+    req.check(&limits).map_err(|e| e.to_string())?;
+    let f = volume_format_of(output)?;
+    let v = read_bits(input, "morphology")?;
+    let r = ops::morphology(&v, &req, &limits).map_err(|e| format!("{}: {e}", input.display()))?;
+    let (d, n) = (r.dims(), r.count_ones());
+    let provenance = ops::morphology_provenance(&input.display().to_string(), &req);
+    let header = metadata::vxl_header(&Origin::Derived {
+        method: "morphology",
+        provenance: &provenance,
+    });
+    write_volume(output, f, &Volume::Bits(r), &header)?;
+    println!(
+        "{} -> {}: {}x{}x{}, {n} voxels set",
+        input.display(),
+        output.display(),
+        d[0],
+        d[1],
+        d[2]
+    );
+    Ok(())
+}
+
+pub fn normals(input: &Path, output: &Path) -> Result<(), String> {
+    if output.extension().is_none_or(|e| e != "npy") {
+        return Err(format!("{}: normals are written as .npy", output.display()));
+    }
+    let v = read_volume(input)?;
+    let n = voxd::volume::normals::boundary_normals(&v);
+    let count = n.iter().filter(|c| **c != [0; 3]).count();
+    let bytes = voxd::codec::npy::encode_normals(v.grid().dims, &n);
+    voxd::store::atomic::write(output, &bytes).map_err(|e| format!("{}: {e}", output.display()))?;
+    println!(
+        "{} -> {}: {count} boundary voxels with a normal",
+        input.display(),
+        output.display()
+    );
+    Ok(())
+}
+
+pub fn convert(input: &Path, output: &Path) -> Result<(), String> {
+    let f = volume_format_of(output)?;
+    let v = read_volume(input)?;
+    write_volume(output, f, &v, &serde_json::Map::new())?;
+    println!("{} -> {} ({})", input.display(), output.display(), f.name());
+    Ok(())
+}

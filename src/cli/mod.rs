@@ -1,0 +1,7 @@
+//! The `voxd` command line: arguments (`args.rs`) translated into application requests, the
+//! commands (`commands.rs`), what they print and write (`output.rs`), and `voxd bench`.
+
+pub mod args;
+pub mod bench;
+pub mod commands;
+pub mod output;

@@ -1,0 +1,101 @@
+//! What the command line prints and writes: summaries of meshes and fills, volume files
+//! (written atomically, with a warning when the format loses something), stdout that tolerates
+//! a closed pipe.
+
+use std::path::Path;
+
+use voxd::app::ops;
+use voxd::codec::{VolumeFormat, vxl};
+use voxd::engine::fill::FillReport;
+use voxd::mesh::MeshDiagnostics;
+use voxd::volume::Volume;
+
+/// `println!` into a String.
+macro_rules! outln {
+    ($out:expr, $($arg:tt)*) => {{
+        use std::fmt::Write as _;
+        let _ = writeln!($out, $($arg)*);
+    }};
+}
+pub(crate) use outln;
+
+pub fn describe_fill(name: &str, f: &FillReport) -> String {
+    let mut s = format!("{name}: fill {}", f.used);
+    if f.requested != f.used {
+        s += &format!(" (asked for {})", f.requested);
+    }
+    s += &format!(", {} odd-parity columns", f.odd_parity_columns);
+    if let Some(w) = &f.winding {
+        s += &format!(
+            ", {} cap triangles; voxels decided by the exact crossing count {}, minus the caps' winding number {}, by the mesh's winding number {}",
+            w.cap_triangles, w.exact_voxels, w.cap_evaluated_voxels, w.mesh_evaluated_voxels
+        );
+    }
+    if let Some(w) = &f.warning {
+        s += &format!("\n{name}: WARNING: {w}");
+    }
+    s
+}
+
+pub fn describe_mesh(name: &str, d: &MeshDiagnostics) -> String {
+    format!(
+        "{name}: {} triangles, {} vertices, {}, {} boundary edges, {} non-manifold edges, {} degenerate triangles, bbox {:?}..{:?}",
+        d.triangles,
+        d.vertices,
+        if d.watertight {
+            "watertight"
+        } else {
+            "NOT watertight (parity solid may streak; see docs/methods.md)"
+        },
+        d.boundary_edges,
+        d.non_manifold_edges,
+        d.degenerate_triangles,
+        d.bbox_min,
+        d.bbox_max
+    )
+}
+
+/// Writes `v` to `path` in format `f` atomically (`.vxl` with `meta` in its header), warning on
+/// stderr when the format loses part of the volume's grid.
+pub fn write_volume(
+    path: &Path,
+    f: VolumeFormat,
+    v: &Volume,
+    meta: &serde_json::Map<String, serde_json::Value>,
+) -> Result<(), String> {
+    let err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+    ops::check_format(v.kind(), f).map_err(|e| err(&e))?;
+    if let Some(w) = ops::conversion_warning(v.grid(), f) {
+        eprintln!("{}: {w}", path.display());
+    }
+    // Encoded before the file is created, so a volume the format cannot hold leaves no file.
+    let bytes = match f {
+        VolumeFormat::Npy => None,
+        VolumeFormat::Vxl => Some(vxl::encode(v, meta).map_err(|e| err(&e))?),
+        other => Some(other.encode(v).map_err(|e| err(&e))?),
+    };
+    voxd::store::atomic::write_with(path, |w| match &bytes {
+        Some(b) => std::io::Write::write_all(w, b),
+        None => voxd::codec::npy::write(v, w),
+    })
+    .map_err(|e| err(&e))
+}
+
+pub fn read_volume(p: &Path) -> Result<Volume, String> {
+    let bytes = std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))?;
+    let f = VolumeFormat::sniff(&bytes)
+        .or_else(|| VolumeFormat::from_path(p))
+        .ok_or_else(|| format!("{}: not a volume file (.vxl, .binvox, .npy)", p.display()))?;
+    f.decode(&bytes)
+        .map_err(|e| format!("{}: {e}", p.display()))
+}
+
+pub fn emit(out: String) -> Result<(), String> {
+    use std::io::Write;
+    match std::io::stdout().write_all(out.as_bytes()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
+            Err(format!("writing to stdout: {e}"))
+        }
+        _ => Ok(()),
+    }
+}

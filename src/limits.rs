@@ -1,0 +1,91 @@
+//! Every default and cap of voxd, in one place. A limit is checked before the work it bounds
+//! starts; the fronts only override the fields their flags name (`voxd serve --max-voxels`, a
+//! request's `max_voxels`, which can only lower the server's).
+//!
+//! Two profiles: [`Limits::SERVICE`] protects a shared server from its clients; [`Limits::LOCAL`]
+//! is the command line and the library's defaults, where the only machine at risk is the
+//! caller's own, so grids and meshes may be larger.
+
+/// Caps on one request or job.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Limits {
+    /// Voxels of one grid (a density grid counts its finer grid).
+    pub max_voxels: u64,
+    /// Triangles of one mesh.
+    pub max_triangles: usize,
+    /// Bytes of one request body (an uploaded mesh, a JSON document).
+    pub max_body_bytes: usize,
+    /// Bytes a gzip'd mesh may expand to.
+    pub max_decompressed_bytes: u64,
+    /// Points plus rays of one query, points of one normals request.
+    pub max_queries: usize,
+    /// Pixels of one preview picture.
+    pub max_preview_pixels: u64,
+    /// Nesting depth of a CSG expression.
+    pub max_csg_depth: usize,
+    /// Operands of one CSG operation.
+    pub max_csg_operands: usize,
+    /// Radius of a morphology kernel.
+    pub max_morph_radius: u32,
+    /// Seconds a request may wait for its job (`wait=`).
+    pub max_wait_s: f64,
+    /// Volumes listed per page at most; and when the caller does not say.
+    pub max_list_page: usize,
+    pub default_list_page: usize,
+    /// Resolution used when no grid option is given.
+    pub default_resolution: u32,
+}
+
+/// How many times its body a gzip'd upload may expand to (service).
+pub const GZIP_EXPANSION: u64 = 16;
+
+impl Limits {
+    /// `voxd serve`'s defaults.
+    pub const SERVICE: Limits = Limits {
+        max_voxels: 1024 * 1024 * 1024,
+        max_triangles: 20_000_000,
+        max_body_bytes: 256 << 20,
+        max_decompressed_bytes: GZIP_EXPANSION * (256 << 20),
+        ..Limits::LOCAL
+    };
+
+    /// The command line's and the library's defaults.
+    pub const LOCAL: Limits = Limits {
+        max_voxels: 2048 * 2048 * 2048,
+        max_triangles: 200_000_000,
+        max_body_bytes: usize::MAX,
+        max_decompressed_bytes: 8 << 30,
+        max_queries: 100_000,
+        max_preview_pixels: 1 << 24,
+        max_csg_depth: 32,
+        max_csg_operands: 256,
+        max_morph_radius: 64,
+        max_wait_s: 300.0,
+        max_list_page: 1000,
+        default_list_page: 100,
+        default_resolution: 256,
+    };
+
+    /// The service's limits with a different body cap (gzip expansion follows it).
+    pub fn with_body_bytes(mut self, bytes: usize) -> Limits {
+        self.max_body_bytes = bytes;
+        self.max_decompressed_bytes = GZIP_EXPANSION.saturating_mul(bytes as u64);
+        self
+    }
+}
+
+impl Default for Limits {
+    fn default() -> Limits {
+        Limits::LOCAL
+    }
+}
+
+/// Human form of a voxel budget: `1024³` when it is a cube, else the count.
+pub fn describe_voxels(v: u64) -> String {
+    let c = (v as f64).cbrt().round() as u64;
+    if c * c * c == v {
+        format!("{c}³")
+    } else {
+        format!("{v} voxels")
+    }
+}

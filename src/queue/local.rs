@@ -1,0 +1,394 @@
+//! The in-process queue.
+//!
+//! Jobs wait in a bounded queue; workers take them one at a time. Scheduling policy: the queued
+//! job with the lowest `estimated cost − age credit` runs next, where the cost is its classified
+//! voxels plus 64 per triangle ([`Prepared::cost`]) and every second of waiting earns the credit
+//! of a 256³ job. Small jobs therefore overtake a huge one, but a huge one that has waited long
+//! enough runs before newer small ones: nothing waits forever. A full queue refuses new jobs
+//! (429) and never drops accepted ones.
+//!
+//! Cancelling a queued job removes it; cancelling a running one marks it canceled and its result
+//! is discarded when the engine returns.
+//!
+//! State lives under a plain mutex that is never held across an await or any I/O. Records are
+//! written by one writer task, in the order the changes happened, through the store; the call
+//! that made a change waits until its record is durable.
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use async_trait::async_trait;
+use bytes::Bytes;
+use tokio::sync::{Notify, mpsc, oneshot, watch};
+
+use super::{Claim, JobQueue, JobRecord, NewJob, QueueStats, State, Timings};
+use crate::app::{Error, ErrorKind, Prepared, Result};
+use crate::store::VolumeStore;
+
+/// Voxel credit per second of waiting (a 256³ job).
+const AGE_CREDIT_PER_SEC: f64 = 256.0 * 256.0 * 256.0;
+
+struct Job {
+    record: JobRecord,
+    /// A record of an earlier process: shown as stored.
+    loaded: bool,
+    work: Option<Arc<Prepared>>,
+    cost: f64,
+    enqueued: Instant,
+    started: Option<Instant>,
+    finished: Option<Instant>,
+    canceled: Arc<AtomicBool>,
+    done: watch::Sender<State>,
+}
+
+struct Inner {
+    jobs: HashMap<String, Job>,
+    /// Ids of queued jobs, in arrival order.
+    queue: Vec<String>,
+    closed: bool,
+}
+
+type Write = (String, Bytes, oneshot::Sender<()>);
+
+pub struct LocalQueue {
+    inner: Mutex<Inner>,
+    ready: Notify,
+    capacity: usize,
+    writes: mpsc::UnboundedSender<Write>,
+}
+
+impl LocalQueue {
+    /// A queue of `capacity` waiting jobs whose records live in `store`. Records of earlier
+    /// processes are loaded; a job that was queued or running when that process died is marked
+    /// failed (interrupted), since its mesh was only in memory. Spawns the record writer.
+    pub async fn open(capacity: usize, store: Arc<dyn VolumeStore>) -> Result<LocalQueue> {
+        let (writes, rx) = mpsc::unbounded_channel();
+        tokio::spawn(write_records(store.clone(), rx));
+        let mut jobs = HashMap::new();
+        let mut interrupted = vec![];
+        for bytes in store.job_records().await? {
+            let Some(mut record) = parse_record(&bytes) else {
+                tracing::warn!("ignoring an unreadable job record");
+                continue;
+            };
+            if !record.state.is_final() {
+                record.state = State::Failed;
+                record.position = None;
+                record.error = Some(Error::new(
+                    ErrorKind::ShuttingDown,
+                    "interrupted: the server stopped before this job finished; submit it again",
+                ));
+                interrupted.push(record.clone());
+            }
+            let (done, _) = watch::channel(record.state);
+            let now = Instant::now();
+            jobs.insert(
+                record.id.clone(),
+                Job {
+                    record,
+                    loaded: true,
+                    work: None,
+                    cost: 0.0,
+                    enqueued: now,
+                    started: None,
+                    finished: Some(now),
+                    canceled: Arc::new(AtomicBool::new(false)),
+                    done,
+                },
+            );
+        }
+        tracing::info!(jobs = jobs.len(), "job records loaded");
+        let q = LocalQueue {
+            inner: Mutex::new(Inner {
+                jobs,
+                queue: vec![],
+                closed: false,
+            }),
+            ready: Notify::new(),
+            capacity,
+            writes,
+        };
+        let acks: Vec<_> = interrupted.iter().map(|r| q.record(r)).collect();
+        for a in acks {
+            let _ = a.await;
+        }
+        Ok(q)
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Inner> {
+        self.inner.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// Hands a record to the writer (call it while holding the lock, so records are written in
+    /// the order of the changes); the receiver resolves once it is durable.
+    fn record(&self, r: &JobRecord) -> oneshot::Receiver<()> {
+        let (tx, rx) = oneshot::channel();
+        let bytes = Bytes::from(serde_json::to_vec(r).expect("job record serialises"));
+        let _ = self.writes.send((r.id.clone(), bytes, tx));
+        rx
+    }
+}
+
+/// Reads a record; records of earlier versions carried a problem document instead of `error`.
+fn parse_record(bytes: &[u8]) -> Option<JobRecord> {
+    let mut v: serde_json::Value = serde_json::from_slice(bytes).ok()?;
+    if let Some(p) = v.as_object_mut().and_then(|o| o.remove("problem")) {
+        let kind = p
+            .get("type")
+            .and_then(|t| t.as_str())
+            .and_then(|t| t.rsplit('/').next())
+            .and_then(|slug| slug.parse::<ErrorKind>().ok())
+            .unwrap_or(ErrorKind::Internal);
+        let detail = p.get("detail").and_then(|d| d.as_str()).unwrap_or("");
+        v["error"] = serde_json::to_value(Error::new(kind, detail)).ok()?;
+    }
+    serde_json::from_value(v).ok()
+}
+
+/// The one writer of job records: in order, each acknowledged once durable.
+async fn write_records(store: Arc<dyn VolumeStore>, mut rx: mpsc::UnboundedReceiver<Write>) {
+    while let Some((id, bytes, ack)) = rx.recv().await {
+        if let Err(e) = store.put_job_record(&id, bytes).await {
+            tracing::error!(job = %id, "cannot write the job record: {e}");
+        }
+        let _ = ack.send(());
+    }
+}
+
+impl Inner {
+    fn view(&self, id: &str) -> Option<JobRecord> {
+        let j = self.jobs.get(id)?;
+        if j.loaded {
+            return Some(j.record.clone());
+        }
+        let mut v = j.record.clone();
+        v.position = (v.state == State::Queued)
+            .then(|| self.queue.iter().position(|q| q == id).map(|p| p + 1))
+            .flatten();
+        let now = Instant::now();
+        let secs = |d: Duration| (d.as_secs_f64() * 1000.0).round() / 1000.0;
+        v.timings = Timings {
+            queued_s: Some(secs(
+                j.started
+                    .unwrap_or(j.finished.unwrap_or(now))
+                    .duration_since(j.enqueued),
+            )),
+            running_s: j
+                .started
+                .map(|s| secs(j.finished.unwrap_or(now).duration_since(s))),
+        };
+        Some(v)
+    }
+}
+
+#[async_trait]
+impl JobQueue for LocalQueue {
+    async fn submit(&self, job: NewJob) -> Result<JobRecord> {
+        let (record, durable) = {
+            let mut inner = self.lock();
+            if inner.closed {
+                return Err(Error::new(
+                    ErrorKind::ShuttingDown,
+                    "the server is shutting down; retry on another replica",
+                ));
+            }
+            if inner.queue.len() >= self.capacity {
+                return Err(Error::new(
+                    ErrorKind::QueueFull,
+                    format!("{} jobs are already waiting; retry later", self.capacity),
+                )
+                .retry_after(5));
+            }
+            let (done, _) = watch::channel(State::Queued);
+            let record = JobRecord {
+                id: job.id.clone(),
+                state: State::Queued,
+                position: None,
+                progress: 0.0,
+                method: job.work.method.name().into(),
+                grid: job.work.grid,
+                name: job.name.clone(),
+                created: job.created,
+                timings: Timings::default(),
+                volume_id: None,
+                error: None,
+            };
+            inner.jobs.insert(
+                job.id.clone(),
+                Job {
+                    record,
+                    loaded: false,
+                    cost: job.work.cost(),
+                    work: Some(Arc::new(job.work)),
+                    enqueued: Instant::now(),
+                    started: None,
+                    finished: None,
+                    canceled: Arc::new(AtomicBool::new(false)),
+                    done,
+                },
+            );
+            inner.queue.push(job.id.clone());
+            let v = inner.view(&job.id).expect("just inserted");
+            let durable = self.record(&v);
+            (v, durable)
+        };
+        self.ready.notify_one();
+        let _ = durable.await;
+        Ok(record)
+    }
+
+    async fn get(&self, id: &str) -> Result<Option<JobRecord>> {
+        Ok(self.lock().view(id))
+    }
+
+    async fn wait(&self, id: &str, timeout: Duration) -> Result<Option<JobRecord>> {
+        let Some(mut rx) = self.lock().jobs.get(id).map(|j| j.done.subscribe()) else {
+            return Ok(None);
+        };
+        let _ = tokio::time::timeout(timeout, rx.wait_for(|s| s.is_final())).await;
+        self.get(id).await
+    }
+
+    async fn cancel(&self, id: &str) -> Result<Option<JobRecord>> {
+        let (record, durable) = {
+            let mut inner = self.lock();
+            let Some(job) = inner.jobs.get_mut(id) else {
+                return Ok(None);
+            };
+            if job.record.state.is_final() {
+                return Err(Error::new(
+                    ErrorKind::NotCancelable,
+                    format!("job {id} has already {}", job.record.state.name()),
+                ));
+            }
+            job.canceled.store(true, Ordering::SeqCst);
+            job.record.state = State::Canceled;
+            job.finished = Some(Instant::now());
+            job.work = None;
+            let _ = job.done.send(State::Canceled);
+            inner.queue.retain(|q| q != id);
+            let v = inner.view(id).expect("present");
+            let durable = self.record(&v);
+            (v, durable)
+        };
+        let _ = durable.await;
+        Ok(Some(record))
+    }
+
+    async fn next(&self) -> Option<Claim> {
+        loop {
+            // Registered before looking, so a submit between the look and the wait still wakes.
+            let notified = self.ready.notified();
+            {
+                let mut inner = self.lock();
+                let now = Instant::now();
+                let score = |j: &Job| {
+                    j.cost - AGE_CREDIT_PER_SEC * now.duration_since(j.enqueued).as_secs_f64()
+                };
+                let pick = inner
+                    .queue
+                    .iter()
+                    .enumerate()
+                    .min_by(|(_, a), (_, b)| {
+                        score(&inner.jobs[*a]).total_cmp(&score(&inner.jobs[*b]))
+                    })
+                    .map(|(i, _)| i);
+                if let Some(i) = pick {
+                    let id = inner.queue.remove(i);
+                    let job = inner.jobs.get_mut(&id).expect("queued job exists");
+                    job.record.state = State::Running;
+                    job.started = Some(now);
+                    let _ = job.done.send(State::Running);
+                    return Some(Claim {
+                        work: job.work.clone().expect("queued work"),
+                        name: job.record.name.clone(),
+                        canceled: job.canceled.clone(),
+                        id,
+                    });
+                }
+                if inner.closed {
+                    return None;
+                }
+            }
+            notified.await;
+        }
+    }
+
+    async fn finish(&self, id: &str, result: Result<String>) {
+        let durable = {
+            let mut inner = self.lock();
+            let Some(job) = inner.jobs.get_mut(id) else {
+                return;
+            };
+            job.work = None;
+            if job.record.state == State::Canceled {
+                return;
+            }
+            job.finished = Some(Instant::now());
+            match result {
+                Ok(volume) => {
+                    job.record.state = State::Succeeded;
+                    job.record.volume_id = Some(volume);
+                    job.record.progress = 1.0;
+                }
+                Err(e) => {
+                    job.record.state = State::Failed;
+                    job.record.error = Some(e);
+                }
+            }
+            let _ = job.done.send(job.record.state);
+            let v = inner.view(id).expect("present");
+            self.record(&v)
+        };
+        let _ = durable.await;
+    }
+
+    async fn close(&self, why: Error) -> usize {
+        let acks: Vec<_> = {
+            let mut inner = self.lock();
+            inner.closed = true;
+            let queued: Vec<String> = std::mem::take(&mut inner.queue);
+            let mut acks = vec![];
+            for id in &queued {
+                if let Some(job) = inner.jobs.get_mut(id) {
+                    job.record.state = State::Failed;
+                    job.record.error = Some(why.clone());
+                    job.work = None;
+                    job.finished = Some(Instant::now());
+                    let _ = job.done.send(State::Failed);
+                }
+                if let Some(v) = inner.view(id) {
+                    acks.push(self.record(&v));
+                }
+            }
+            acks
+        };
+        self.ready.notify_waiters();
+        let n = acks.len();
+        for a in acks {
+            let _ = a.await;
+        }
+        n
+    }
+
+    async fn stats(&self) -> QueueStats {
+        let inner = self.lock();
+        let mut by: HashMap<(State, String), u64> = HashMap::new();
+        let mut running = 0;
+        for j in inner.jobs.values() {
+            *by.entry((j.record.state, j.record.method.clone()))
+                .or_insert(0) += 1;
+            running += usize::from(j.record.state == State::Running);
+        }
+        let mut by_state: Vec<(State, String, u64)> =
+            by.into_iter().map(|((s, m), n)| (s, m, n)).collect();
+        by_state.sort_by(|a, b| (a.0.name(), &a.1).cmp(&(b.0.name(), &b.1)));
+        QueueStats {
+            depth: inner.queue.len(),
+            running,
+            by_state,
+        }
+    }
+}

@@ -1,0 +1,55 @@
+//! `/healthz` (the process answers), `/readyz` (the store takes writes; engine and queue state),
+//! `/metrics` (Prometheus text) and `/openapi.yaml` (the contract).
+
+use axum::http::{HeaderValue, header};
+use axum::response::{IntoResponse, Response};
+use serde_json::json;
+
+use super::super::problem::Problem;
+use super::AppState;
+use crate::app::{Error, ErrorKind};
+
+const OPENAPI: &str = include_str!("../../../openapi.yaml");
+
+pub async fn healthz() -> Response {
+    axum::Json(json!({ "status": "ok" })).into_response()
+}
+
+pub async fn readyz(axum::extract::State(app): AppState) -> Result<Response, Problem> {
+    app.store.health().await.map_err(|e| {
+        Error::new(
+            ErrorKind::Internal,
+            format!("the store is not writable: {e}"),
+        )
+        .retry_after(5)
+    })?;
+    let q = app.queue.stats().await;
+    let usage = app.store.usage().await.map_err(Error::from)?;
+    Ok(axum::Json(json!({
+        "status": "ready",
+        "engine": app.engine.describe(),
+        "queue_depth": q.depth,
+        "running": q.running,
+        "stored_bytes": usage.bytes,
+    }))
+    .into_response())
+}
+
+pub async fn metrics(axum::extract::State(app): AppState) -> Response {
+    let q = app.queue.stats().await;
+    let mut r = app.metrics.render(&q).into_response();
+    r.headers_mut().insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("text/plain; version=0.0.4"),
+    );
+    r
+}
+
+pub async fn openapi() -> Response {
+    let mut r = OPENAPI.into_response();
+    r.headers_mut().insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("application/yaml"),
+    );
+    r
+}

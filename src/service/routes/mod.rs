@@ -1,0 +1,142 @@
+//! The v1 routes, one file per resource. [`ROUTES`] is the route table `openapi.yaml` is checked
+//! against; a test over the router in-process checks that the router answers exactly it.
+
+mod health;
+mod jobs;
+mod volumes;
+mod voxelize;
+
+use std::sync::Arc;
+
+use axum::Router;
+use axum::body::Body;
+use axum::extract::{DefaultBodyLimit, Request, State};
+use axum::http::{HeaderValue, StatusCode, header};
+use axum::middleware::{self, Next};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use tower_http::compression::CompressionLayer;
+use tower_http::compression::predicate::{NotForContentType, Predicate, SizeAbove};
+use tracing::Instrument;
+
+use super::App;
+use super::problem::Problem;
+use crate::app::ErrorKind;
+
+pub const VXL_MEDIA_TYPE: &str = "application/vnd.voxd.vxl";
+
+/// Every path and the methods it answers.
+pub const ROUTES: &[(&str, &[&str])] = &[
+    ("/v1/voxelize", &["POST"]),
+    ("/v1/jobs/{id}", &["GET", "DELETE"]),
+    ("/v1/volumes", &["GET"]),
+    ("/v1/volumes/csg", &["POST"]),
+    ("/v1/volumes/intersect", &["POST"]),
+    ("/v1/volumes/{id}", &["GET", "DELETE"]),
+    ("/v1/volumes/{id}/data", &["GET"]),
+    ("/v1/volumes/{id}/morphology", &["POST"]),
+    ("/v1/volumes/{id}/stats", &["GET"]),
+    ("/v1/volumes/{id}/query", &["POST"]),
+    ("/v1/volumes/{id}/normals", &["GET"]),
+    ("/v1/volumes/{id}/preview.png", &["GET"]),
+    ("/healthz", &["GET"]),
+    ("/readyz", &["GET"]),
+    ("/metrics", &["GET"]),
+    ("/openapi.yaml", &["GET"]),
+];
+
+pub fn router(app: Arc<App>) -> Router {
+    let compress = CompressionLayer::new().gzip(true).zstd(true).compress_when(
+        SizeAbove::new(256)
+            .and(NotForContentType::const_new(VXL_MEDIA_TYPE))
+            .and(NotForContentType::const_new("application/problem+json")),
+    );
+    Router::new()
+        .route(
+            "/v1/voxelize",
+            // The body limit is the handler's own (a problem document, not axum's text).
+            post(voxelize::submit).layer(DefaultBodyLimit::disable()),
+        )
+        .route("/v1/jobs/{id}", get(jobs::get).delete(jobs::cancel))
+        .route("/v1/volumes", get(volumes::list))
+        .route("/v1/volumes/csg", post(volumes::csg))
+        .route("/v1/volumes/intersect", post(volumes::intersect))
+        .route(
+            "/v1/volumes/{id}",
+            get(volumes::get).delete(volumes::delete),
+        )
+        .route("/v1/volumes/{id}/data", get(volumes::data))
+        .route("/v1/volumes/{id}/morphology", post(volumes::morphology))
+        .route("/v1/volumes/{id}/stats", get(volumes::stats))
+        .route("/v1/volumes/{id}/query", post(volumes::query))
+        .route("/v1/volumes/{id}/normals", get(volumes::normals))
+        .route("/v1/volumes/{id}/preview.png", get(volumes::preview))
+        .route("/healthz", get(health::healthz))
+        .route("/readyz", get(health::readyz))
+        .route("/metrics", get(health::metrics))
+        .route("/openapi.yaml", get(health::openapi))
+        .fallback(|| async {
+            Problem::new(ErrorKind::NotFound, "no such route; see /openapi.yaml")
+        })
+        .layer(compress)
+        .layer(middleware::from_fn(request_context))
+        .with_state(app)
+}
+
+/// `201 Created` with `Location` and the volume's metadata.
+fn created(meta: &crate::store::VolumeMeta) -> Response {
+    let mut r = (StatusCode::CREATED, axum::Json(meta)).into_response();
+    set_location(&mut r, &format!("/v1/volumes/{}", meta.id));
+    r
+}
+
+fn set_location(r: &mut Response, path: &str) {
+    if let Ok(v) = HeaderValue::from_str(path) {
+        r.headers_mut().insert(header::LOCATION, v);
+    }
+}
+
+/// Gives every request an id (the caller's `x-request-id` or a new one), a tracing span, the
+/// id in the response header, and the id and path in every problem document.
+async fn request_context(req: Request, next: Next) -> Response {
+    let rid = req
+        .headers()
+        .get("x-request-id")
+        .and_then(|v| v.to_str().ok())
+        .filter(|v| !v.is_empty() && v.len() <= 128)
+        .map(str::to_string)
+        .unwrap_or_else(crate::app::new_id);
+    let path = req.uri().path().to_string();
+    let span = tracing::info_span!("request", id = %rid, method = %req.method(), path = %path);
+    let mut res = next.run(req).instrument(span).await;
+    let is_problem = res
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .is_some_and(|v| v == "application/problem+json");
+    if is_problem {
+        let (mut parts, body) = res.into_parts();
+        let bytes = axum::body::to_bytes(body, 1 << 20)
+            .await
+            .unwrap_or_default();
+        let body = match serde_json::from_slice::<Problem>(&bytes) {
+            Ok(mut p) => {
+                p.request_id = Some(rid.clone());
+                p.instance.get_or_insert(path);
+                serde_json::to_vec(&p).unwrap_or_default()
+            }
+            Err(_) => bytes.to_vec(),
+        };
+        parts.headers.remove(header::CONTENT_LENGTH);
+        res = Response::from_parts(parts, Body::from(body));
+    }
+    if let Ok(v) = HeaderValue::from_str(&rid) {
+        res.headers_mut().insert("x-request-id", v);
+    }
+    res
+}
+
+/// The state extractor every handler uses.
+type AppState = State<Arc<App>>;
+
+#[cfg(test)]
+mod tests;

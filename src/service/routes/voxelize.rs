@@ -1,0 +1,175 @@
+//! `POST /v1/voxelize`: the query and body become a [`VoxelizeRequest`], prepared (loaded,
+//! diagnosed, fitted: refused here when it cannot run) and queued; with `wait`, the response
+//! waits for the job.
+
+use std::time::Duration;
+
+use axum::body::Body;
+use axum::http::{HeaderMap, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use serde::Deserialize;
+
+use super::super::extract::{Query, triple};
+use super::super::problem::Problem;
+use super::{AppState, created, set_location};
+use crate::app::request::MethodName;
+use crate::app::{
+    self, Error, ErrorKind, GridOptions, MeshSource, MethodSpec, VoxelizeRequest, ops,
+};
+use crate::engine::fill::Fill;
+use crate::mesh::Format;
+use crate::queue::{NewJob, State};
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VoxelizeQuery {
+    method: Option<MethodName>,
+    density_factor: Option<u32>,
+    fill: Option<Fill>,
+    resolution: Option<u32>,
+    voxel_size: Option<f64>,
+    #[serde(default, deserialize_with = "triple::deserialize")]
+    origin: Option<[f64; 3]>,
+    #[serde(default, deserialize_with = "triple::deserialize")]
+    dims: Option<[u32; 3]>,
+    #[serde(default)]
+    cubic: bool,
+    #[serde(default)]
+    padding: u32,
+    name: Option<String>,
+    /// Seconds to wait for the job.
+    #[serde(default)]
+    wait: f64,
+    /// The mesh format, when the Content-Type does not say.
+    format: Option<String>,
+    /// A lower voxel budget than the server's.
+    max_voxels: Option<u64>,
+}
+
+/// The mesh format from `?format=`, else the Content-Type; `None` to sniff.
+fn format_of(q: &VoxelizeQuery, headers: &HeaderMap) -> Result<Option<Format>, Problem> {
+    if let Some(f) = &q.format {
+        return Format::from_name(f).map(Some).ok_or_else(|| {
+            Problem::new(
+                ErrorKind::UnsupportedMediaType,
+                format!("format={f:?} is not one of obj, glb, gltf, stl, ply"),
+            )
+        });
+    }
+    let ct = headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("");
+    let ct = ct
+        .split(';')
+        .next()
+        .unwrap_or("")
+        .trim()
+        .to_ascii_lowercase();
+    Ok(match ct.as_str() {
+        "model/obj" | "text/plain" => Some(Format::Obj),
+        "model/gltf-binary" => Some(Format::Glb),
+        "model/gltf+json" => Some(Format::Gltf),
+        "model/stl" | "model/x.stl-binary" | "model/x.stl-ascii" | "application/sla" => {
+            Some(Format::Stl)
+        }
+        "model/ply" | "application/ply" | "model/x-ply" => Some(Format::Ply),
+        // curl --data-binary sends x-www-form-urlencoded unless told otherwise: sniff those too.
+        ""
+        | "application/octet-stream"
+        | "application/gzip"
+        | "application/x-www-form-urlencoded" => None,
+        other => {
+            return Err(Problem::new(
+                ErrorKind::UnsupportedMediaType,
+                format!(
+                    "Content-Type {other:?} is not a mesh type; use model/obj, model/gltf-binary, model/gltf+json, model/stl, model/ply or ?format="
+                ),
+            ));
+        }
+    })
+}
+
+pub async fn submit(
+    axum::extract::State(app): AppState,
+    Query(q): Query<VoxelizeQuery>,
+    headers: HeaderMap,
+    body: Body,
+) -> Result<Response, Problem> {
+    let method = match q.method {
+        None => MethodSpec::Bits(crate::engine::Method::Solid),
+        Some(m) => MethodSpec::new(crate::names::Named::name(m), q.density_factor)?,
+    };
+    if !(0.0..=app.limits.max_wait_s).contains(&q.wait) {
+        return Err(Problem::invalid(format!(
+            "wait must be between 0 and {} seconds",
+            app.limits.max_wait_s
+        )));
+    }
+    let grid = GridOptions {
+        resolution: q.resolution,
+        voxel_size: q.voxel_size,
+        origin: q.origin,
+        dims: q.dims,
+        cubic: q.cubic,
+    }
+    .spec(app.limits.default_resolution)?;
+    let mut limits = app.limits;
+    limits.max_voxels = q
+        .max_voxels
+        .unwrap_or(limits.max_voxels)
+        .min(limits.max_voxels);
+    let format = format_of(&q, &headers)?;
+    let max = limits.max_body_bytes;
+    let bytes = axum::body::to_bytes(body, max).await.map_err(|_| {
+        Problem::new(
+            ErrorKind::BodyTooLarge,
+            format!("the request body is larger than {max} bytes"),
+        )
+    })?;
+    let req = VoxelizeRequest {
+        source: MeshSource::Bytes { bytes, format },
+        grid,
+        padding: q.padding,
+        method,
+        fill: q.fill.unwrap_or(Fill::Parity),
+        limits,
+    };
+    let work = ops::blocking(move || app::prepare(&req)).await?;
+    let id = app::new_id();
+    let record = app
+        .queue
+        .submit(NewJob {
+            id: id.clone(),
+            work,
+            name: q.name,
+            created: app::rfc3339(std::time::SystemTime::now()),
+        })
+        .await?;
+    let record = if q.wait > 0.0 {
+        let r = app
+            .queue
+            .wait(&id, Duration::from_secs_f64(q.wait))
+            .await?
+            .unwrap_or(record);
+        match (r.state, &r.volume_id, &r.error) {
+            (State::Succeeded, Some(v), _) => {
+                if let Some(meta) = app.store.get(v).await.map_err(Error::from)? {
+                    return Ok(created(&meta));
+                }
+            }
+            (State::Failed, _, Some(e)) => {
+                let mut p = Problem::from(e.clone());
+                p.instance = Some(format!("/v1/jobs/{id}"));
+                return Err(p);
+            }
+            _ => {}
+        }
+        r
+    } else {
+        record
+    };
+    let mut r = (StatusCode::ACCEPTED, axum::Json(super::jobs::view(record))).into_response();
+    set_location(&mut r, &format!("/v1/jobs/{id}"));
+    Ok(r)
+}
