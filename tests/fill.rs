@@ -127,15 +127,18 @@ fn unknown_fills_are_refused_clearly() {
 }
 
 /// `(voxel, |w| ≥ ½)` for the exact winding number w at `voxels`, leaving out voxels whose centre
-/// is within one voxel of the surface or whose |w| is within `tol` of ½.
+/// is within one voxel of the surface or whose |w| is within `tol` of ½. (In parallel: the
+/// winding number of every voxel against every triangle is the bulk of these tests' time.)
 fn exact_truth(
     mesh: &Mesh,
     g: &voxd::grid::Grid,
     voxels: impl IntoIterator<Item = [u32; 3]>,
     tol: f64,
 ) -> Vec<([u32; 3], bool)> {
+    use rayon::prelude::*;
+    let voxels: Vec<[u32; 3]> = voxels.into_iter().collect();
     voxels
-        .into_iter()
+        .into_par_iter()
         .filter_map(|[x, y, z]| {
             let (w, dist) = winding_and_distance(mesh, g.voxel_center(x, y, z));
             (dist > g.voxel_size && (w.abs() - 0.5).abs() > tol)

@@ -18,3 +18,20 @@ mod query;
 mod real_meshes;
 mod service;
 mod stats;
+
+/// With `autotests = false` (Cargo.toml) a file of tests/ that is not declared a module here
+/// would never be compiled nor run: every one is.
+#[test]
+fn every_file_of_tests_is_a_module() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests");
+    let this = std::fs::read_to_string(dir.join("tests.rs")).unwrap();
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let name = entry.unwrap().file_name().into_string().unwrap();
+        if let Some(module) = name.strip_suffix(".rs").filter(|m| *m != "tests") {
+            assert!(
+                this.contains(&format!("\nmod {module};\n")),
+                "tests/{name} is not declared in tests/tests.rs, so it never runs"
+            );
+        }
+    }
+}

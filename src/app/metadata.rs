@@ -122,7 +122,7 @@ pub fn build(
         method: origin.method().into(),
         grid: g,
         solid_voxels: solid,
-        volume: occupied * g.voxel_size.powi(3),
+        volume: occupied * g.voxel_volume(),
         source,
         diagnostics,
         fill,

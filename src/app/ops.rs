@@ -339,7 +339,7 @@ pub async fn intersect_stored(store: &dyn VolumeStore, a: &str, b: &str) -> Resu
             a,
             b,
             voxels: n,
-            volume: n as f64 * va.grid().voxel_size.powi(3),
+            volume: va.grid().volume_of(n),
         })
     })
     .await

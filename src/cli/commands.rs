@@ -117,12 +117,12 @@ pub fn info(p: &Path) -> Result<(), String> {
                 out,
                 "set voxels: {n} ({:.3}%), volume {}",
                 100.0 * n as f64 / g.voxel_count() as f64,
-                n as f64 * g.voxel_size.powi(3)
+                g.volume_of(n)
             );
             match b.solid_bounds() {
                 Some((lo, hi)) => {
-                    let wlo = [0, 1, 2].map(|a| g.origin[a] + lo[a] as f64 * g.voxel_size);
-                    let whi = [0, 1, 2].map(|a| g.origin[a] + (hi[a] + 1) as f64 * g.voxel_size);
+                    let wlo = g.corner(lo.map(i64::from));
+                    let whi = g.corner(hi.map(|h| i64::from(h) + 1));
                     outln!(
                         out,
                         "set bounds: index {lo:?} ..= {hi:?}, world {wlo:?} .. {whi:?}"

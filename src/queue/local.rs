@@ -267,7 +267,7 @@ impl JobQueue for LocalQueue {
             job.record.state = State::Canceled;
             job.finished = Some(Instant::now());
             job.work = None;
-            let _ = job.done.send(State::Canceled);
+            job.done.send_replace(State::Canceled);
             inner.queue.retain(|q| q != id);
             let v = inner.view(id).expect("present");
             let durable = self.record(&v);
@@ -300,7 +300,7 @@ impl JobQueue for LocalQueue {
                     let job = inner.jobs.get_mut(&id).expect("queued job exists");
                     job.record.state = State::Running;
                     job.started = Some(now);
-                    let _ = job.done.send(State::Running);
+                    job.done.send_replace(State::Running);
                     return Some(Claim {
                         work: job.work.clone().expect("queued work"),
                         name: job.record.name.clone(),
@@ -338,7 +338,7 @@ impl JobQueue for LocalQueue {
                     job.record.error = Some(e);
                 }
             }
-            let _ = job.done.send(job.record.state);
+            job.done.send_replace(job.record.state);
             let v = inner.view(id).expect("present");
             self.record(&v)
         };
@@ -357,7 +357,7 @@ impl JobQueue for LocalQueue {
                     job.record.error = Some(why.clone());
                     job.work = None;
                     job.finished = Some(Instant::now());
-                    let _ = job.done.send(State::Failed);
+                    job.done.send_replace(State::Failed);
                 }
                 if let Some(v) = inner.view(id) {
                     acks.push(self.record(&v));
@@ -390,5 +390,77 @@ impl JobQueue for LocalQueue {
             running,
             by_state,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::app::{GridOptions, MeshSource, MethodSpec, VoxelizeRequest};
+
+    fn tiny_job(id: &str) -> NewJob {
+        let tetra = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+        let req = VoxelizeRequest {
+            source: MeshSource::Bytes {
+                bytes: Bytes::from_static(tetra),
+                format: None,
+            },
+            grid: GridOptions::default().spec(4).unwrap(),
+            padding: 0,
+            method: MethodSpec::Bits(crate::engine::Method::Solid),
+            fill: crate::engine::fill::Fill::Parity,
+            limits: crate::limits::Limits::SERVICE,
+        };
+        NewJob {
+            id: id.into(),
+            work: crate::app::prepare(&req).unwrap(),
+            name: None,
+            created: String::new(),
+        }
+    }
+
+    /// A job that finished before anyone waited is seen as finished at once (on a paused
+    /// clock: had `wait` sat out its timeout, virtual time would have moved by an hour).
+    #[tokio::test(start_paused = true)]
+    async fn waiting_on_a_finished_job_returns_at_once_and_records_persist() {
+        let dir = std::env::temp_dir().join(format!("voxd-localq-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let store: Arc<dyn VolumeStore> =
+            Arc::new(crate::store::fs::FsStore::open(&dir, 1 << 20).unwrap());
+        let q = LocalQueue::open(2, store.clone()).await.unwrap();
+        q.submit(tiny_job("a1")).await.unwrap();
+        q.submit(tiny_job("b2")).await.unwrap();
+        let e = q.submit(tiny_job("c3")).await.unwrap_err();
+        assert_eq!((e.kind, e.retry_after), (ErrorKind::QueueFull, Some(5)));
+        let claim = q.next().await.unwrap();
+        q.finish(&claim.id, Ok("vol".into())).await;
+        let t = tokio::time::Instant::now();
+        let r = q
+            .wait(&claim.id, Duration::from_secs(3600))
+            .await
+            .unwrap()
+            .unwrap();
+        assert_eq!(r.state, State::Succeeded);
+        assert_eq!(tokio::time::Instant::now(), t, "wait sat out its timeout");
+        // The other job is canceled; both records are durable and a new queue sees them.
+        let other = if claim.id == "a1" { "b2" } else { "a1" };
+        assert_eq!(
+            q.cancel(other).await.unwrap().unwrap().state,
+            State::Canceled
+        );
+        assert_eq!(
+            q.cancel(other).await.unwrap_err().kind,
+            ErrorKind::NotCancelable
+        );
+        let again = LocalQueue::open(2, store).await.unwrap();
+        assert_eq!(
+            again.get(&claim.id).await.unwrap().unwrap().state,
+            State::Succeeded
+        );
+        assert_eq!(
+            again.get(other).await.unwrap().unwrap().state,
+            State::Canceled
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

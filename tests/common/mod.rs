@@ -279,7 +279,17 @@ pub fn winding_and_distance(mesh: &Mesh, p: [f64; 3]) -> (f64, f64) {
     for t in 0..mesh.triangles().len() {
         let [a, b, c] = mesh.triangle(t);
         w += solid_angle(p, a, b, c);
-        d2 = d2.min(dist2_to_triangle(p, a, b, c));
+        // The distance to the triangle's bounding box is a lower bound of the distance to it:
+        // where that is no nearer than the nearest so far, the triangle cannot be the nearest.
+        let to_box: f64 = (0..3)
+            .map(|i| {
+                let (lo, hi) = (a[i].min(b[i]).min(c[i]), a[i].max(b[i]).max(c[i]));
+                (lo - p[i]).max(p[i] - hi).max(0.0).powi(2)
+            })
+            .sum();
+        if to_box < d2 {
+            d2 = d2.min(dist2_to_triangle(p, a, b, c));
+        }
     }
     (w / (4.0 * std::f64::consts::PI), d2.sqrt())
 }
@@ -298,50 +308,55 @@ fn crossf(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     ]
 }
 
-/// Signed solid angle of triangle abc seen from `p`, as the area of the spherical triangle the
-/// corners project to (L'Huilier's theorem on its three side arcs), with the sign of
-/// `(a − p) · ((b − p) × (c − p))`. (The library uses Van Oosterom and Strackee's formula.)
+/// Signed solid angle of triangle abc seen from `p`: the area E of the spherical triangle its
+/// corners project to, by L'Huilier's theorem on the three side arcs θ (semiperimeter s),
+/// `tan(E/4)² = tan(s/2) · tan((s − θ₁)/2) · tan((s − θ₂)/2) · tan((s − θ₃)/2)`, with each
+/// tangent a sum of ± quarter arcs and so, by the tangent addition formula, a rational function of
+/// the quarter-arc tangents `tan(θ/4) = |û − v̂| / (2 + |û + v̂|)` (û, v̂: unit vectors to two
+/// corners). Its sign is that of `(a − p) · ((b − p) × (c − p))`. (The library uses Van Oosterom
+/// and Strackee's formula.)
 pub fn solid_angle(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
-    use std::f64::consts::PI;
     let [a, b, c] = [a, b, c].map(|q| subf(q, p));
     let det = dotf(a, crossf(b, c));
-    if det == 0.0 {
+    let len = |u: [f64; 3]| dotf(u, u).sqrt();
+    let l = [a, b, c].map(len);
+    if det == 0.0 || l.contains(&0.0) {
         // p in the triangle's plane: 0 unless p is on the triangle (where it is undefined).
         return 0.0;
     }
-    // The arc between two corners is the angle between their directions.
-    let arc = |u: [f64; 3], v: [f64; 3]| dotf(crossf(u, v), crossf(u, v)).sqrt().atan2(dotf(u, v));
-    let sides = [arc(b, c), arc(c, a), arc(a, b)];
-    // The semiperimeter is at most π; the clamps only undo rounding.
-    let s = ((sides[0] + sides[1] + sides[2]) / 2.0).min(PI);
-    let t = (s / 2.0).tan()
-        * sides
-            .iter()
-            .map(|&x| ((s - x) / 2.0).max(0.0).tan())
-            .product::<f64>();
-    4.0 * t.sqrt().atan() * det.signum()
+    let [a, b, c] = [(a, l[0]), (b, l[1]), (c, l[2])].map(|(u, l)| u.map(|x| x / l));
+    let quarter = |u: [f64; 3], v: [f64; 3]| {
+        len(subf(u, v)) / (2.0 + len([u[0] + v[0], u[1] + v[1], u[2] + v[2]]))
+    };
+    let [t1, t2, t3] = [quarter(b, c), quarter(c, a), quarter(a, b)];
+    // tan(x + y + z) from tan x, tan y, tan z.
+    let tan_sum = |x: f64, y: f64, z: f64| (x + y + z - x * y * z) / (1.0 - x * y - y * z - z * x);
+    let product =
+        tan_sum(t1, t2, t3) * tan_sum(-t1, t2, t3) * tan_sum(t1, -t2, t3) * tan_sum(t1, t2, -t3);
+    // The product is ≥ 0 (the clamp only undoes rounding on flat spherical triangles).
+    4.0 * product.max(0.0).sqrt().atan() * det.signum()
 }
 
-/// Squared distance from p to triangle abc: to its plane where the foot of the perpendicular lies
-/// inside the triangle (sign test of the three sub-triangles against the normal), else to the
-/// nearest of its three edges. A triangle of zero area is its edges. (The library uses
-/// Ericson's Voronoi-region walk.)
+/// Squared distance from p to triangle abc: to its plane where p is over the triangle (p is on
+/// the inner side of all three edges, by the sign of (v − u) × (p − u) against the normal), else
+/// to the nearest of the edges that p is outside of (the nearest point of the triangle is on one
+/// of them). A triangle of (next to) zero area, whose normal is rounding noise, is its three
+/// edges. (The library uses Ericson's walk of the Voronoi regions.)
 pub fn dist2_to_triangle(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
-    let n = crossf(subf(b, a), subf(c, a));
+    let (ab, ac) = (subf(b, a), subf(c, a));
+    let n = crossf(ab, ac);
     let nn = dotf(n, n);
-    if nn > 0.0 {
+    // |n|² = |ab|² |ac|² sin²(angle at a): flat below sin = 1e-10.
+    let flat = nn <= 1e-20 * dotf(ab, ab) * dotf(ac, ac);
+    let edges = [(a, b), (b, c), (c, a)];
+    let side = edges.map(|(u, v)| dotf(crossf(subf(v, u), subf(p, u)), n));
+    if !flat && side.iter().all(|&s| s >= 0.0) {
         let h = dotf(subf(p, a), n);
-        let foot = [0, 1, 2].map(|i| p[i] - h / nn * n[i]);
-        let inside = [(a, b), (b, c), (c, a)]
-            .iter()
-            .all(|&(u, v)| dotf(crossf(subf(v, u), subf(foot, u)), n) >= 0.0);
-        if inside {
-            return h * h / nn;
-        }
+        return h * h / nn;
     }
-    [(a, b), (b, c), (c, a)]
-        .iter()
-        .map(|&(u, v)| dist2_to_segment(p, u, v))
+    (0..3)
+        .filter(|&i| flat || side[i] < 0.0)
+        .map(|i| dist2_to_segment(p, edges[i].0, edges[i].1))
         .fold(f64::INFINITY, f64::min)
 }
 

@@ -220,7 +220,7 @@ pub async fn normals(
             crate::names::parse_triple::<f64>(p)
                 .ok()
                 .filter(|t| t.iter().all(|c| c.is_finite()))
-                .ok_or_else(|| Problem::invalid(format!("{p:?} is not x,y,z")))
+                .ok_or_else(|| Error::invalid(format!("{p:?} is not x,y,z")))
         })
         .collect::<Result<_, _>>()?;
     let limits = app.limits;

@@ -47,10 +47,10 @@ pub struct VoxelizeQuery {
 }
 
 /// The mesh format from `?format=`, else the Content-Type; `None` to sniff.
-fn format_of(q: &VoxelizeQuery, headers: &HeaderMap) -> Result<Option<Format>, Problem> {
+fn format_of(q: &VoxelizeQuery, headers: &HeaderMap) -> app::Result<Option<Format>> {
     if let Some(f) = &q.format {
         return Format::from_name(f).map(Some).ok_or_else(|| {
-            Problem::new(
+            Error::new(
                 ErrorKind::UnsupportedMediaType,
                 format!("format={f:?} is not one of obj, glb, gltf, stl, ply"),
             )
@@ -80,7 +80,7 @@ fn format_of(q: &VoxelizeQuery, headers: &HeaderMap) -> Result<Option<Format>, P
         | "application/gzip"
         | "application/x-www-form-urlencoded" => None,
         other => {
-            return Err(Problem::new(
+            return Err(Error::new(
                 ErrorKind::UnsupportedMediaType,
                 format!(
                     "Content-Type {other:?} is not a mesh type; use model/obj, model/gltf-binary, model/gltf+json, model/stl, model/ply or ?format="
