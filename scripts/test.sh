@@ -22,5 +22,7 @@ export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-$(mktemp -d)}
 
 cargo fmt --all -- --check
 cargo clippy --locked --all-targets --quiet -- -D warnings
-# --show-output: skip notices (e.g. ../shared/meshes absent) stay visible.
-cargo test --locked -- --show-output
+# --show-output: skip notices (e.g. ../shared/meshes absent) stay visible. fault-injection: the
+# crash test (tests/crash.rs) aborts the server inside store writes (VOXD_FAULT; inert otherwise).
+cargo test --locked --features fault-injection -- --show-output
+./scripts/contract.sh   # openapi.yaml valid, and schemathesis against the running service

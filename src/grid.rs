@@ -8,6 +8,10 @@ use serde::{Deserialize, Serialize};
 /// (see [`crate::engine::snap`]).
 pub const MAX_DIM: u32 = 1 << 20;
 
+/// The origin may be at most this many voxels from zero, so that `origin + i · voxel_size` keeps
+/// voxel precision (f64 has 52 bits; this leaves 12 for positions within a voxel).
+const MAX_ORIGIN_VOXELS: f64 = (1u64 << 40) as f64;
+
 /// A grid: voxel (i, j, k) is the closed box `origin + [i, i+1] × [j, j+1] × [k, k+1] · voxel_size`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Grid {
@@ -50,10 +54,14 @@ impl Default for GridLimits {
 pub enum GridError {
     #[error("resolution must be at least 1")]
     ZeroResolution,
-    #[error("voxel size must be a positive finite number, got {0}")]
+    #[error("voxel size must be a positive, finite, normal number, got {0:e}")]
     BadVoxelSize(f64),
     #[error("grid origin must be finite, got {0:?}")]
     BadOrigin([f64; 3]),
+    #[error(
+        "a grid with origin {origin:?} and voxel size {voxel_size:e} cannot be represented: its voxel boundaries are not distinct finite numbers; scale the mesh or use a larger voxel size"
+    )]
+    Unrepresentable { origin: [f64; 3], voxel_size: f64 },
     #[error("grid dims must be at least 1 on every axis, got {0:?}")]
     ZeroDims([u32; 3]),
     #[error(
@@ -135,6 +143,22 @@ impl Grid {
         let p = padding as u64;
         let dims = dims.map(|d| d + 2 * p);
         let origin = origin.map(|o| o - p as f64 * voxel_size);
+        check_voxel_size(voxel_size)?;
+        // Every voxel boundary must be a distinct, finite number: a voxel size that vanishes
+        // next to the origin (or a far corner that overflows) gives a grid no one can read.
+        for a in 0..3 {
+            let far = origin[a] + dims[a] as f64 * voxel_size;
+            if !origin[a].is_finite()
+                || !far.is_finite()
+                || origin[a] + voxel_size == origin[a]
+                || origin[a].abs() / voxel_size > MAX_ORIGIN_VOXELS
+            {
+                return Err(GridError::Unrepresentable {
+                    origin,
+                    voxel_size,
+                });
+            }
+        }
         if dims.iter().any(|&d| d > MAX_DIM as u64) {
             return Err(GridError::AxisTooLong { dims });
         }
@@ -257,7 +281,9 @@ fn fitted_dim(extent: f64, s: f64) -> u64 {
 }
 
 fn check_voxel_size(s: f64) -> Result<(), GridError> {
-    if s.is_finite() && s > 0.0 {
+    // Normal, not merely positive: a subnormal voxel size (a mesh whose extent is ~1e-320)
+    // has almost no precision left.
+    if s.is_normal() && s > 0.0 {
         Ok(())
     } else {
         Err(GridError::BadVoxelSize(s))
@@ -331,6 +357,44 @@ mod tests {
         )
         .unwrap();
         assert_eq!(c.dims, [7, 7, 7]);
+    }
+
+    /// A mesh whose extent is subnormal once gave a grid with voxel size 0, stored and then
+    /// unreadable; grids whose voxels vanish next to the origin are refused too.
+    #[test]
+    fn refuses_grids_that_cannot_be_represented() {
+        let l = GridLimits::default();
+        let tiny = Grid::fit(
+            [0.0; 3],
+            [5e-324, 5e-324, 5e-324],
+            GridSpec::Resolution { n: 8, cubic: false },
+            0,
+            l,
+        );
+        assert!(matches!(tiny, Err(GridError::BadVoxelSize(_))), "{tiny:?}");
+        let explicit = |origin: [f64; 3], voxel_size: f64| {
+            Grid::fit(
+                [0.0; 3],
+                [1.0; 3],
+                GridSpec::Explicit {
+                    origin,
+                    voxel_size,
+                    dims: [2; 3],
+                },
+                0,
+                l,
+            )
+        };
+        assert!(matches!(explicit([0.0; 3], 1e-310), Err(GridError::BadVoxelSize(_))));
+        assert!(matches!(
+            explicit([1e9, 0.0, 0.0], 1e-9),
+            Err(GridError::Unrepresentable { .. })
+        ));
+        assert!(matches!(
+            explicit([1.79e308, 0.0, 0.0], 1e307),
+            Err(GridError::Unrepresentable { .. })
+        ));
+        assert!(explicit([-3.0, 2.0, 1e3], 0.01).is_ok());
     }
 
     #[test]

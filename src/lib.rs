@@ -15,6 +15,7 @@ compile_error!(
 );
 
 pub mod app;
+pub mod cancel;
 pub mod codec;
 pub mod engine;
 pub mod grid;

@@ -52,7 +52,7 @@ fn main() -> ExitCode {
 
 fn serve(a: &cli::args::ServeArgs) -> Result<(), String> {
     let rt = tokio::runtime::Runtime::new().map_err(|e| e.to_string())?;
-    rt.block_on(voxd::service::serve(
+    let served = rt.block_on(voxd::service::serve(
         a.config(),
         shutdown_signal(),
         |addr| {
@@ -60,7 +60,10 @@ fn serve(a: &cli::args::ServeArgs) -> Result<(), String> {
             use std::io::Write;
             let _ = std::io::stdout().flush();
         },
-    ))
+    ));
+    // Work still running after the shutdown timeout is left behind, not waited for.
+    rt.shutdown_timeout(std::time::Duration::from_secs(1));
+    served
 }
 
 /// SIGTERM or Ctrl-C.

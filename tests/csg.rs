@@ -167,3 +167,54 @@ fn booleans_of_boxes_equal_voxelizing_the_boolean() {
         a.count_ones() + b.count_ones() - i.count_ones()
     );
 }
+
+/// CSG under a control: a canceled one stops before the first operand; a live one gives the
+/// same volume as without it and hears every operand; grid errors still come first as
+/// `CsgError`s.
+#[test]
+fn csg_stops_when_canceled_and_reports_progress() {
+    use voxd::cancel::{Canceled, Control};
+    use voxd::volume::csg::apply_with;
+    #[derive(Debug, PartialEq)]
+    enum E {
+        Csg(CsgError),
+        Canceled(Canceled),
+    }
+    impl From<CsgError> for E {
+        fn from(e: CsgError) -> E {
+            E::Csg(e)
+        }
+    }
+    impl From<Canceled> for E {
+        fn from(c: Canceled) -> E {
+            E::Canceled(c)
+        }
+    }
+    let mut rng = Rng::new(64);
+    let vs: Vec<BitVolume> = (0..4)
+        .map(|_| {
+            let x = rng.below(3) as i64;
+            random_volume(&mut rng, [x, 0, 1])
+        })
+        .collect();
+    let refs: Vec<&BitVolume> = vs.iter().collect();
+    let canceled = Control::new();
+    canceled.cancel();
+    assert_eq!(
+        apply_with::<E>(CsgOp::Union, &refs, &canceled),
+        Err(E::Canceled(Canceled::Canceled))
+    );
+    for op in [
+        CsgOp::Union,
+        CsgOp::Intersection,
+        CsgOp::Difference,
+        CsgOp::Xor,
+    ] {
+        let ctl = Control::new();
+        let got = apply_with::<E>(op, &refs, &ctl);
+        assert_eq!(got, apply(op, &refs).map_err(E::Csg), "{op:?}");
+        if got.is_ok() {
+            assert_eq!(ctl.progress(), 1.0, "{op:?}");
+        }
+    }
+}

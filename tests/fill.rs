@@ -478,3 +478,153 @@ fn real_open_meshes_follow_the_exact_winding_number() {
         println!("{line} of sampled voxels off the surface disagree with the exact winding number");
     }
 }
+
+/// A winding fill canceled once it has started stops at a check point: `Canceled`, with the
+/// progress it had reached (below 1) and no volume; a control canceled before the run stops it
+/// before any work, and one past its deadline says so.
+#[test]
+fn a_canceled_winding_fill_stops_at_a_check_point() {
+    use std::time::{Duration, Instant};
+    use voxd::cancel::{Canceled, Control};
+    use voxd::engine::EngineError;
+    let mesh = open_bowl();
+    let (lo, hi) = mesh.bounds();
+    let g = voxd::grid::Grid::fit(
+        lo,
+        hi,
+        voxd::grid::GridSpec::Resolution {
+            n: 160,
+            cubic: false,
+        },
+        1,
+        Default::default(),
+    )
+    .unwrap();
+    let ctl = Control::new();
+    let result = std::thread::scope(|s| {
+        let watcher = ctl.clone();
+        s.spawn(move || {
+            // Cancel as soon as the fill has reported any progress (bounded).
+            let t0 = Instant::now();
+            while watcher.progress() == 0.0 && t0.elapsed() < Duration::from_secs(300) {
+                std::thread::sleep(Duration::from_micros(200));
+            }
+            watcher.cancel();
+        });
+        voxd::engine::winding::solid_with(&mesh, &g, &ctl)
+    });
+    assert_eq!(
+        result.map(|_| ()),
+        Err(EngineError::Canceled(Canceled::Canceled))
+    );
+    let at = ctl.progress();
+    assert!(at > 0.0 && at < 1.0, "stopped at {at}");
+    let before = Control::new();
+    before.cancel();
+    let d = mesh.diagnostics();
+    for fill in [Fill::Winding, Fill::Vote, Fill::Flood, Fill::Parity] {
+        let r = voxd::engine::fill::voxelize_with(
+            &CpuEngine,
+            &mesh,
+            &g,
+            Method::Solid,
+            fill,
+            &d,
+            &before,
+        );
+        assert_eq!(
+            r.map(|_| ()),
+            Err(EngineError::Canceled(Canceled::Canceled)),
+            "{fill}"
+        );
+        assert_eq!(before.progress(), 0.0);
+    }
+    let expired = Control::new().with_deadline(Instant::now());
+    let r = voxd::engine::density::density_with(
+        &CpuEngine,
+        &mesh,
+        &unit_grid([8, 8, 8]),
+        2,
+        Default::default(),
+        Fill::Winding,
+        &d,
+        &expired,
+    );
+    assert!(
+        matches!(
+            r,
+            Err(voxd::engine::density::DensityError::Engine(
+                EngineError::Canceled(Canceled::DeadlinePassed)
+            ))
+        ),
+        "{r:?}"
+    );
+}
+
+/// Progress under every fill and method rises monotonically (sampled from another thread
+/// while the work runs) and ends at exactly 1, and the bits are those of a run without a
+/// control.
+#[test]
+fn fill_progress_rises_monotonically_to_one() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::time::Duration;
+    use voxd::cancel::Control;
+    let mesh = open_bowl();
+    let (lo, hi) = mesh.bounds();
+    let g = voxd::grid::Grid::fit(
+        lo,
+        hi,
+        voxd::grid::GridSpec::Resolution {
+            n: 72,
+            cubic: false,
+        },
+        1,
+        Default::default(),
+    )
+    .unwrap();
+    let d = mesh.diagnostics();
+    for fill in [Fill::Winding, Fill::Vote, Fill::Flood, Fill::Parity] {
+        for method in [Method::Solid, Method::Conservative, Method::Interior] {
+            let ctl = Control::new();
+            let done = AtomicBool::new(false);
+            let (got, samples) = std::thread::scope(|s| {
+                let sampler = s.spawn(|| {
+                    let mut seen = vec![];
+                    while !done.load(Ordering::Acquire) {
+                        seen.push(ctl.progress());
+                        std::thread::sleep(Duration::from_micros(100));
+                    }
+                    seen
+                });
+                let got = voxd::engine::fill::voxelize_with(
+                    &CpuEngine, &mesh, &g, method, fill, &d, &ctl,
+                )
+                .unwrap();
+                done.store(true, Ordering::Release);
+                (got, sampler.join().unwrap())
+            });
+            let what = format!("{fill} {method}");
+            assert!(
+                samples.windows(2).all(|w| w[0] <= w[1]),
+                "{what}: {samples:?}"
+            );
+            assert_eq!(ctl.progress(), 1.0, "{what}");
+            let want =
+                voxd::engine::fill::voxelize(&CpuEngine, &mesh, &g, method, fill, &d).unwrap();
+            assert_eq!(got, want, "{what}");
+        }
+        let ctl = Control::new();
+        voxd::engine::density::density_with(
+            &CpuEngine,
+            &mesh,
+            &unit_grid([10, 10, 10]),
+            2,
+            Default::default(),
+            fill,
+            &d,
+            &ctl,
+        )
+        .unwrap();
+        assert_eq!(ctl.progress(), 1.0, "density {fill}");
+    }
+}

@@ -234,3 +234,45 @@ fn density_equals_the_cpu() {
         assert!(got == want, "density n={n} f={f}: GPU differs from CPU");
     }
 }
+
+/// The GPU engine under a control: a canceled one stops it before the first slab; a live one
+/// hears every slab, ends at 1 and gives the CPU's bits.
+#[test]
+fn slabs_check_the_control_and_report_progress() {
+    use voxd::cancel::{Canceled, Control};
+    use voxd::engine::EngineError;
+    let Some(_) = gpu() else { return };
+    let small = GpuEngine::new(GpuOptions {
+        adapter: std::env::var("VOXD_ADAPTER").ok(),
+        max_slab_bytes: Some(3 * 40 * 8),
+        ..Default::default()
+    })
+    .unwrap();
+    let m = mesh::load_file(&data("spot.obj"), usize::MAX).unwrap();
+    let (lo, hi) = m.bounds();
+    let g = Grid::fit(
+        lo,
+        hi,
+        GridSpec::Resolution {
+            n: 40,
+            cubic: false,
+        },
+        1,
+        Default::default(),
+    )
+    .unwrap();
+    let gm = GridMesh::new(&m, &g).unwrap();
+    let canceled = Control::new();
+    canceled.cancel();
+    assert_eq!(
+        small.voxelize_with(&gm, Method::Solid, &canceled),
+        Err(EngineError::Canceled(Canceled::Canceled))
+    );
+    for method in Method::ALL {
+        let ctl = Control::new();
+        let (v, t) = small.voxelize_timed_with(&gm, method, &ctl).unwrap();
+        assert!(t.slabs > 5, "only {} slabs", t.slabs);
+        assert_eq!(ctl.progress(), 1.0, "{method}");
+        assert_eq!(v, CpuEngine.voxelize(&gm, method).unwrap(), "{method}");
+    }
+}

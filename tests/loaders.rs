@@ -557,3 +557,130 @@ fn malformed_inputs_get_clear_errors() {
         }
     );
 }
+
+/// Counts a file declares, or reaches by instancing, are checked against the limits before the
+/// data is read or the triangles made (tests of the gzip'd cases, with the bytes decoded, are in
+/// src/mesh/streaming_tests.rs).
+#[test]
+fn declared_counts_are_checked_before_the_work() {
+    let tri = r#"[{"attributes":{"POSITION":0},"indices":1}]"#;
+    let small = LoadOptions {
+        max_triangles: 1000,
+        ..opts()
+    };
+    // One 2-triangle mesh instanced by 600 nodes: 1200 triangles, refused before any is made.
+    let nodes: Vec<String> = (0..600).map(|_| r#"{"mesh":0}"#.to_string()).collect();
+    let many = gltf_json(&data_uri(), tri, &format!("[{}]", nodes.join(","))).replace(
+        r#""scenes":[{"nodes":[0]}]"#,
+        &format!(
+            r#""scenes":[{{"nodes":[{}]}}]"#,
+            (0..600)
+                .map(|i| i.to_string())
+                .collect::<Vec<_>>()
+                .join(",")
+        ),
+    );
+    let e = mesh::load_bytes(many.as_bytes(), None, &small).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            MeshError::CountOverLimit {
+                format: "glTF",
+                limit: 1000,
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    assert_eq!(
+        mesh::load_bytes(many.as_bytes(), None, &opts())
+            .unwrap()
+            .triangles()
+            .len(),
+        1200
+    );
+    // Nodes sharing children (not a tree): 2 per level, each the parent of both below it, so
+    // 40 levels would be 2^40 visits. Refused after a bounded walk.
+    let mut dag = vec![];
+    for level in 0..40 {
+        let kids = if level < 39 {
+            format!(r#","children":[{},{}]"#, 2 * level + 2, 2 * level + 3)
+        } else {
+            r#","mesh":0"#.to_string()
+        };
+        for _ in 0..2 {
+            dag.push(format!("{{{}}}", &kids[1..]));
+        }
+    }
+    let dag = gltf_json(&data_uri(), tri, &format!("[{}]", dag.join(",")));
+    let e = mesh::load_bytes(dag.as_bytes(), None, &opts()).unwrap_err();
+    assert!(e.to_string().contains("not a tree"), "{e}");
+    // PLY: a face count over the triangle limit, and a vertex count over the vertex limit.
+    let p = [[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+    let faces: Vec<Vec<u32>> = (0..1001).map(|_| vec![0, 1, 2]).collect();
+    let e = mesh::load_bytes(&ply(&p, &faces, None, "ascii"), None, &small).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            MeshError::CountOverLimit {
+                format: "PLY",
+                count: 1001,
+                limit: 1000,
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    let e = mesh::load_bytes(
+        b"ply\nformat ascii 1.0\nelement vertex 70000\nproperty float x\nproperty float y\nproperty float z\nend_header\n",
+        None,
+        &small,
+    )
+    .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "PLY: 70000 vertices declared by `element vertex`, over the limit of 68536"
+    );
+    // An element without properties takes no bytes, whatever its count: nothing to loop over.
+    let mut b = ply(&p, &[vec![0, 1, 2]], None, "binary_little_endian");
+    let at = b.windows(10).position(|w| w == b"end_header").unwrap();
+    b.splice(
+        at..at,
+        b"element nothing 18446744073709551615\n".iter().copied(),
+    );
+    assert_eq!(
+        mesh::load_bytes(&b, None, &opts())
+            .unwrap()
+            .triangles()
+            .len(),
+        1
+    );
+    // A face of more vertices than triangles allowed is refused before its indices are read.
+    let e = mesh::load_bytes(
+        &ply(&p, &[vec![0; 250]], None, "binary_little_endian"),
+        None,
+        &LoadOptions {
+            max_triangles: 100,
+            ..opts()
+        },
+    )
+    .unwrap_err();
+    assert!(
+        matches!(e, MeshError::CountOverLimit { count: 248, .. }),
+        "{e:?}"
+    );
+    // Binary STL: the header's count against the limit, gzip'd and longer than the 64 KiB read
+    // first (not inflated further: see the unit tests). Shorter, it is all at hand: truncated.
+    let mut stl = b"binary".to_vec();
+    stl.resize(80, b' ');
+    stl.extend_from_slice(&25_000_000u32.to_le_bytes());
+    stl.resize(84 + 50 * 1000, 0);
+    let e = mesh::load_bytes(&gz(&stl), Some(Format::Stl), &small).unwrap_err();
+    assert!(e.to_string().contains("truncated"), "{e}");
+    stl.resize(84 + 50 * 2000, 0);
+    let e = mesh::load_bytes(&gz(&stl), Some(Format::Stl), &small).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "STL: 25000000 triangles declared in the binary header, over the limit of 1000"
+    );
+}

@@ -383,7 +383,7 @@ fn polling_wait_cancel_and_caching() {
     let big = srv
         .req(
             "POST",
-            "/v1/voxelize?resolution=700&method=conservative",
+            "/v1/voxelize?resolution=1000&method=conservative",
             &[("Content-Type", "model/obj")],
             &spot,
         )
@@ -1501,4 +1501,31 @@ fn preview_pictures() {
         400,
         "invalid-parameter",
     );
+}
+
+/// `--job-timeout`: a job that runs past it is stopped and fails with a problem naming the
+/// timeout; nothing is stored.
+#[test]
+fn a_job_past_its_deadline_fails_with_the_timeout_problem() {
+    let srv = Server::start(&tmpdir("job-timeout"), &["--job-timeout", "0.000001"]);
+    let spot = std::fs::read(data("spot.obj")).unwrap();
+    let r = srv.req(
+        "POST",
+        "/v1/voxelize?resolution=64&fill=winding&wait=60",
+        &[("Content-Type", "model/obj")],
+        &spot,
+    );
+    let p = assert_problem(&r, 500, "engine-failure");
+    let detail = p["detail"].as_str().unwrap();
+    assert!(
+        detail.contains("the job ran longer than --job-timeout (0.000001 s)"),
+        "{p}"
+    );
+    let job = p["instance"].as_str().unwrap().to_string();
+    let j = srv.req("GET", &job, &[], &[]).json();
+    assert_eq!(j["state"], "failed", "{j}");
+    assert_eq!(j["problem"]["detail"].as_str(), Some(detail), "{j}");
+    assert!(j["progress"].as_f64().unwrap() < 1.0, "{j}");
+    let list = srv.req("GET", "/v1/volumes", &[], &[]).json();
+    assert_eq!(list["volumes"].as_array().unwrap().len(), 0, "{list}");
 }

@@ -173,3 +173,26 @@ fn a_solid_box_has_the_analytic_inertia() {
     assert_eq!((st.components_6, st.components_26), (1, 1));
     assert_eq!(st.bounds_world, Some(([1.5, 2.5, 3.5], [3.5, 5.5, 8.5])));
 }
+
+/// Statistics under a control: canceled, they stop with `Canceled`; otherwise the same numbers
+/// as without one, with the progress at 1.
+#[test]
+fn statistics_stop_when_canceled_and_report_progress() {
+    use voxd::cancel::{Canceled, Control};
+    use voxd::volume::stats::stats_with;
+    let mut rng = Rng::new(31);
+    let v = random_fill(
+        &mut rng,
+        Grid {
+            origin: [0.0; 3],
+            voxel_size: 1.0,
+            dims: [9, 13, 70],
+        },
+    );
+    let canceled = Control::new();
+    canceled.cancel();
+    assert_eq!(stats_with(&v, &canceled), Err(Canceled::Canceled));
+    let ctl = Control::new();
+    assert_eq!(stats_with(&v, &ctl).unwrap(), stats(&v));
+    assert_eq!(ctl.progress(), 1.0);
+}

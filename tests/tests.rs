@@ -7,6 +7,7 @@ mod common;
 
 mod cli;
 mod codecs;
+mod crash;
 mod csg;
 mod density;
 mod fill;
@@ -14,6 +15,7 @@ mod gpu;
 mod loaders;
 mod morph;
 mod oracles;
+mod props;
 mod query;
 mod real_meshes;
 mod service;

@@ -33,6 +33,14 @@ pub enum ErrorKind {
     MisalignedGrids,
     WrongVolumeKind,
     EmptyIntersection,
+    /// The request's body or work took longer than allowed.
+    Timeout,
+    /// Too much is in flight (uploads' bytes); retry later.
+    Busy,
+    /// The route does not answer that method.
+    MethodNotAllowed,
+    /// A conditional request's precondition (`If-Match`) does not hold.
+    PreconditionFailed,
     Internal,
 }
 
@@ -55,6 +63,10 @@ impl crate::names::Named for ErrorKind {
         ErrorKind::MisalignedGrids,
         ErrorKind::WrongVolumeKind,
         ErrorKind::EmptyIntersection,
+        ErrorKind::Timeout,
+        ErrorKind::Busy,
+        ErrorKind::MethodNotAllowed,
+        ErrorKind::PreconditionFailed,
         ErrorKind::Internal,
     ];
     fn name(self) -> &'static str {
@@ -83,6 +95,10 @@ impl ErrorKind {
             ErrorKind::MisalignedGrids => "misaligned-grids",
             ErrorKind::WrongVolumeKind => "wrong-volume-kind",
             ErrorKind::EmptyIntersection => "empty-intersection",
+            ErrorKind::Timeout => "timeout",
+            ErrorKind::Busy => "busy",
+            ErrorKind::MethodNotAllowed => "method-not-allowed",
+            ErrorKind::PreconditionFailed => "precondition-failed",
             ErrorKind::Internal => "internal",
         }
     }

@@ -2,20 +2,22 @@
 //! front queued it and whichever process runs it.
 
 use std::sync::Arc;
-use std::sync::atomic::Ordering;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use bytes::Bytes;
 
 use super::error::{Error, ErrorKind, Result};
 use super::metadata::{self, Origin};
 use super::ops::blocking;
+use crate::cancel::Canceled;
 use crate::engine::Engine;
 use crate::queue::{Claim, JobQueue};
 use crate::store::{VolumeMeta, VolumeStore};
 
-/// Runs a claimed job on `engine` and stores its volume (unless the job was canceled
-/// meanwhile: then nothing is stored and the error says so).
+/// Runs a claimed job on `engine` under its control and stores its volume. A job canceled
+/// meanwhile stops at the engine's next check point and stores nothing (the error says so); a
+/// job whose deadline (`--job-timeout`) passes stops there too and fails with a problem naming
+/// the timeout.
 pub async fn run(
     engine: Arc<dyn Engine>,
     store: &dyn VolumeStore,
@@ -23,8 +25,9 @@ pub async fn run(
 ) -> Result<VolumeMeta> {
     let work = claim.work.clone();
     let (id, name) = (claim.id.clone(), claim.name.clone());
+    let ctl = claim.control.clone();
     let built = blocking(move || {
-        let v = super::voxelize::run(&work, &*engine)?;
+        let v = super::voxelize::run(&work, &*engine, &ctl)?;
         metadata::build(
             &v.volume,
             &Origin::Mesh {
@@ -36,14 +39,33 @@ pub async fn run(
             &engine.describe(),
         )
     })
-    .await?;
-    if claim.canceled.load(Ordering::SeqCst) {
-        return Err(Error::new(ErrorKind::NotCancelable, "canceled"));
+    .await;
+    // Canceled: the result is discarded whatever it is. Past the deadline: a job that failed
+    // (at a check point) failed for that; one that finished in time keeps its result.
+    match claim.control.check() {
+        Err(Canceled::Canceled) => return Err(Error::new(ErrorKind::NotCancelable, "canceled")),
+        Err(Canceled::DeadlinePassed) if built.is_err() => return Err(timed_out(claim.timeout)),
+        _ => {}
     }
+    let built = built?;
     store
         .put(built.meta.clone(), Bytes::from(built.vxl))
         .await?;
     Ok(built.meta)
+}
+
+/// The problem of a job stopped by its deadline.
+pub fn timed_out(timeout: Option<Duration>) -> Error {
+    let limit = timeout.map_or_else(
+        || "its deadline".to_string(),
+        |t| format!("--job-timeout ({} s)", t.as_secs_f64()),
+    );
+    Error::new(
+        ErrorKind::EngineFailure,
+        format!(
+            "the job ran longer than {limit} and was stopped; use a coarser grid or a cheaper fill, or raise the server's --job-timeout"
+        ),
+    )
 }
 
 /// What a worker reports after each job, for metrics.
@@ -77,5 +99,182 @@ pub async fn work(
         }
         observer.job_done(secs, &result);
         queue.finish(&claim.id, result.map(|m| m.id)).await;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::time::Duration;
+
+    use super::*;
+    use crate::app::{GridOptions, MeshSource, MethodSpec, VoxelizeRequest};
+    use crate::cancel::Control;
+    use crate::engine::cpu::CpuEngine;
+    use crate::engine::{EngineError, GridMesh, Method};
+    use crate::queue::local::LocalQueue;
+    use crate::queue::{NewJob, State};
+    use crate::store::fs::FsStore;
+    use crate::volume::BitVolume;
+
+    /// The CPU engine behind `steps` check points of a millisecond each: a job that takes a
+    /// while, checks its control and reports progress as an engine does.
+    struct Slow {
+        steps: u32,
+    }
+
+    impl Engine for Slow {
+        fn name(&self) -> &'static str {
+            "slow"
+        }
+        fn voxelize_with(
+            &self,
+            mesh: &GridMesh,
+            method: Method,
+            ctl: &Control,
+        ) -> std::result::Result<BitVolume, EngineError> {
+            for i in 0..self.steps {
+                ctl.check()?;
+                ctl.set(f64::from(i) / f64::from(self.steps));
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            CpuEngine.voxelize_with(mesh, method, &ctl.stage(0.99, 1.0))
+        }
+    }
+
+    fn job(id: &str) -> NewJob {
+        let tetra = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+        let req = VoxelizeRequest {
+            source: MeshSource::Bytes {
+                bytes: Bytes::from_static(tetra),
+                format: None,
+            },
+            grid: GridOptions::default().spec(16).unwrap(),
+            padding: 0,
+            method: MethodSpec::Bits(Method::Solid),
+            fill: crate::engine::fill::Fill::Parity,
+            limits: crate::limits::Limits::SERVICE,
+        };
+        NewJob {
+            id: id.into(),
+            work: crate::app::prepare(&req).unwrap(),
+            name: None,
+            created: String::new(),
+        }
+    }
+
+    struct Dir(std::path::PathBuf);
+    impl Drop for Dir {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+
+    async fn open(
+        name: &str,
+        timeout: Option<Duration>,
+    ) -> (Dir, Arc<dyn VolumeStore>, LocalQueue) {
+        let dir = std::env::temp_dir().join(format!("voxd-jobs-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let store: Arc<dyn VolumeStore> = Arc::new(FsStore::open(&dir, 1 << 24).unwrap());
+        let q = LocalQueue::open(4, store.clone())
+            .await
+            .unwrap()
+            .with_job_timeout(timeout);
+        (Dir(dir), store, q)
+    }
+
+    async fn stored(store: &dyn VolumeStore) -> usize {
+        store.list(None, 100).await.unwrap().0.len()
+    }
+
+    /// Canceling a running job stops its engine at the next check point: the worker's run
+    /// returns the canceled error with the job's progress below 1, and nothing is stored.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_canceled_running_job_stops_at_a_check_point_and_stores_nothing() {
+        let (_dir, store, q) = open("cancel", None).await;
+        q.submit(job("j1")).await.unwrap();
+        let claim = q.next().await.unwrap();
+        let engine: Arc<dyn Engine> = Arc::new(Slow { steps: 100_000 });
+        let ctl = claim.control.clone();
+        let worker = {
+            let store = store.clone();
+            tokio::spawn(async move { run(engine, &*store, &claim).await })
+        };
+        // Running, and the record shows the engine's live progress.
+        let mut shown = 0.0;
+        for _ in 0..10_000 {
+            shown = q.get("j1").await.unwrap().unwrap().progress;
+            if shown > 0.0 {
+                break;
+            }
+            tokio::time::sleep(Duration::from_millis(1)).await;
+        }
+        assert!(shown > 0.0 && shown < 1.0, "{shown}");
+        let r = q.cancel("j1").await.unwrap().unwrap();
+        assert_eq!(r.state, State::Canceled);
+        let e = worker.await.unwrap().unwrap_err();
+        assert_eq!(
+            (e.kind, e.detail.as_str()),
+            (ErrorKind::NotCancelable, "canceled")
+        );
+        assert!(ctl.progress() < 1.0, "{}", ctl.progress());
+        q.finish("j1", Err(e)).await;
+        let r = q.get("j1").await.unwrap().unwrap();
+        assert_eq!(r.state, State::Canceled);
+        assert!(r.progress > 0.0 && r.progress < 1.0, "{}", r.progress);
+        assert_eq!(stored(&*store).await, 0);
+    }
+
+    /// A running job's record shows its progress as it rises, never falling, and 1 once done.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_running_jobs_progress_rises_to_one() {
+        let (_dir, store, q) = open("progress", None).await;
+        q.submit(job("j2")).await.unwrap();
+        let claim = q.next().await.unwrap();
+        let engine: Arc<dyn Engine> = Arc::new(Slow { steps: 200 });
+        let worker = {
+            let store = store.clone();
+            tokio::spawn(async move { run(engine, &*store, &claim).await })
+        };
+        let mut seen = vec![];
+        while !worker.is_finished() {
+            seen.push(q.get("j2").await.unwrap().unwrap().progress);
+            tokio::time::sleep(Duration::from_millis(2)).await;
+        }
+        let meta = worker.await.unwrap().unwrap();
+        q.finish("j2", Ok(meta.id.clone())).await;
+        assert!(seen.windows(2).all(|w| w[0] <= w[1]), "{seen:?}");
+        assert!(seen.iter().any(|&p| p > 0.0 && p < 1.0), "{seen:?}");
+        let r = q.get("j2").await.unwrap().unwrap();
+        assert_eq!((r.state, r.progress), (State::Succeeded, 1.0));
+        assert_eq!(stored(&*store).await, 1);
+    }
+
+    /// A job whose deadline has passed when it runs fails with the timeout problem, and
+    /// nothing is stored.
+    #[tokio::test]
+    async fn a_job_past_its_deadline_fails_with_the_timeout_problem() {
+        let (_dir, store, q) = open("deadline", Some(Duration::ZERO)).await;
+        q.submit(job("j3")).await.unwrap();
+        let claim = q.next().await.unwrap();
+        assert!(claim.control.deadline().is_some());
+        let e = run(Arc::new(CpuEngine), &*store, &claim).await.unwrap_err();
+        assert_eq!(e.kind, ErrorKind::EngineFailure);
+        assert!(
+            e.detail
+                .starts_with("the job ran longer than --job-timeout (0 s)"),
+            "{}",
+            e.detail
+        );
+        q.finish("j3", Err(e.clone())).await;
+        let r = q.get("j3").await.unwrap().unwrap();
+        assert_eq!((r.state, r.error), (State::Failed, Some(e)));
+        assert_eq!(stored(&*store).await, 0);
+        // Without a timeout the same job runs to its end.
+        let (_dir2, store, q) = open("no-deadline", None).await;
+        q.submit(job("j4")).await.unwrap();
+        let claim = q.next().await.unwrap();
+        assert!(claim.control.deadline().is_none());
+        run(Arc::new(CpuEngine), &*store, &claim).await.unwrap();
     }
 }

@@ -13,6 +13,7 @@ use serde_json::{Value, json};
 use super::error::{Error, ErrorKind, Result};
 use super::metadata::{self, Origin};
 use super::request::{CsgExpr, MorphologyRequest, PreviewRequest, PreviewView, QueryRequest};
+use crate::cancel::Control;
 use crate::codec::{VolumeFormat, vxl};
 use crate::grid::Grid;
 use crate::limits::Limits;
@@ -46,25 +47,71 @@ pub fn require_bits(v: Volume, what: &str) -> Result<BitVolume> {
     }
 }
 
+/// Runs CPU work on the blocking pool under `ctl`; dropping the returned future (a client that
+/// went away, a request that timed out) cancels the work at its next check point.
+pub async fn blocking_with<T: Send + 'static>(
+    ctl: &Control,
+    f: impl FnOnce(&Control) -> Result<T> + Send + 'static,
+) -> Result<T> {
+    let guard = ctl.cancel_on_drop();
+    let c = ctl.clone();
+    let r = blocking(move || f(&c)).await;
+    guard.disarm();
+    r
+}
+
 /// Evaluates a CSG expression over volumes already loaded (`volumes` holds every id it names).
 pub fn eval_csg(expr: &CsgExpr, volumes: &HashMap<String, Arc<BitVolume>>) -> Result<BitVolume> {
-    fn eval(e: &CsgExpr, vols: &HashMap<String, Arc<BitVolume>>) -> Result<Arc<BitVolume>> {
+    eval_csg_with(expr, volumes, &Control::none())
+}
+
+/// [`eval_csg`], checking `ctl` before every operand of every operation and reporting the
+/// operands combined.
+pub fn eval_csg_with(
+    expr: &CsgExpr,
+    volumes: &HashMap<String, Arc<BitVolume>>,
+    ctl: &Control,
+) -> Result<BitVolume> {
+    struct Eval<'a> {
+        vols: &'a HashMap<String, Arc<BitVolume>>,
+        ctl: &'a Control,
+        total: f64,
+        done: usize,
+    }
+    fn operands(e: &CsgExpr) -> usize {
         match e {
-            CsgExpr::Volume(id) => vols
+            CsgExpr::Volume(_) => 0,
+            CsgExpr::Op { operands: o, .. } => o.len() + o.iter().map(operands).sum::<usize>(),
+        }
+    }
+    fn eval(e: &CsgExpr, st: &mut Eval) -> Result<Arc<BitVolume>> {
+        match e {
+            CsgExpr::Volume(id) => st
+                .vols
                 .get(id)
                 .cloned()
                 .ok_or_else(|| Error::not_found("volume", id)),
             CsgExpr::Op { op, operands } => {
                 let vs: Vec<Arc<BitVolume>> = operands
                     .iter()
-                    .map(|o| eval(o, vols))
+                    .map(|o| eval(o, st))
                     .collect::<Result<_>>()?;
                 let refs: Vec<&BitVolume> = vs.iter().map(|v| &**v).collect();
-                Ok(Arc::new(csg::apply(*op, &refs)?))
+                let (lo, hi) = (st.done, st.done + operands.len());
+                st.done = hi;
+                let part = st.ctl.stage(lo as f64 / st.total, hi as f64 / st.total);
+                Ok(Arc::new(csg::apply_with::<Error>(*op, &refs, &part)?))
             }
         }
     }
-    let v = eval(expr, volumes)?;
+    let mut st = Eval {
+        vols: volumes,
+        ctl,
+        total: operands(expr).max(1) as f64,
+        done: 0,
+    };
+    let v = eval(expr, &mut st)?;
+    ctl.complete();
     Ok(Arc::try_unwrap(v).unwrap_or_else(|v| (*v).clone()))
 }
 
@@ -91,8 +138,20 @@ pub fn morphology_grid(v: &Grid, req: &MorphologyRequest, limits: &Limits) -> Re
 
 /// Morphology within the limits.
 pub fn morphology(v: &BitVolume, req: &MorphologyRequest, limits: &Limits) -> Result<BitVolume> {
+    morphology_with(v, req, limits, &Control::none())
+}
+
+/// [`morphology`], checking `ctl` per x-plane of each pass and reporting progress there.
+pub fn morphology_with(
+    v: &BitVolume,
+    req: &MorphologyRequest,
+    limits: &Limits,
+    ctl: &Control,
+) -> Result<BitVolume> {
     morphology_grid(v.grid(), req, limits)?;
-    Ok(morph::apply(v, req.op, req.radius, req.kernel, req.grow))
+    Ok(morph::apply_with(
+        v, req.op, req.radius, req.kernel, req.grow, ctl,
+    )?)
 }
 
 /// How a morphology result was made (its provenance).
@@ -217,6 +276,29 @@ pub fn check_format(kind: &str, format: VolumeFormat) -> Result<()> {
     Ok(())
 }
 
+/// Refuses a conversion whose output would be larger than the voxel budget, before any of it
+/// is made: binvox pads the grid to a cube (a 4096×1×1 grid becomes 4096³ voxels).
+pub fn check_conversion(grid: &Grid, format: VolumeFormat, limits: &Limits) -> Result<()> {
+    let voxels: u128 = match format {
+        VolumeFormat::Binvox => u128::from(*grid.dims.iter().max().expect("three dims")).pow(3),
+        _ => grid.dims.iter().map(|&d| u128::from(d)).product(),
+    };
+    if voxels > u128::from(limits.max_voxels) {
+        return Err(Error::new(
+            ErrorKind::GridTooLarge,
+            format!(
+                "as {} this {}x{}x{} volume would have {voxels} voxels, over the limit of {}; download it as vxl or npy",
+                format.name(),
+                grid.dims[0],
+                grid.dims[1],
+                grid.dims[2],
+                crate::limits::describe_voxels(limits.max_voxels)
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// What a conversion to `format` loses, said as a warning (binvox pads to a cube, npy and raw
 /// drop the grid's origin and voxel size).
 pub fn conversion_warning(grid: &Grid, format: VolumeFormat) -> Option<String> {
@@ -288,10 +370,21 @@ pub async fn store_derived(
 }
 
 /// Evaluates a CSG expression over stored volumes (each read once) and stores the result.
+/// Dropping the future cancels the evaluation at its next check point.
 pub async fn csg_stored(
     store: &dyn VolumeStore,
     expr: CsgExpr,
     name: Option<String>,
+) -> Result<VolumeMeta> {
+    csg_stored_with(store, expr, name, &Control::new()).await
+}
+
+/// [`csg_stored`] under `ctl` (cancel, deadline, progress).
+pub async fn csg_stored_with(
+    store: &dyn VolumeStore,
+    expr: CsgExpr,
+    name: Option<String>,
+    ctl: &Control,
 ) -> Result<VolumeMeta> {
     let mut vols = HashMap::new();
     for id in expr.volume_ids() {
@@ -299,11 +392,13 @@ pub async fn csg_stored(
         vols.insert(id, Arc::new(v));
     }
     let provenance = expr.to_json();
-    let v = blocking(move || eval_csg(&expr, &vols)).await?;
+    let v = blocking_with(ctl, move |ctl| eval_csg_with(&expr, &vols, ctl)).await?;
+    ctl.check()?;
     store_derived(store, v, name, "csg", provenance).await
 }
 
-/// Morphology of a stored volume, stored.
+/// Morphology of a stored volume, stored. Dropping the future cancels the work at its next
+/// check point.
 pub async fn morphology_stored(
     store: &dyn VolumeStore,
     id: &str,
@@ -311,9 +406,22 @@ pub async fn morphology_stored(
     name: Option<String>,
     limits: Limits,
 ) -> Result<VolumeMeta> {
+    morphology_stored_with(store, id, req, name, limits, &Control::new()).await
+}
+
+/// [`morphology_stored`] under `ctl` (cancel, deadline, progress).
+pub async fn morphology_stored_with(
+    store: &dyn VolumeStore,
+    id: &str,
+    req: MorphologyRequest,
+    name: Option<String>,
+    limits: Limits,
+    ctl: &Control,
+) -> Result<VolumeMeta> {
     req.check(&limits)?;
     let v = load_bits(store, id, "morphology").await?;
-    let out = blocking(move || morphology(&v, &req, &limits)).await?;
+    let out = blocking_with(ctl, move |ctl| morphology_with(&v, &req, &limits, ctl)).await?;
+    ctl.check()?;
     store_derived(
         store,
         out,
@@ -345,13 +453,26 @@ pub async fn intersect_stored(store: &dyn VolumeStore, a: &str, b: &str) -> Resu
     .await
 }
 
-/// Statistics of a stored bit volume.
+/// Statistics of a stored bit volume. Dropping the future cancels the work at its next check
+/// point.
 pub async fn stats_stored(
     store: &dyn VolumeStore,
     id: &str,
 ) -> Result<crate::volume::stats::Stats> {
+    stats_stored_with(store, id, &Control::new()).await
+}
+
+/// [`stats_stored`] under `ctl` (cancel, deadline, progress).
+pub async fn stats_stored_with(
+    store: &dyn VolumeStore,
+    id: &str,
+    ctl: &Control,
+) -> Result<crate::volume::stats::Stats> {
     let v = load_bits(store, id, "statistics").await?;
-    blocking(move || Ok(crate::volume::stats::stats(&v))).await
+    blocking_with(ctl, move |ctl| {
+        Ok(crate::volume::stats::stats_with(&v, ctl)?)
+    })
+    .await
 }
 
 /// Runs `f` on a stored volume of either kind on the blocking pool.

@@ -182,9 +182,18 @@ pub enum CsgExpr {
 }
 
 impl CsgExpr {
-    /// Parses and checks an expression against the depth and operand limits.
+    /// Parses and checks an expression against the depth, operand and size limits (the
+    /// expression is kept as the result's provenance, so its size is bounded too).
     pub fn from_json(v: &serde_json::Value, limits: &Limits) -> Result<CsgExpr> {
-        Self::parse(v, 0, limits)
+        let e = Self::parse(v, 0, limits)?;
+        let size = e.to_json().to_string().len();
+        if size > limits.max_provenance_bytes {
+            return Err(Error::invalid(format!(
+                "the expression takes {size} bytes as JSON, over the limit of {}",
+                limits.max_provenance_bytes
+            )));
+        }
+        Ok(e)
     }
 
     fn parse(v: &serde_json::Value, depth: usize, limits: &Limits) -> Result<CsgExpr> {
@@ -306,6 +315,11 @@ pub struct Ray {
 
 impl QueryRequest {
     pub fn check(&self, limits: &Limits) -> Result<()> {
+        if self.points.is_empty() && self.rays.is_empty() {
+            return Err(Error::invalid(
+                "give \"points\": [[x, y, z], ...] or \"rays\": [{\"origin\": ..., \"direction\": ...}, ...]",
+            ));
+        }
         if self.points.len() + self.rays.len() > limits.max_queries {
             return Err(Error::invalid(format!(
                 "at most {} points and rays per request",

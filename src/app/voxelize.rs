@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use super::error::{Error, Result};
 use super::request::{MeshSource, MethodSpec, VoxelizeRequest};
+use crate::cancel::Control;
 use crate::engine::Engine;
 use crate::engine::density::{self, DensityError};
 use crate::engine::fill::{self, Fill, FillReport};
@@ -161,19 +162,21 @@ fn format_name(format: Option<Format>, bytes: &[u8]) -> &'static str {
 }
 
 /// Runs a prepared voxelization on `engine`: the method, with its solid part under the fill.
-/// Blocking.
-pub fn run(p: &Prepared, engine: &dyn Engine) -> Result<Voxelized> {
+/// `ctl` is checked at the engine's and the fill's check points (an error of kind
+/// `engine-failure` once it says stop; see [`crate::cancel`]) and hears the progress. Blocking.
+pub fn run(p: &Prepared, engine: &dyn Engine, ctl: &Control) -> Result<Voxelized> {
     let t = Instant::now();
     let (volume, fill) = match p.method {
         MethodSpec::Bits(m) => {
-            let (v, r) = fill::voxelize(engine, &p.mesh, &p.grid, m, p.fill, &p.diagnostics)?;
+            let (v, r) =
+                fill::voxelize_with(engine, &p.mesh, &p.grid, m, p.fill, &p.diagnostics, ctl)?;
             (Volume::Bits(v), r)
         }
         MethodSpec::Density { factor } => {
             let limits = GridLimits {
                 max_voxels: p.limits.max_voxels,
             };
-            let (d, r) = density::density(
+            let (d, r) = density::density_with(
                 engine,
                 &p.mesh,
                 &p.grid,
@@ -181,10 +184,12 @@ pub fn run(p: &Prepared, engine: &dyn Engine) -> Result<Voxelized> {
                 limits,
                 p.fill,
                 &p.diagnostics,
+                ctl,
             )?;
             (Volume::Density(d), r)
         }
     };
+    ctl.complete();
     if let Some(w) = &fill.warning {
         tracing::warn!(warning = %w, "fill");
     }
@@ -198,6 +203,6 @@ pub fn run(p: &Prepared, engine: &dyn Engine) -> Result<Voxelized> {
 /// [`prepare`] then [`run`].
 pub fn voxelize(req: &VoxelizeRequest, engine: &dyn Engine) -> Result<(Prepared, Voxelized)> {
     let p = prepare(req)?;
-    let v = run(&p, engine)?;
+    let v = run(&p, engine, &Control::none())?;
     Ok((p, v))
 }

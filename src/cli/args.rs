@@ -30,6 +30,11 @@ fn parse_u32x3(s: &str) -> Result<[u32; 3], String> {
     voxd::names::parse_triple(s)
 }
 
+/// Seconds from a flag (negative or NaN counts as 0).
+fn secs(s: f64) -> std::time::Duration {
+    std::time::Duration::from_secs_f64(if s.is_finite() { s.max(0.0) } else { 0.0 })
+}
+
 fn parse_format(s: &str) -> Result<Format, String> {
     Format::from_name(s)
         .ok_or_else(|| format!("unknown mesh format {s:?}; expected obj, gltf, glb, stl or ply"))
@@ -199,6 +204,23 @@ pub struct ServeArgs {
     /// Total bytes of stored volumes.
     #[arg(long, env = "VOXD_MAX_STORE_BYTES", default_value_t = 10 << 30)]
     pub max_store_bytes: u64,
+    /// Seconds a connection may take to send a request's head, or sit idle between requests.
+    #[arg(long, env = "VOXD_HEADER_TIMEOUT", default_value_t = 20.0)]
+    pub header_timeout: f64,
+    /// Open connections at most (more wait until one closes).
+    #[arg(long, env = "VOXD_MAX_CONNECTIONS", default_value_t = 512)]
+    pub max_connections: usize,
+    /// Seconds shutdown waits for requests and running jobs.
+    #[arg(long, env = "VOXD_SHUTDOWN_TIMEOUT", default_value_t = 30.0)]
+    pub shutdown_timeout: f64,
+    /// Seconds one job may run; past it the job is stopped and fails (0: no limit).
+    #[arg(
+        long,
+        env = "VOXD_JOB_TIMEOUT",
+        default_value_t = 600.0,
+        value_name = "SECONDS"
+    )]
+    pub job_timeout: f64,
 }
 
 impl ServeArgs {
@@ -217,6 +239,16 @@ impl ServeArgs {
             }
             .with_body_bytes(self.max_body_bytes),
             max_store_bytes: self.max_store_bytes,
+            connections: voxd::service::server::ConnectionLimits {
+                header_read_timeout: secs(self.header_timeout),
+                max_connections: self.max_connections.max(1),
+                ..Default::default()
+            },
+            shutdown_timeout: secs(self.shutdown_timeout),
+            // 0 (or anything not a positive duration, such as inf) is no limit.
+            job_timeout: std::time::Duration::try_from_secs_f64(self.job_timeout)
+                .ok()
+                .filter(|d| !d.is_zero()),
         }
     }
 }

@@ -30,7 +30,8 @@ pub fn voxelize(a: &VoxelizeArgs) -> Result<(), String> {
     eprintln!("{}", describe_mesh(&name, &loaded.diagnostics));
     let prepared = loaded.fit(&req).map_err(named)?;
     let engine = open_engine(a.engine, a.adapter.clone()).map_err(|e| format!("{name}: {e}"))?;
-    let v = app::voxelize::run(&prepared, &*engine).map_err(named)?;
+    let v = super::progress::with_bar(&name, |ctl| app::voxelize::run(&prepared, &*engine, ctl))
+        .map_err(named)?;
     let t_write = Instant::now();
     let header = metadata::vxl_header(&Origin::Mesh {
         prepared: &prepared,
@@ -213,7 +214,10 @@ pub fn morph(
     req.check(&limits).map_err(|e| e.to_string())?;
     let f = volume_format_of(output)?;
     let v = read_bits(input, "morphology")?;
-    let r = ops::morphology(&v, &req, &limits).map_err(|e| format!("{}: {e}", input.display()))?;
+    let r = super::progress::with_bar(&input.display().to_string(), |ctl| {
+        ops::morphology_with(&v, &req, &limits, ctl)
+    })
+    .map_err(|e| format!("{}: {e}", input.display()))?;
     let (d, n) = (r.dims(), r.count_ones());
     let provenance = ops::morphology_provenance(&input.display().to_string(), &req);
     let header = metadata::vxl_header(&Origin::Derived {

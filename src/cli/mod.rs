@@ -1,7 +1,9 @@
 //! The `voxd` command line: arguments (`args.rs`) translated into application requests, the
-//! commands (`commands.rs`), what they print and write (`output.rs`), and `voxd bench`.
+//! commands (`commands.rs`), what they print and write (`output.rs`), the progress bar on long
+//! work (`progress.rs`), and `voxd bench`.
 
 pub mod args;
 pub mod bench;
 pub mod commands;
 pub mod output;
+pub mod progress;

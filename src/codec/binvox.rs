@@ -49,6 +49,11 @@ pub fn encode(v: &Volume) -> Result<Vec<u8>, CodecError> {
 }
 
 pub fn decode(bytes: &[u8]) -> Result<BitVolume, CodecError> {
+    decode_limited(bytes, u64::MAX)
+}
+
+/// [`decode`], refusing grids of more than `max_voxels` voxels before allocating them.
+pub fn decode_limited(bytes: &[u8], max_voxels: u64) -> Result<BitVolume, CodecError> {
     let mut pos = 0;
     let mut line = || -> Result<String, CodecError> {
         let end = bytes[pos..]
@@ -105,20 +110,36 @@ pub fn decode(bytes: &[u8]) -> Result<BitVolume, CodecError> {
         voxel_size: vs,
         dims: [d, w, h],
     };
-    let mut v = BitVolume::new(grid);
     let total = d as u64 * h as u64 * w as u64;
-    let mut i = 0u64;
     let data = &bytes[pos..];
-    for pair in data.chunks(2) {
-        let [val, count] = pair else {
-            return Err(malformed("binvox", "odd number of data bytes"));
-        };
-        if i + *count as u64 > total {
-            return Err(malformed(
-                "binvox",
-                "run-length data runs past the end of the grid",
-            ));
-        }
+    // The runs must cover the grid exactly; checked before the volume is allocated, so a header
+    // naming a huge grid over a few bytes of data costs nothing.
+    if data.len() % 2 != 0 {
+        return Err(malformed("binvox", "odd number of data bytes"));
+    }
+    let covered: u64 = data.chunks_exact(2).map(|p| p[1] as u64).sum();
+    if covered > total {
+        return Err(malformed(
+            "binvox",
+            "run-length data runs past the end of the grid",
+        ));
+    }
+    if covered < total {
+        return Err(malformed(
+            "binvox",
+            format!("truncated: data covers {covered} of {total} voxels"),
+        ));
+    }
+    if total > max_voxels {
+        return Err(malformed(
+            "binvox",
+            format!("the grid has {total} voxels, over the limit of {max_voxels}"),
+        ));
+    }
+    let mut v = BitVolume::new(grid);
+    let mut i = 0u64;
+    for pair in data.chunks_exact(2) {
+        let [val, count] = pair else { unreachable!() };
         if *val != 0 {
             for j in i..i + *count as u64 {
                 let (x, rest) = (
@@ -130,12 +151,6 @@ pub fn decode(bytes: &[u8]) -> Result<BitVolume, CodecError> {
             }
         }
         i += *count as u64;
-    }
-    if i != total {
-        return Err(malformed(
-            "binvox",
-            format!("truncated: data covers {i} of {total} voxels"),
-        ));
     }
     Ok(v)
 }

@@ -92,9 +92,16 @@ impl VolumeFormat {
     }
 
     pub fn decode(self, bytes: &[u8]) -> Result<Volume, CodecError> {
+        self.decode_limited(bytes, u64::MAX)
+    }
+
+    /// [`VolumeFormat::decode`], refusing a grid of more than `max_voxels` voxels before it is
+    /// allocated (a compressed `.vxl` or run-length `.binvox` of a few bytes can name a huge
+    /// grid; a `.npy` holds one byte per voxel, so it is bounded by its own size).
+    pub fn decode_limited(self, bytes: &[u8], max_voxels: u64) -> Result<Volume, CodecError> {
         match self {
-            VolumeFormat::Vxl => vxl::decode(bytes).map(|(v, _)| v),
-            VolumeFormat::Binvox => binvox::decode(bytes).map(Volume::Bits),
+            VolumeFormat::Vxl => vxl::decode_limited(bytes, max_voxels).map(|(v, _)| v),
+            VolumeFormat::Binvox => binvox::decode_limited(bytes, max_voxels).map(Volume::Bits),
             VolumeFormat::Npy => npy::decode(bytes),
             VolumeFormat::Raw => Err(CodecError::Unsupported {
                 format: "raw",

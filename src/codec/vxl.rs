@@ -91,6 +91,15 @@ fn words_as_bytes(w: &[u64]) -> &[u8] {
 pub fn decode(
     bytes: &[u8],
 ) -> Result<(Volume, serde_json::Map<String, serde_json::Value>), CodecError> {
+    decode_limited(bytes, u64::MAX)
+}
+
+/// [`decode`], refusing grids of more than `max_voxels` voxels before their payload is
+/// allocated or decompressed.
+pub fn decode_limited(
+    bytes: &[u8],
+    max_voxels: u64,
+) -> Result<(Volume, serde_json::Map<String, serde_json::Value>), CodecError> {
     if bytes.len() < 16 || &bytes[..8] != MAGIC {
         return Err(malformed("vxl", "not a .vxl file (bad magic)"));
     }
@@ -127,16 +136,68 @@ pub fn decode(
     if expected > isize::MAX as u128 / 2 {
         return Err(malformed("vxl", "volume too large"));
     }
-    let mut payload = Vec::with_capacity(expected as usize);
-    zstd::Decoder::new(&bytes[16 + hlen..])
-        .map_err(|e| malformed("vxl", e.to_string()))?
-        .take(expected as u64 + 1)
-        .read_to_end(&mut payload)
-        .map_err(|e| malformed("vxl", format!("corrupt payload: {e}")))?;
-    if payload.len() as u128 != expected {
+    if voxels > max_voxels as u128 {
         return Err(malformed(
             "vxl",
-            format!("payload has {} bytes, expected {expected}", payload.len()),
+            format!("the grid has {voxels} voxels, over the limit of {max_voxels}"),
+        ));
+    }
+    let expected = expected as usize;
+    let frame = &bytes[16 + hlen..];
+    // Our frames say how much they hold: one that says otherwise is refused before the payload
+    // is allocated, and the payload is allocated whole only when the frame vouches for it.
+    let declared = match zstd::zstd_safe::get_frame_content_size(frame) {
+        Ok(d) => d,
+        Err(_) => return Err(malformed("vxl", "corrupt payload: not a zstd frame")),
+    };
+    if declared.is_some_and(|d| d != expected as u64) {
+        return Err(malformed(
+            "vxl",
+            format!(
+                "payload has {} bytes, expected {expected}",
+                declared.unwrap()
+            ),
+        ));
+    }
+    let mut dec = zstd::Decoder::new(frame).map_err(|e| malformed("vxl", e.to_string()))?;
+    let corrupt = |e: std::io::Error| malformed("vxl", format!("corrupt payload: {e}"));
+    let payload = if declared.is_some() {
+        // The kind decides below how these bytes are read; bits are copied to words once.
+        let mut p = vec![0u8; expected];
+        dec.read_exact(&mut p).map_err(|e| {
+            if e.kind() == std::io::ErrorKind::UnexpectedEof {
+                malformed("vxl", format!("payload is shorter than {expected} bytes"))
+            } else {
+                corrupt(e)
+            }
+        })?;
+        p
+    } else {
+        let mut p = Vec::new();
+        (&mut dec)
+            .take(expected as u64)
+            .read_to_end(&mut p)
+            .map_err(corrupt)?;
+        p
+    };
+    // Reading on to the end verifies the frame's checksum, and that nothing follows.
+    let mut extra = [0u8; 1];
+    let more = loop {
+        match dec.read(&mut extra) {
+            Ok(n) => break n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(corrupt(e)),
+        }
+    };
+    if payload.len() != expected || more != 0 {
+        let got = if more != 0 {
+            "more".to_string()
+        } else {
+            payload.len().to_string()
+        };
+        return Err(malformed(
+            "vxl",
+            format!("payload has {got} bytes, expected {expected}"),
         ));
     }
     let v = match h.kind.as_str() {

@@ -6,6 +6,7 @@ use rayon::prelude::*;
 
 use super::fill::{self, Fill, FillReport};
 use super::{Engine, EngineError};
+use crate::cancel::{Canceled, Control};
 use crate::grid::{Grid, GridError, GridLimits};
 use crate::mesh::{Mesh, MeshDiagnostics};
 use crate::volume::DensityVolume;
@@ -53,11 +54,36 @@ pub fn density(
     fill: Fill,
     diagnostics: &MeshDiagnostics,
 ) -> Result<(DensityVolume, FillReport), DensityError> {
+    density_with(
+        engine,
+        mesh,
+        grid,
+        factor,
+        limits,
+        fill,
+        diagnostics,
+        &Control::none(),
+    )
+}
+
+/// [`density`], checking `ctl` in the fine solid (as its fill does) and per x-plane while
+/// counting, and reporting progress there.
+#[allow(clippy::too_many_arguments)]
+pub fn density_with(
+    engine: &dyn Engine,
+    mesh: &Mesh,
+    grid: &Grid,
+    factor: u32,
+    limits: GridLimits,
+    fill: Fill,
+    diagnostics: &MeshDiagnostics,
+    ctl: &Control,
+) -> Result<(DensityVolume, FillReport), DensityError> {
     assert!(factor == 2 || factor == 4, "density factor must be 2 or 4");
     let fine =
         fine_grid(grid, factor, limits).map_err(|source| DensityError::Grid { factor, source })?;
     let mut report = FillReport::new(fill, mesh, &fine, diagnostics);
-    let (solid, stats) = fill::solid(engine, mesh, &fine, report.used)?;
+    let (solid, stats) = fill::solid_with(engine, mesh, &fine, report.used, &ctl.stage(0.0, 0.9))?;
     report.winding = stats;
     let [_, ny, nz] = grid.dims;
     let (fy, wpc) = (fine.dims[1] as usize, solid.words_per_column());
@@ -65,9 +91,11 @@ pub fn density(
     let f = factor as usize;
     let mask = (1u64 << f) - 1;
     let mut data = vec![0u8; grid.voxel_count() as usize];
+    let planes = ctl.stage(0.9, 1.0).counter(grid.dims[0] as u64);
     data.par_chunks_mut(ny as usize * nz as usize)
         .enumerate()
-        .for_each(|(x, plane)| {
+        .try_for_each(|(x, plane)| {
+            planes.check()?;
             for y in 0..ny as usize {
                 let out = &mut plane[y * nz as usize..(y + 1) * nz as usize];
                 for dx in 0..f {
@@ -81,7 +109,11 @@ pub fn density(
                     }
                 }
             }
-        });
+            planes.add(1);
+            Ok::<_, Canceled>(())
+        })
+        .map_err(EngineError::from)?;
+    ctl.complete();
     Ok((
         DensityVolume::from_data(*grid, (f * f * f) as u8, data).expect("counts fit the grid"),
         report,

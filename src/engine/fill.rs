@@ -16,6 +16,7 @@ use std::collections::VecDeque;
 
 use super::winding::{self, WindingStats};
 use super::{Engine, EngineError, GridMesh, Method};
+use crate::cancel::{Canceled, Control};
 use crate::grid::Grid;
 use crate::mesh::{Mesh, MeshDiagnostics};
 use crate::volume::BitVolume;
@@ -115,22 +116,50 @@ pub fn voxelize(
     fill: Fill,
     diagnostics: &MeshDiagnostics,
 ) -> Result<(BitVolume, FillReport), EngineError> {
+    voxelize_with(
+        engine,
+        mesh,
+        grid,
+        method,
+        fill,
+        diagnostics,
+        &Control::none(),
+    )
+}
+
+/// [`voxelize`], checking `ctl` wherever the engine and the fill do and reporting progress.
+pub fn voxelize_with(
+    engine: &dyn Engine,
+    mesh: &Mesh,
+    grid: &Grid,
+    method: Method,
+    fill: Fill,
+    diagnostics: &MeshDiagnostics,
+    ctl: &Control,
+) -> Result<(BitVolume, FillReport), EngineError> {
+    ctl.check()?;
     let mut report = FillReport::new(fill, mesh, grid, diagnostics);
     if report.used == Fill::Parity || method == Method::Surface {
         return Ok((
-            engine.voxelize(&GridMesh::new(mesh, grid)?, method)?,
+            engine.voxelize_with(&GridMesh::new(mesh, grid)?, method, ctl)?,
             report,
         ));
     }
-    let (mut s, stats) = solid(engine, mesh, grid, report.used)?;
+    // The surface of conservative and interior is the cheap part.
+    let with_surface = matches!(method, Method::Conservative | Method::Interior);
+    let split = if with_surface { 0.9 } else { 1.0 };
+    let (mut s, stats) = solid_with(engine, mesh, grid, report.used, &ctl.stage(0.0, split))?;
     report.winding = stats;
-    match method {
-        Method::Solid | Method::Surface => {}
-        Method::Conservative => {
-            s.union_with(&engine.voxelize(&GridMesh::new(mesh, grid)?, Method::Surface)?)
-        }
-        Method::Interior => {
-            s.subtract(&engine.voxelize(&GridMesh::new(mesh, grid)?, Method::Surface)?)
+    if with_surface {
+        let surface = engine.voxelize_with(
+            &GridMesh::new(mesh, grid)?,
+            Method::Surface,
+            &ctl.stage(split, 1.0),
+        )?;
+        if method == Method::Conservative {
+            s.union_with(&surface);
+        } else {
+            s.subtract(&surface);
         }
     }
     Ok((s, report))
@@ -144,21 +173,40 @@ pub fn solid(
     grid: &Grid,
     fill: Fill,
 ) -> Result<(BitVolume, Option<WindingStats>), EngineError> {
-    Ok(match fill {
+    solid_with(engine, mesh, grid, fill, &Control::none())
+}
+
+/// [`solid`], checking `ctl` (engine bands or slabs, vote's three passes, the flood, winding's
+/// blocks and rows) and reporting progress there.
+pub fn solid_with(
+    engine: &dyn Engine,
+    mesh: &Mesh,
+    grid: &Grid,
+    fill: Fill,
+    ctl: &Control,
+) -> Result<(BitVolume, Option<WindingStats>), EngineError> {
+    ctl.check()?;
+    let out = match fill {
         Fill::Parity => (
-            engine.voxelize(&GridMesh::new(mesh, grid)?, Method::Solid)?,
+            engine.voxelize_with(&GridMesh::new(mesh, grid)?, Method::Solid, ctl)?,
             None,
         ),
-        Fill::Vote => (vote(engine, mesh, grid)?, None),
+        Fill::Vote => (vote(engine, mesh, grid, ctl)?, None),
         Fill::Flood => {
-            let surface = engine.voxelize(&GridMesh::new(mesh, grid)?, Method::Surface)?;
-            (flood(&surface), None)
+            let surface = engine.voxelize_with(
+                &GridMesh::new(mesh, grid)?,
+                Method::Surface,
+                &ctl.stage(0.0, 0.5),
+            )?;
+            (flood_with(&surface, &ctl.stage(0.5, 1.0))?, None)
         }
         Fill::Winding | Fill::Auto => {
-            let (v, stats) = winding::solid(mesh, grid)?;
+            let (v, stats) = winding::solid_with(mesh, grid, ctl)?;
             (v, Some(stats))
         }
-    })
+    };
+    ctl.complete();
+    Ok(out)
 }
 
 /// Parity along the axis that `rot` moves to z: `rot` maps output axis a to input axis rot[a].
@@ -167,6 +215,7 @@ fn parity_along(
     mesh: &Mesh,
     grid: &Grid,
     rot: [usize; 3],
+    ctl: &Control,
 ) -> Result<BitVolume, EngineError> {
     let positions = mesh.positions().iter().map(|p| rot.map(|a| p[a])).collect();
     let rotated = Mesh::new(positions, mesh.triangles().to_vec())
@@ -176,23 +225,36 @@ fn parity_along(
         voxel_size: grid.voxel_size,
         dims: rot.map(|a| grid.dims[a]),
     };
-    let r = engine.voxelize(&GridMesh::new(&rotated, &g)?, Method::Solid)?;
+    let r = engine.voxelize_with(
+        &GridMesh::new(&rotated, &g)?,
+        Method::Solid,
+        &ctl.stage(0.0, 0.8),
+    )?;
     // Back to the grid's own axes: voxel (x, y, z) is r at its rotated index.
     let mut out = BitVolume::new(*grid);
-    for p in r.iter_ones() {
+    for (i, p) in r.iter_ones().enumerate() {
+        if i % (1 << 20) == 0 {
+            ctl.check()?;
+        }
         let mut q = [0u32; 3];
         for a in 0..3 {
             q[rot[a]] = p[a];
         }
         out.set(q[0], q[1], q[2], true);
     }
+    ctl.complete();
     Ok(out)
 }
 
-fn vote(engine: &dyn Engine, mesh: &Mesh, grid: &Grid) -> Result<BitVolume, EngineError> {
-    let z = parity_along(engine, mesh, grid, [0, 1, 2])?;
-    let x = parity_along(engine, mesh, grid, [1, 2, 0])?;
-    let y = parity_along(engine, mesh, grid, [2, 0, 1])?;
+fn vote(
+    engine: &dyn Engine,
+    mesh: &Mesh,
+    grid: &Grid,
+    ctl: &Control,
+) -> Result<BitVolume, EngineError> {
+    let z = parity_along(engine, mesh, grid, [0, 1, 2], &ctl.part(0, 3))?;
+    let x = parity_along(engine, mesh, grid, [1, 2, 0], &ctl.part(1, 3))?;
+    let y = parity_along(engine, mesh, grid, [2, 0, 1], &ctl.part(2, 3))?;
     let mut out = z.clone();
     for ((o, (a, b)), c) in out
         .words_mut()
@@ -207,7 +269,17 @@ fn vote(engine: &dyn Engine, mesh: &Mesh, grid: &Grid) -> Result<BitVolume, Engi
 
 /// Everything not reachable from the border through voxels that are not in `walls` (6-connected).
 pub fn flood(walls: &BitVolume) -> BitVolume {
+    flood_with(walls, &Control::none()).expect("Control::none never stops")
+}
+
+/// [`flood`], checking `ctl` every 2¹⁶ voxels reached and reporting them (of the voxels that
+/// are not walls).
+pub fn flood_with(walls: &BitVolume, ctl: &Control) -> Result<BitVolume, Canceled> {
+    ctl.check()?;
     let [nx, ny, nz] = walls.dims();
+    let open = walls.grid().voxel_count() - walls.count_ones();
+    let reached_count = ctl.counter(open);
+    let mut popped = 0u64;
     let mut reached = BitVolume::new(*walls.grid());
     let mut queue = VecDeque::new();
     let visit = |p: [u32; 3], reached: &mut BitVolume, queue: &mut VecDeque<[u32; 3]>| {
@@ -226,6 +298,11 @@ pub fn flood(walls: &BitVolume) -> BitVolume {
         }
     }
     while let Some(p) = queue.pop_front() {
+        popped += 1;
+        if popped % (1 << 16) == 0 {
+            reached_count.add(1 << 16);
+            ctl.check()?;
+        }
         for a in 0..3 {
             for step in [-1i64, 1] {
                 let v = p[a] as i64 + step;
@@ -248,5 +325,6 @@ pub fn flood(walls: &BitVolume) -> BitVolume {
             *l &= tail;
         }
     }
-    reached
+    ctl.complete();
+    Ok(reached)
 }

@@ -12,6 +12,7 @@ pub mod winding;
 
 pub use snap::{FIXED_HALF, FIXED_ONE, FIXED_SHIFT, GridMesh, MAX_FIXED};
 
+use crate::cancel::{Canceled, Control};
 use crate::volume::BitVolume;
 
 /// What a voxel being set means.
@@ -60,6 +61,9 @@ pub enum EngineError {
     Gpu(String),
     #[error("mesh vertex {vertex} lies {voxels:.0} voxels from the grid; at most {max} are supported (crop the mesh or use a coarser or larger grid)", max = MAX_FIXED >> FIXED_SHIFT)]
     OutOfRange { vertex: usize, voxels: f64 },
+    /// The work was canceled or ran past its deadline ([`Control::check`]).
+    #[error(transparent)]
+    Canceled(Canceled),
 }
 
 /// A voxelization engine.
@@ -70,7 +74,18 @@ pub trait Engine: Send + Sync {
     fn describe(&self) -> String {
         self.name().to_string()
     }
-    fn voxelize(&self, mesh: &GridMesh, method: Method) -> Result<BitVolume, EngineError>;
+    /// [`Engine::voxelize_with`] for a caller that neither cancels nor watches progress.
+    fn voxelize(&self, mesh: &GridMesh, method: Method) -> Result<BitVolume, EngineError> {
+        self.voxelize_with(mesh, method, &Control::none())
+    }
+    /// Voxelizes, checking `ctl` at the engine's natural points (CPU bands, GPU slabs) and
+    /// reporting progress there; [`EngineError::Canceled`] once it says stop.
+    fn voxelize_with(
+        &self,
+        mesh: &GridMesh,
+        method: Method,
+        ctl: &Control,
+    ) -> Result<BitVolume, EngineError>;
 }
 
 /// Which engine to use.

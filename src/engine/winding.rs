@@ -33,6 +33,7 @@ use serde::{Deserialize, Serialize};
 
 use super::snap::snapped_world;
 use super::{EngineError, GridMesh};
+use crate::cancel::{Canceled, Control};
 use crate::grid::Grid;
 use crate::mesh::{Mesh, merged_ids};
 use crate::volume::BitVolume;
@@ -62,6 +63,22 @@ pub struct WindingStats {
 
 /// The solid of `mesh` on `grid` under `fill=winding`.
 pub fn solid(mesh: &Mesh, grid: &Grid) -> Result<(BitVolume, WindingStats), EngineError> {
+    solid_with(mesh, grid, &Control::none())
+}
+
+/// [`solid`], checking `ctl` per column of blocks while certifying, per band and x-row while
+/// counting, and per tie voxel after, and reporting progress there.
+pub fn solid_with(
+    mesh: &Mesh,
+    grid: &Grid,
+    ctl: &Control,
+) -> Result<(BitVolume, WindingStats), EngineError> {
+    // Shares of the progress: certifying blocks, the counting pass, the tie voxels.
+    let (certify, count, ties) = (
+        ctl.stage(0.0, 0.15),
+        ctl.stage(0.15, 0.95),
+        ctl.stage(0.95, 1.0),
+    );
     let (apexes, caps) = closing_caps(mesh);
     let mut positions = mesh.positions().to_vec();
     positions.extend_from_slice(&apexes);
@@ -108,17 +125,23 @@ pub fn solid(mesh: &Mesh, grid: &Grid) -> Result<(BitVolume, WindingStats), Engi
             }
         }
     };
-    let lists: Vec<Vec<[u32; 3]>> = (0..nb[0] * nb[1] * nb[2])
+    ctl.check()?;
+    let block_columns = if cap_tree.is_some() { nb[0] * nb[1] } else { 0 };
+    let certified = certify.counter(block_columns as u64);
+    let lists: Vec<Vec<[u32; 3]>> = (0..block_columns)
         .into_par_iter()
-        .map(|b| {
+        .map(|c| {
+            certified.check()?;
             let mut out = Vec::new();
-            if cap_tree.is_some() {
-                let (bx, by, bz) = (b / (nb[1] * nb[2]), b / nb[2] % nb[1], b % nb[2]);
+            let (bx, by) = (c / nb[1], c % nb[1]);
+            for bz in 0..nb[2] {
                 refine([bx, by, bz].map(|v| v * BLOCK), &mut out);
             }
-            out
+            certified.add(1);
+            Ok(out)
         })
-        .collect();
+        .collect::<Result<_, Canceled>>()?;
+    certify.complete();
     let mut uncertain = BitVolume::new(*grid);
     for v in lists.iter().flatten() {
         uncertain.set(v[0], v[1], v[2], true);
@@ -127,7 +150,11 @@ pub fn solid(mesh: &Mesh, grid: &Grid) -> Result<(BitVolume, WindingStats), Engi
     let deferred = std::sync::Mutex::new(Vec::new());
     let counters = [0, 1, 2].map(|_| AtomicU64::new(0));
     let wpc = nz.div_ceil(64) as usize;
-    let vol = crate::engine::cpu::signed_counts(&gm, |x, counts, words| {
+    let vol = crate::engine::cpu::signed_counts(&gm, &count, |x, counts, words| {
+        // Stopped: the row is left empty and the pass fails below.
+        if count.check().is_err() {
+            return;
+        }
         let mut n = [0u64; 3];
         for y in 0..ny {
             let col = &counts[(y * nz) as usize..((y + 1) * nz) as usize];
@@ -165,23 +192,37 @@ pub fn solid(mesh: &Mesh, grid: &Grid) -> Result<(BitVolume, WindingStats), Engi
         for (c, v) in counters.iter().zip(n) {
             c.fetch_add(v, Ordering::Relaxed);
         }
-    });
+    })?;
+    // A row skipped because the work was stopped must not pass for a finished one.
+    ctl.check()?;
     let mut vol = vol;
     let deferred = deferred.into_inner().expect("no panics while held");
     // A few voxels: exact sums over the mesh; many: the hierarchy over it is worth building.
     let tris = mesh.triangles().len();
+    let tied = ties.counter(deferred.len() as u64);
     let winding: Vec<f64> = if (deferred.len() as u64) * (tris as u64) < 50_000_000 {
         deferred
             .par_iter()
-            .map(|&v| exact_winding_number((0..tris).map(|t| mesh.triangle(t)), centre(v)))
-            .collect()
+            .map(|&v| {
+                tied.check()?;
+                let w = exact_winding_number((0..tris).map(|t| mesh.triangle(t)), centre(v));
+                tied.add(1);
+                Ok(w)
+            })
+            .collect::<Result<_, Canceled>>()?
     } else {
         let tree = WindingTree::new(mesh.positions(), mesh.triangles());
         deferred
             .par_iter()
-            .map(|&v| tree.winding_number(centre(v)))
-            .collect()
+            .map(|&v| {
+                tied.check()?;
+                let w = tree.winding_number(centre(v));
+                tied.add(1);
+                Ok(w)
+            })
+            .collect::<Result<_, Canceled>>()?
     };
+    ctl.complete();
     for (v, w) in deferred.iter().zip(winding) {
         if w.abs() >= 0.5 {
             vol.set(v[0], v[1], v[2], true);

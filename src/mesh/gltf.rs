@@ -9,7 +9,8 @@ use base64::Engine as _;
 use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::Mode;
 
-use super::{ExternalResources, Mesh, MeshError, malformed};
+use super::stream::Stream;
+use super::{ExternalResources, LoadOptions, Mesh, MeshError, malformed};
 
 type Mat4 = [[f64; 4]; 4];
 const IDENTITY: Mat4 = [
@@ -21,29 +22,234 @@ const IDENTITY: Mat4 = [
 /// Node hierarchies deeper than this are refused (they are cycles or garbage).
 const MAX_DEPTH: usize = 256;
 
-pub(super) fn parse(bytes: &[u8], external: &ExternalResources) -> Result<Mesh, MeshError> {
+/// GLB: 12-byte header (magic, version, total length), then chunks of 8-byte header and data.
+const GLB_HEADER: usize = 12;
+const CHUNK_HEADER: usize = 8;
+
+pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshError> {
+    let doc = if s.peek(GLB_HEADER)?.starts_with(b"glTF") {
+        let bytes = glb_bytes(s, opts)?;
+        document(bytes)?
+    } else if s.is_compressed() {
+        document_from_stream(s)?
+    } else {
+        document(s.rest()?)?
+    };
     // The gltf crate asserts on some malformed accessors; a panic must become an error, not a
     // dead worker.
-    std::panic::catch_unwind(|| parse_inner(bytes, external))
+    std::panic::catch_unwind(|| parse_document(&doc, opts))
         .unwrap_or_else(|_| Err(malformed("glTF", "malformed accessor or buffer data")))
 }
 
-fn parse_inner(bytes: &[u8], external: &ExternalResources) -> Result<Mesh, MeshError> {
-    // POSITION min/max are required by the spec but often missing in real files, and nothing here
-    // needs them: accept a file whose only validation errors are those.
-    let doc = match gltf::Gltf::from_slice(bytes) {
-        Ok(d) => d,
-        Err(gltf::Error::Validation(errs))
-            if errs.iter().all(|(p, _)| {
-                let p = p.to_string();
-                p.ends_with(".min") || p.ends_with(".max")
-            }) =>
-        {
-            gltf::Gltf::from_slice_without_validation(bytes)
-                .map_err(|e| malformed("glTF", e.to_string()))?
+/// The bytes of a GLB: its header's length is checked first (a compressed file is never
+/// decoded past it), and in a compressed file the JSON chunk is read and checked against the
+/// limits before the BIN chunk is decoded.
+fn glb_bytes<'s>(s: &'s mut Stream, opts: &LoadOptions) -> Result<&'s [u8], MeshError> {
+    s.fill_to(GLB_HEADER + CHUNK_HEADER)?;
+    let head = s.available();
+    if head.len() < GLB_HEADER {
+        return Err(malformed("glTF", "truncated GLB header"));
+    }
+    let u32_at = |b: &[u8], i: usize| u32::from_le_bytes(b[i..i + 4].try_into().unwrap());
+    let length = u32_at(head, 8) as usize;
+    let json_len = (head.len() >= GLB_HEADER + CHUNK_HEADER).then(|| u32_at(head, GLB_HEADER));
+    if length < GLB_HEADER + CHUNK_HEADER {
+        return Err(malformed(
+            "glTF",
+            format!("GLB header says the file has {length} bytes, too few for a JSON chunk"),
+        ));
+    }
+    if !s.is_compressed() {
+        return s.rest();
+    }
+    if length as u64 > s.limit() {
+        return Err(MeshError::TooLarge(s.limit()));
+    }
+    if let Some(json_len) = json_len {
+        let json_end = GLB_HEADER + CHUNK_HEADER + json_len as usize;
+        if json_end <= length {
+            let a = s.peek(json_end)?;
+            if let Some(json) = a.get(GLB_HEADER + CHUNK_HEADER..json_end) {
+                let doc = document(json)?;
+                check_limits(&doc, opts)?;
+            }
         }
-        Err(e) => return Err(malformed("glTF", e.to_string())),
+    }
+    // Not a byte past the length the header gives (anything after it is ignored).
+    let a = s.peek(length)?;
+    Ok(&a[..a.len().min(length)])
+}
+
+/// The glTF document of a .gltf or a GLB's JSON chunk (or a whole GLB).
+fn document(bytes: &[u8]) -> Result<gltf::Gltf, MeshError> {
+    match gltf::Gltf::from_slice(bytes) {
+        Ok(d) => Ok(d),
+        Err(gltf::Error::Validation(errs)) if only_min_max(&errs) => {
+            gltf::Gltf::from_slice_without_validation(bytes)
+                .map_err(|e| malformed("glTF", e.to_string()))
+        }
+        Err(e) => Err(malformed("glTF", e.to_string())),
+    }
+}
+
+/// POSITION min/max are required by the spec but often missing in real files, and nothing here
+/// needs them: a file whose only validation errors are those is accepted.
+fn only_min_max(errs: &[(gltf::json::Path, gltf::json::validation::Error)]) -> bool {
+    errs.iter().all(|(p, _)| {
+        let p = p.to_string();
+        p.ends_with(".min") || p.ends_with(".max")
+    })
+}
+
+/// The document of a compressed .gltf, deserialized as it is decoded: what it holds is kept,
+/// not its whitespace.
+fn document_from_stream(s: &mut Stream) -> Result<gltf::Gltf, MeshError> {
+    use gltf::json::validation::Validate;
+    let mut r = StreamRead { s, failed: None };
+    let root: Result<gltf::json::Root, _> = gltf::json::deserialize::from_reader(&mut r);
+    let root = match (root, r.failed) {
+        (_, Some(e)) => return Err(e),
+        (Err(e), None) => return Err(malformed("glTF", e.to_string())),
+        (Ok(root), None) => root,
     };
+    let mut errs = Vec::new();
+    root.validate(&root, gltf::json::Path::new, &mut |path, e| {
+        errs.push((path(), e))
+    });
+    if !only_min_max(&errs) {
+        return Err(malformed("glTF", gltf::Error::Validation(errs).to_string()));
+    }
+    Ok(gltf::Gltf {
+        document: gltf::Document::from_json_without_validation(root),
+        blob: None,
+    })
+}
+
+/// A [`Stream`] as [`std::io::Read`]; its own error (over the limit, bad gzip) is kept aside.
+struct StreamRead<'s, 'a> {
+    s: &'s mut Stream<'a>,
+    failed: Option<MeshError>,
+}
+
+impl std::io::Read for StreamRead<'_, '_> {
+    fn read(&mut self, out: &mut [u8]) -> std::io::Result<usize> {
+        if let Err(e) = self.s.fill_to(out.len().min(1 << 16)) {
+            self.failed = Some(e.clone());
+            return Err(std::io::Error::other(e));
+        }
+        let a = self.s.available();
+        let n = a.len().min(out.len());
+        out[..n].copy_from_slice(&a[..n]);
+        self.s.consume(n);
+        Ok(n)
+    }
+}
+
+/// Node visits across all scenes at most, beyond twice the nodes of the file: a hierarchy with
+/// shared subtrees (not a tree, as the spec demands) would otherwise multiply without bound.
+const EXTRA_NODE_VISITS: usize = 1 << 16;
+
+/// The meshes the scene instances, with their world transforms, in the order they are read.
+fn instances(doc: &gltf::Document) -> Result<Vec<(gltf::Mesh<'_>, Mat4)>, MeshError> {
+    let scenes: Vec<_> = match doc.default_scene() {
+        Some(s) => vec![s],
+        None => doc.scenes().collect(),
+    };
+    let mut out = Vec::new();
+    if scenes.is_empty() {
+        out.extend(doc.meshes().map(|m| (m, IDENTITY)));
+        return Ok(out);
+    }
+    let budget = doc.nodes().len().saturating_mul(2) + EXTRA_NODE_VISITS;
+    let mut visits = 0usize;
+    fn walk<'d>(
+        node: gltf::Node<'d>,
+        parent: &Mat4,
+        depth: usize,
+        visits: &mut usize,
+        budget: usize,
+        out: &mut Vec<(gltf::Mesh<'d>, Mat4)>,
+    ) -> Result<(), MeshError> {
+        if depth > MAX_DEPTH {
+            return Err(malformed(
+                "glTF",
+                format!("node hierarchy deeper than {MAX_DEPTH} (a cycle?)"),
+            ));
+        }
+        *visits += 1;
+        if *visits > budget {
+            return Err(malformed(
+                "glTF",
+                format!(
+                    "the scenes instance more than {budget} nodes (the node hierarchy is not a tree)"
+                ),
+            ));
+        }
+        let local = node.transform().matrix().map(|c| c.map(|v| v as f64));
+        let world = mul(parent, &local);
+        if let Some(m) = node.mesh() {
+            out.push((m, world));
+        }
+        for c in node.children() {
+            walk(c, &world, depth + 1, visits, budget, out)?;
+        }
+        Ok(())
+    }
+    for s in scenes {
+        for n in s.nodes() {
+            walk(n, &IDENTITY, 0, &mut visits, budget, &mut out)?;
+        }
+    }
+    Ok(out)
+}
+
+/// What the document's accessors and buffers declare, against the limits, before any buffer is
+/// read: the triangles and vertices of every instanced triangle primitive, and buffer sizes.
+fn check_limits(doc: &gltf::Document, opts: &LoadOptions) -> Result<(), MeshError> {
+    let mut bytes = 0u64;
+    for b in doc.buffers() {
+        bytes = bytes.saturating_add(b.length() as u64);
+    }
+    if bytes > opts.max_decompressed_bytes {
+        return Err(MeshError::TooLarge(opts.max_decompressed_bytes));
+    }
+    let (mut triangles, mut vertices) = (0u64, 0u64);
+    for (mesh, _) in instances(doc)? {
+        for prim in mesh.primitives() {
+            let Some(pos) = prim.get(&gltf::Semantic::Positions) else {
+                continue;
+            };
+            let n = prim.indices().map_or(pos.count(), |i| i.count()) as u64;
+            triangles += match prim.mode() {
+                Mode::Triangles => n / 3,
+                Mode::TriangleStrip | Mode::TriangleFan => n.saturating_sub(2),
+                _ => continue,
+            };
+            vertices += pos.count() as u64;
+        }
+        if triangles > opts.max_triangles as u64 {
+            return Err(MeshError::CountOverLimit {
+                format: "glTF",
+                what: "triangles or more declared by the accessors of the scene",
+                count: triangles,
+                limit: opts.max_triangles as u64,
+            });
+        }
+        if vertices > opts.max_vertices() as u64 {
+            return Err(MeshError::CountOverLimit {
+                format: "glTF",
+                what: "vertices or more declared by the accessors of the scene",
+                count: vertices,
+                limit: opts.max_vertices() as u64,
+            });
+        }
+    }
+    Ok(())
+}
+
+fn parse_document(doc: &gltf::Gltf, opts: &LoadOptions) -> Result<Mesh, MeshError> {
+    let external = &opts.external;
+    check_limits(doc, opts)?;
     let mut buffers: Vec<Vec<u8>> = Vec::new();
     for b in doc.buffers() {
         let data = match b.source() {
@@ -77,20 +283,8 @@ fn parse_inner(bytes: &[u8], external: &ExternalResources) -> Result<Mesh, MeshE
         triangles: vec![],
         skipped_modes: vec![],
     };
-    let scenes: Vec<_> = match doc.default_scene() {
-        Some(s) => vec![s],
-        None => doc.scenes().collect(),
-    };
-    if scenes.is_empty() {
-        for m in doc.meshes() {
-            out.mesh(&m, &IDENTITY, &buffers)?;
-        }
-    } else {
-        for s in scenes {
-            for n in s.nodes() {
-                out.node(&n, &IDENTITY, &buffers, 0)?;
-            }
-        }
+    for (m, world) in instances(doc)? {
+        out.mesh(&m, &world, &buffers)?;
     }
     if out.triangles.is_empty() {
         let why = if out.skipped_modes.is_empty() {
@@ -165,30 +359,6 @@ struct Collector {
 }
 
 impl Collector {
-    fn node(
-        &mut self,
-        node: &gltf::Node,
-        parent: &Mat4,
-        buffers: &[Vec<u8>],
-        depth: usize,
-    ) -> Result<(), MeshError> {
-        if depth > MAX_DEPTH {
-            return Err(malformed(
-                "glTF",
-                format!("node hierarchy deeper than {MAX_DEPTH} (a cycle?)"),
-            ));
-        }
-        let local = node.transform().matrix().map(|c| c.map(|v| v as f64));
-        let world = mul(parent, &local);
-        if let Some(m) = node.mesh() {
-            self.mesh(&m, &world, buffers)?;
-        }
-        for c in node.children() {
-            self.node(&c, &world, buffers, depth + 1)?;
-        }
-        Ok(())
-    }
-
     fn mesh(&mut self, mesh: &gltf::Mesh, m: &Mat4, buffers: &[Vec<u8>]) -> Result<(), MeshError> {
         for prim in mesh.primitives() {
             let mode = prim.mode();

@@ -7,9 +7,13 @@ mod gltf;
 mod obj;
 mod ply;
 mod stl;
+mod stream;
+#[cfg(test)]
+mod streaming_tests;
 
-use std::io::Read;
 use std::path::{Path, PathBuf};
+
+use stream::Stream;
 
 pub use diagnostics::MeshDiagnostics;
 pub(crate) use diagnostics::merged_ids;
@@ -25,7 +29,7 @@ pub struct Mesh {
     triangles: Vec<[u32; 3]>,
 }
 
-#[derive(Debug, thiserror::Error, PartialEq)]
+#[derive(Clone, Debug, thiserror::Error, PartialEq)]
 pub enum MeshError {
     #[error("cannot read {0}")]
     Io(String),
@@ -58,6 +62,20 @@ pub enum MeshError {
     TooManyTriangles { count: usize, limit: usize },
     #[error("the decompressed mesh is larger than the limit of {0} bytes")]
     TooLarge(u64),
+    /// A count that the file declares before its data (a binary STL's triangle count, a PLY
+    /// element count, the glTF accessors of a scene) or that it reaches while being read (OBJ
+    /// and ASCII STL lines, PLY faces), over what [`LoadOptions`] allows: the file is refused
+    /// before the data it announces is read or allocated. The same kind of problem as
+    /// [`MeshError::TooManyTriangles`]: vertices are bounded by [`LoadOptions::max_vertices`],
+    /// derived from the triangle limit.
+    #[error("{format}: {count} {what}, over the limit of {limit}")]
+    CountOverLimit {
+        format: &'static str,
+        /// What was counted, e.g. "triangles declared in the header".
+        what: &'static str,
+        count: u64,
+        limit: u64,
+    },
 }
 
 fn malformed(format: &'static str, detail: impl Into<String>) -> MeshError {
@@ -154,6 +172,14 @@ pub struct LoadOptions {
     pub max_decompressed_bytes: u64,
 }
 
+impl LoadOptions {
+    /// Vertices a mesh may have: three per allowed triangle (a triangle soup, as STL is) and
+    /// 65,536 more that no triangle needs to use.
+    pub fn max_vertices(&self) -> usize {
+        self.max_triangles.saturating_mul(3).saturating_add(1 << 16)
+    }
+}
+
 impl Default for LoadOptions {
     fn default() -> Self {
         LoadOptions {
@@ -179,27 +205,39 @@ pub fn load_file(path: &Path, max_triangles: usize) -> Result<Mesh, MeshError> {
 }
 
 /// Parses mesh bytes (gzip'd or not). `format` wins over sniffing when given.
+///
+/// Every count a file declares is checked against `opts` before the data it announces is
+/// allocated, and a gzip'd file is decoded only as far as the loader reads it, never past
+/// `max_decompressed_bytes`: its format is sniffed and its header checked on the first 64 KiB,
+/// and OBJ, ASCII STL and PLY are parsed as they are decoded, so a decompression bomb costs
+/// the memory of the mesh it holds (within the limits), not of its decoded text.
 pub fn load_bytes(
     bytes: &[u8],
     format: Option<Format>,
     opts: &LoadOptions,
 ) -> Result<Mesh, MeshError> {
-    let owned;
-    let bytes = if bytes.starts_with(&[0x1f, 0x8b]) {
-        owned = gunzip(bytes, opts.max_decompressed_bytes)?;
-        &owned[..]
+    let mut s = if bytes.starts_with(&[0x1f, 0x8b]) {
+        Stream::gzip(bytes, opts.max_decompressed_bytes)
     } else {
-        bytes
+        Stream::whole(bytes)
     };
-    let format = match format.or_else(|| Format::sniff(bytes)) {
+    load_stream(&mut s, format, opts)
+}
+
+fn load_stream(
+    s: &mut Stream,
+    format: Option<Format>,
+    opts: &LoadOptions,
+) -> Result<Mesh, MeshError> {
+    let format = match format {
         Some(f) => f,
-        None => return Err(MeshError::UnknownFormat),
+        None => sniff_stream(s)?.ok_or(MeshError::UnknownFormat)?,
     };
     let mesh = match format {
-        Format::Obj => obj::parse(bytes)?,
-        Format::Gltf | Format::Glb => gltf::parse(bytes, &opts.external)?,
-        Format::Stl => stl::parse(bytes)?,
-        Format::Ply => ply::parse(bytes)?,
+        Format::Obj => obj::parse(s, opts)?,
+        Format::Gltf | Format::Glb => gltf::parse(s, opts)?,
+        Format::Stl => stl::parse(s, opts)?,
+        Format::Ply => ply::parse(s, opts)?,
     };
     if mesh.triangles.len() > opts.max_triangles {
         return Err(MeshError::TooManyTriangles {
@@ -210,16 +248,17 @@ pub fn load_bytes(
     Ok(mesh)
 }
 
-fn gunzip(bytes: &[u8], limit: u64) -> Result<Vec<u8>, MeshError> {
-    let mut out = Vec::new();
-    flate2::read::MultiGzDecoder::new(bytes)
-        .take(limit + 1)
-        .read_to_end(&mut out)
-        .map_err(|e| malformed("gzip", format!("cannot decompress: {e}")))?;
-    if out.len() as u64 > limit {
-        return Err(MeshError::TooLarge(limit));
-    }
-    Ok(out)
+/// How much of a compressed file is decoded to sniff its format and read its header.
+const HEAD: usize = 64 << 10;
+
+/// [`Format::sniff`] on the whole file when it is at hand, else on its first [`HEAD`] bytes,
+/// where a binary STL (told apart by its length otherwise) is recognised by its records.
+fn sniff_stream(s: &mut Stream) -> Result<Option<Format>, MeshError> {
+    s.fill_to(HEAD)?;
+    let complete = s.at_end();
+    let head = s.available();
+    Ok(Format::sniff(head)
+        .or_else(|| (!complete && stl::plausible_binary_head(head)).then_some(Format::Stl)))
 }
 
 impl Mesh {

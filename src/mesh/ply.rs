@@ -2,7 +2,18 @@
 //! (`vertex_indices` or `vertex_index`) of any size fan-triangulated, and `tristrips` lists
 //! unrolled with -1 as the restart marker. Other elements and properties are read and skipped.
 
-use super::{Mesh, MeshError, fan, malformed, unroll_strip};
+//!
+//! The header's element counts are checked against the limits (and against the bytes they
+//! need) before the body is read, and the body is read as it is decoded: a gzip'd PLY is
+//! never held whole.
+
+use super::stream::Stream;
+use super::{LoadOptions, Mesh, MeshError, malformed};
+
+/// The longest header read (a compressed file's header must end within it).
+const MAX_HEADER: usize = 1 << 20;
+/// The longest ASCII token (a number) read.
+const MAX_TOKEN: usize = 4096;
 
 #[derive(Clone, Copy, Debug)]
 enum Scalar {
@@ -65,49 +76,81 @@ enum Encoding {
 /// Reads values one at a time from the body.
 trait Source {
     fn value(&mut self, ty: Scalar) -> Result<f64, MeshError>;
-    fn remaining_hint(&self) -> usize;
 }
 
-struct Ascii<'a> {
-    tokens: std::str::SplitAsciiWhitespace<'a>,
-    left: usize,
+fn truncated() -> MeshError {
+    malformed(
+        "PLY",
+        "truncated: the body ends before all elements are read",
+    )
 }
 
-impl Source for Ascii<'_> {
+/// Whitespace-separated numbers.
+struct Ascii<'s, 'a> {
+    s: &'s mut Stream<'a>,
+}
+
+impl Source for Ascii<'_, '_> {
     fn value(&mut self, _ty: Scalar) -> Result<f64, MeshError> {
-        let t = self.tokens.next().ok_or_else(|| {
-            malformed(
-                "PLY",
-                "truncated: the body ends before all elements are read",
-            )
-        })?;
-        self.left = self.left.saturating_sub(t.len() + 1);
-        t.parse::<f64>()
-            .map_err(|_| malformed("PLY", format!("{t:?} is not a number")))
-    }
-    fn remaining_hint(&self) -> usize {
-        self.left
+        // Skip whitespace.
+        loop {
+            let a = self.s.peek(1)?;
+            if a.is_empty() {
+                return Err(truncated());
+            }
+            match a.iter().position(|b| !b.is_ascii_whitespace()) {
+                Some(k) => {
+                    self.s.consume(k);
+                    break;
+                }
+                None => {
+                    let k = a.len();
+                    self.s.consume(k)
+                }
+            }
+        }
+        let mut want = 64;
+        loop {
+            self.s.fill_to(want)?;
+            let at_end = self.s.at_end();
+            let a = self.s.available();
+            let end = match a.iter().position(|b| b.is_ascii_whitespace()) {
+                Some(e) => e,
+                None if at_end || a.len() > MAX_TOKEN => a.len(),
+                None => {
+                    want = a.len() * 2;
+                    continue;
+                }
+            };
+            let t = &a[..end];
+            let v = std::str::from_utf8(t)
+                .ok()
+                .filter(|_| t.len() <= MAX_TOKEN)
+                .and_then(|t| t.parse::<f64>().ok())
+                .ok_or_else(|| {
+                    let shown = String::from_utf8_lossy(&t[..t.len().min(40)]);
+                    malformed("PLY", format!("{shown:?} is not a number"))
+                })?;
+            self.s.consume(end);
+            return Ok(v);
+        }
     }
 }
 
-struct Binary<'a> {
-    data: &'a [u8],
-    pos: usize,
+struct Binary<'s, 'a> {
+    s: &'s mut Stream<'a>,
     big_endian: bool,
 }
 
-impl Source for Binary<'_> {
+impl Source for Binary<'_, '_> {
+    #[inline]
     fn value(&mut self, ty: Scalar) -> Result<f64, MeshError> {
         let n = ty.size();
-        let b = self.data.get(self.pos..self.pos + n).ok_or_else(|| {
-            malformed(
-                "PLY",
-                "truncated: the body ends before all elements are read",
-            )
-        })?;
-        self.pos += n;
+        self.s.fill_to(n)?;
+        let b = self.s.available().get(..n).ok_or_else(truncated)?;
         let mut a = [0u8; 8];
         a[..n].copy_from_slice(b);
+        self.s.consume(n);
         if self.big_endian {
             a[..n].reverse();
         }
@@ -122,38 +165,111 @@ impl Source for Binary<'_> {
             Scalar::F64 => f64::from_le_bytes(a),
         })
     }
-    fn remaining_hint(&self) -> usize {
-        self.data.len() - self.pos
-    }
 }
 
-pub(super) fn parse(bytes: &[u8]) -> Result<Mesh, MeshError> {
-    let (elements, encoding, body) = parse_header(bytes)?;
-    match encoding {
-        Encoding::Ascii => {
-            let text = std::str::from_utf8(body)
-                .map_err(|_| malformed("PLY", "ASCII body is not valid UTF-8"))?;
-            read_body(
-                &elements,
-                &mut Ascii {
-                    tokens: text.split_ascii_whitespace(),
-                    left: text.len(),
-                },
-            )
+pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshError> {
+    // The header, up to and including the line break after end_header.
+    let mut want = 64 << 10;
+    let end = loop {
+        s.fill_to(want)?;
+        let a = s.available();
+        if let Some(end) = find(a, b"end_header") {
+            s.fill_to(end + 12)?;
+            break end;
         }
+        if s.at_end() || a.len() > MAX_HEADER {
+            return Err(malformed("PLY", "no end_header line"));
+        }
+        want = a.len() * 2;
+    };
+    let (elements, encoding, body) = parse_header(s.available(), end)?;
+    s.consume(body);
+    check_counts(&elements, encoding, s, opts)?;
+    match encoding {
+        Encoding::Ascii => read_body(&elements, &mut Ascii { s }, opts),
         e => read_body(
             &elements,
             &mut Binary {
-                data: body,
-                pos: 0,
+                s,
                 big_endian: e == Encoding::Be,
             },
+            opts,
         ),
     }
 }
 
-fn parse_header(bytes: &[u8]) -> Result<(Vec<Element>, Encoding, &[u8]), MeshError> {
-    let end = find(bytes, b"end_header").ok_or_else(|| malformed("PLY", "no end_header line"))?;
+/// The header's counts against the limits, and the bytes they need at least against what the
+/// file holds (or, compressed, may still expand to).
+fn check_counts(
+    elements: &[Element],
+    encoding: Encoding,
+    s: &Stream,
+    opts: &LoadOptions,
+) -> Result<(), MeshError> {
+    let over = |what, count: usize, limit: usize| MeshError::CountOverLimit {
+        format: "PLY",
+        what,
+        count: count as u64,
+        limit: limit as u64,
+    };
+    let mut need = 0u64;
+    let left = s.remaining_bound();
+    for el in elements {
+        match el.name.as_str() {
+            "vertex" if el.count > opts.max_vertices() => {
+                return Err(over(
+                    "vertices declared by `element vertex`",
+                    el.count,
+                    opts.max_vertices(),
+                ));
+            }
+            "face" if el.count > opts.max_triangles => {
+                return Err(over(
+                    "faces declared by `element face`",
+                    el.count,
+                    opts.max_triangles,
+                ));
+            }
+            "tristrips" if el.count > opts.max_triangles => {
+                return Err(over(
+                    "strips declared by `element tristrips`",
+                    el.count,
+                    opts.max_triangles,
+                ));
+            }
+            _ => {}
+        }
+        // The least a record takes: each scalar (or list length), or in ASCII each token and
+        // the whitespace after it (the last one of the file may lack it).
+        let record: u64 = el
+            .props
+            .iter()
+            .map(|p| match encoding {
+                Encoding::Ascii => 2,
+                _ => p.list.unwrap_or(p.ty).size() as u64,
+            })
+            .sum();
+        need = need.saturating_add((el.count as u64).saturating_mul(record));
+        if need.saturating_sub(1) > left {
+            return Err(if s.at_end() {
+                malformed(
+                    "PLY",
+                    format!(
+                        "element {} claims {} records, more than the file holds",
+                        el.name, el.count
+                    ),
+                )
+            } else {
+                MeshError::TooLarge(s.limit())
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Parses the header text before `end` (where `end_header` starts); returns the elements, the
+/// encoding and where the body starts.
+fn parse_header(bytes: &[u8], end: usize) -> Result<(Vec<Element>, Encoding, usize), MeshError> {
     let mut body_start = end + b"end_header".len();
     if bytes.get(body_start) == Some(&b'\r') {
         body_start += 1;
@@ -226,29 +342,29 @@ fn parse_header(bytes: &[u8]) -> Result<(Vec<Element>, Encoding, &[u8]), MeshErr
         }
     }
     let encoding = encoding.ok_or_else(|| malformed("PLY", "no format line"))?;
-    Ok((elements, encoding, &bytes[body_start..]))
+    Ok((elements, encoding, body_start))
 }
 
 fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
     hay.windows(needle.len()).position(|w| w == needle)
 }
 
-fn read_body(elements: &[Element], src: &mut dyn Source) -> Result<Mesh, MeshError> {
+fn read_body(
+    elements: &[Element],
+    src: &mut dyn Source,
+    opts: &LoadOptions,
+) -> Result<Mesh, MeshError> {
     let mut positions: Vec<[f64; 3]> = Vec::new();
-    let mut triangles = Vec::new();
-    let mut poly: Vec<u32> = Vec::new();
+    let mut triangles: Vec<[u32; 3]> = Vec::new();
     let mut saw_vertex = false;
+    let max = opts.max_triangles;
+    let too_many = |n: usize| MeshError::CountOverLimit {
+        format: "PLY",
+        what: "triangles or more (counted while reading)",
+        count: n as u64,
+        limit: max as u64,
+    };
     for el in elements {
-        // Every record takes at least one byte (binary) or token: a larger count is a lie.
-        if el.count > src.remaining_hint() && !el.props.is_empty() {
-            return Err(malformed(
-                "PLY",
-                format!(
-                    "element {} claims {} records, more than the file holds",
-                    el.name, el.count
-                ),
-            ));
-        }
         let is_vertex = el.name == "vertex";
         let xyz = if is_vertex {
             saw_vertex = true;
@@ -263,11 +379,16 @@ fn read_body(elements: &[Element], src: &mut dyn Source) -> Result<Mesh, MeshErr
                     "vertex element needs scalar x, y and z properties",
                 ));
             };
-            positions.reserve(el.count);
+            // Bounded by check_counts: the vertex limit and the bytes of the file.
+            positions.reserve_exact(el.count);
             Some([x, y, z])
         } else {
             None
         };
+        if el.props.is_empty() {
+            // Records without properties take no bytes: nothing to read, whatever the count.
+            continue;
+        }
         let is_face = el.name == "face";
         let is_strip = el.name == "tristrips";
         let mut vals = [0.0f64; 3];
@@ -290,20 +411,46 @@ fn read_body(elements: &[Element], src: &mut dyn Source) -> Result<Mesh, MeshErr
                                 format!("bad list length {n} in element {}", el.name),
                             ));
                         }
+                        let n = n as usize;
                         let wanted = (is_face
                             && (p.name == "vertex_indices" || p.name == "vertex_index"))
                             || (is_strip && p.name == "vertex_indices");
-                        poly.clear();
-                        for _ in 0..n as usize {
-                            let v = src.value(p.ty)?;
-                            if wanted {
-                                poly.push(index(v, is_strip)?);
-                            }
+                        if wanted && is_face && n >= 3 && triangles.len() + (n - 2) > max {
+                            return Err(too_many(triangles.len() + (n - 2)));
                         }
-                        if wanted && is_face {
-                            fan(&poly, &mut triangles);
-                        } else if wanted {
-                            unroll_strip(&poly, &mut triangles);
+                        // Triangulated as the indices are read (the fan or strip of
+                        // `super::fan` and `super::unroll_strip`), nothing else kept.
+                        let (mut a, mut b, mut run) = (0u32, 0u32, 0usize);
+                        for _ in 0..n {
+                            let v = src.value(p.ty)?;
+                            if !wanted {
+                                continue;
+                            }
+                            let i = index(v, is_strip)?;
+                            if is_face {
+                                match run {
+                                    0 => a = i,
+                                    1 => {}
+                                    _ => triangles.push([a, b, i]),
+                                }
+                                b = i;
+                                run += 1;
+                            } else if i == u32::MAX {
+                                run = 0;
+                            } else {
+                                if run >= 2 {
+                                    if triangles.len() >= max {
+                                        return Err(too_many(triangles.len() + 1));
+                                    }
+                                    triangles.push(if run % 2 == 0 {
+                                        [a, b, i]
+                                    } else {
+                                        [b, a, i]
+                                    });
+                                }
+                                (a, b) = (b, i);
+                                run += 1;
+                            }
                         }
                     }
                 }

@@ -2,7 +2,8 @@
 //! triangle count n in its header, whatever its first bytes say (many binary STLs begin with
 //! "solid").
 
-use super::{Mesh, MeshError, malformed};
+use super::stream::{Stream, after_last_newline, line_blocks};
+use super::{HEAD, LoadOptions, Mesh, MeshError, malformed};
 
 pub(super) fn looks_binary(bytes: &[u8]) -> bool {
     bytes.len() >= 84 && {
@@ -11,39 +12,111 @@ pub(super) fn looks_binary(bytes: &[u8]) -> bool {
     }
 }
 
-pub(super) fn parse(bytes: &[u8]) -> Result<Mesh, MeshError> {
-    if looks_binary(bytes) {
-        return parse_binary(bytes);
+/// Whether the first bytes of a file whose length is not known yet (a gzip stream) look like a
+/// binary STL: a triangle count, the records that fit in `head` have finite coordinates, and
+/// they are not plain text.
+pub(super) fn plausible_binary_head(head: &[u8]) -> bool {
+    if head.len() < 84 + 50 {
+        return false;
     }
-    // Text that starts with "solid" is ASCII; a binary file whose header happens to start with
-    // "solid" but whose size is off is reported as a broken binary file below.
-    if let Ok(text) = std::str::from_utf8(bytes) {
-        if text.trim_start().starts_with("solid") {
-            return parse_ascii(text);
+    let n = u32::from_le_bytes(head[80..84].try_into().unwrap()) as usize;
+    let records: Vec<&[u8]> = head[84..].chunks_exact(50).take(n.min(64)).collect();
+    n > 0
+        && records.iter().all(|r| {
+            r[..48]
+                .chunks_exact(4)
+                .all(|c| f32::from_le_bytes(c.try_into().unwrap()).is_finite())
+        })
+        && records
+            .iter()
+            .flat_map(|r| r.iter())
+            .any(|&b| b >= 0x80 || (b < 0x20 && !b"\t\n\r".contains(&b)))
+}
+
+/// Whether `b` is text that starts with "solid": all of it valid UTF-8 when `complete`, else
+/// (the first bytes of a longer file) valid up to a character cut at the end, and without NUL
+/// bytes (which binary records are full of).
+fn ascii_like(b: &[u8], complete: bool) -> bool {
+    if !complete && b.contains(&0) {
+        return false;
+    }
+    let text = match std::str::from_utf8(b) {
+        Ok(t) => t,
+        Err(e) if !complete && e.error_len().is_none() => {
+            std::str::from_utf8(&b[..e.valid_up_to()]).unwrap()
         }
-    }
-    if bytes.len() < 84 {
+        Err(_) => return false,
+    };
+    text.trim_start().starts_with("solid")
+}
+
+pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshError> {
+    s.fill_to(HEAD)?;
+    let max = opts.max_triangles as u64;
+    let head = s.available();
+    let text = ascii_like(head, s.at_end());
+    if head.len() < 84 && s.at_end() {
+        if text {
+            return parse_ascii(s, opts);
+        }
         return Err(malformed(
             "STL",
             format!(
                 "truncated: {} bytes is shorter than the 84-byte binary header",
-                bytes.len()
+                head.len()
             ),
         ));
     }
-    let n = u32::from_le_bytes(bytes[80..84].try_into().unwrap()) as u64;
+    // Here the file has at least 84 bytes (a compressed one was decoded to HEAD or its end).
+    let n = u32::from_le_bytes(head[80..84].try_into().unwrap()) as u64;
+    let want = 84 + 50 * n;
+    // A binary STL of an allowed size is read whole (it is exactly `want` bytes); one byte more
+    // tells that the file is longer. Larger counts are not inflated: refused unless the file is
+    // text (ASCII STL, whose bytes 80..84 are just characters), and text with facets in its
+    // first bytes is read as ASCII as it is decoded.
+    let ascii_facets = text && head.windows(5).any(|w| w == b"facet");
+    if n <= max && !s.at_end() && !ascii_facets {
+        s.fill_to(want as usize + 1)?;
+    }
+    let len = s.available().len() as u64;
+    if s.at_end() && len == want {
+        if n > max {
+            return Err(MeshError::TooManyTriangles {
+                count: n as usize,
+                limit: opts.max_triangles,
+            });
+        }
+        return parse_binary(s.available());
+    }
+    if text {
+        return parse_ascii(s, opts);
+    }
+    if !s.at_end() && n > max {
+        return Err(MeshError::CountOverLimit {
+            format: "STL",
+            what: "triangles declared in the binary header",
+            count: n,
+            limit: max,
+        });
+    }
+    let has = if s.at_end() {
+        format!("the file has {len} bytes")
+    } else {
+        "the file is longer".to_string()
+    };
     Err(malformed(
         "STL",
         format!(
-            "truncated or padded binary STL: header says {n} triangles ({} bytes) but the file has {} bytes",
-            84 + 50 * n,
-            bytes.len()
+            "truncated or padded binary STL: header says {n} triangles ({want} bytes) but {has}"
         ),
     ))
 }
 
 fn parse_binary(bytes: &[u8]) -> Result<Mesh, MeshError> {
     let n = (bytes.len() - 84) / 50;
+    if 3 * n as u64 > u32::MAX as u64 {
+        return Err(malformed("STL", "more than 4 billion vertices"));
+    }
     let mut positions = Vec::with_capacity(3 * n);
     for rec in bytes[84..].chunks_exact(50) {
         for v in 0..3 {
@@ -65,62 +138,92 @@ fn parse_binary(bytes: &[u8]) -> Result<Mesh, MeshError> {
     Mesh::new(positions, triangles)
 }
 
-fn parse_ascii(text: &str) -> Result<Mesh, MeshError> {
-    let mut positions = Vec::new();
+/// ASCII blocks of a compressed file: about this many bytes, lines at most `MAX_LINE`.
+const BLOCK: usize = 8 << 20;
+const MAX_LINE: usize = 1 << 20;
+
+/// ASCII STL, read line by line as it is decoded; stops once there are more facets than
+/// triangles allowed.
+fn parse_ascii(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshError> {
+    let mut positions: Vec<[f64; 3]> = Vec::new();
     let mut in_facet = 0usize; // vertices seen in the current facet, or 0 outside one
     let mut open = false;
     let mut ended = false;
-    for (lineno, line) in text.lines().enumerate() {
-        let mut tok = line.split_whitespace();
-        match tok.next() {
-            Some("facet") => {
-                if open {
-                    return Err(malformed(
-                        "STL",
-                        format!("line {}: facet inside a facet", lineno + 1),
-                    ));
+    let mut lineno = 0usize;
+    let max = opts.max_triangles;
+    line_blocks(s, "STL", BLOCK, MAX_LINE, after_last_newline, |block, _| {
+        for line in block.split_inclusive(|&b| b == b'\n') {
+            lineno += 1;
+            let mut tok = line
+                .split(|b| b.is_ascii_whitespace())
+                .filter(|t| !t.is_empty());
+            match tok.next() {
+                Some(b"facet") => {
+                    if open {
+                        return Err(malformed(
+                            "STL",
+                            format!("line {lineno}: facet inside a facet"),
+                        ));
+                    }
+                    if positions.len() / 3 >= max {
+                        return Err(MeshError::CountOverLimit {
+                            format: "STL",
+                            what: "facets or more (counted while reading)",
+                            count: positions.len() as u64 / 3 + 1,
+                            limit: max as u64,
+                        });
+                    }
+                    open = true;
+                    in_facet = 0;
                 }
-                open = true;
-                in_facet = 0;
+                Some(b"vertex") => {
+                    if !open {
+                        return Err(malformed(
+                            "STL",
+                            format!("line {lineno}: vertex outside a facet"),
+                        ));
+                    }
+                    if in_facet == 3 {
+                        return Err(malformed(
+                            "STL",
+                            format!(
+                                "line {lineno}: a facet must have exactly 3 vertices, found more"
+                            ),
+                        ));
+                    }
+                    let mut c = [0.0; 3];
+                    for v in c.iter_mut() {
+                        *v = tok
+                            .next()
+                            .and_then(|t| std::str::from_utf8(t).ok())
+                            .and_then(|t| t.parse::<f64>().ok())
+                            .ok_or_else(|| {
+                                malformed(
+                                    "STL",
+                                    format!("line {lineno}: vertex needs three numbers"),
+                                )
+                            })?;
+                    }
+                    positions.push(c);
+                    in_facet += 1;
+                }
+                Some(b"endfacet") => {
+                    if !open || in_facet != 3 {
+                        return Err(malformed(
+                            "STL",
+                            format!(
+                                "line {lineno}: a facet must have exactly 3 vertices, found {in_facet}"
+                            ),
+                        ));
+                    }
+                    open = false;
+                }
+                Some(b"endsolid") => ended = true,
+                _ => {}
             }
-            Some("vertex") => {
-                if !open {
-                    return Err(malformed(
-                        "STL",
-                        format!("line {}: vertex outside a facet", lineno + 1),
-                    ));
-                }
-                let mut c = [0.0; 3];
-                for v in c.iter_mut() {
-                    *v = tok
-                        .next()
-                        .and_then(|t| t.parse::<f64>().ok())
-                        .ok_or_else(|| {
-                            malformed(
-                                "STL",
-                                format!("line {}: vertex needs three numbers", lineno + 1),
-                            )
-                        })?;
-                }
-                positions.push(c);
-                in_facet += 1;
-            }
-            Some("endfacet") => {
-                if !open || in_facet != 3 {
-                    return Err(malformed(
-                        "STL",
-                        format!(
-                            "line {}: a facet must have exactly 3 vertices, found {in_facet}",
-                            lineno + 1
-                        ),
-                    ));
-                }
-                open = false;
-            }
-            Some("endsolid") => ended = true,
-            _ => {}
         }
-    }
+        Ok(())
+    })?;
     if open || !ended {
         return Err(malformed(
             "STL",

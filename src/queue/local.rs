@@ -7,15 +7,17 @@
 //! enough runs before newer small ones: nothing waits forever. A full queue refuses new jobs
 //! (429) and never drops accepted ones.
 //!
-//! Cancelling a queued job removes it; cancelling a running one marks it canceled and its result
-//! is discarded when the engine returns.
+//! Cancelling a queued job removes it; cancelling a running one marks it canceled and cancels
+//! its [`Control`]: the engine stops at its next check point and nothing is stored. With a job
+//! timeout ([`LocalQueue::with_job_timeout`]) a job's control gets a deadline when it starts
+//! running; past it the job stops the same way and fails. A running job's record shows its
+//! control's progress.
 //!
 //! State lives under a plain mutex that is never held across an await or any I/O. Records are
 //! written by one writer task, in the order the changes happened, through the store; the call
 //! that made a change waits until its record is durable.
 
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -25,6 +27,7 @@ use tokio::sync::{Notify, mpsc, oneshot, watch};
 
 use super::{Claim, JobQueue, JobRecord, NewJob, QueueStats, State, Timings};
 use crate::app::{Error, ErrorKind, Prepared, Result};
+use crate::cancel::Control;
 use crate::store::VolumeStore;
 
 /// Voxel credit per second of waiting (a 256³ job).
@@ -39,7 +42,8 @@ struct Job {
     enqueued: Instant,
     started: Option<Instant>,
     finished: Option<Instant>,
-    canceled: Arc<AtomicBool>,
+    /// Canceled with the job; its progress is the record's while running.
+    control: Control,
     done: watch::Sender<State>,
 }
 
@@ -56,6 +60,8 @@ pub struct LocalQueue {
     inner: Mutex<Inner>,
     ready: Notify,
     capacity: usize,
+    /// How long a job may run (its control's deadline from when it starts).
+    job_timeout: Option<Duration>,
     writes: mpsc::UnboundedSender<Write>,
 }
 
@@ -94,7 +100,7 @@ impl LocalQueue {
                     enqueued: now,
                     started: None,
                     finished: Some(now),
-                    canceled: Arc::new(AtomicBool::new(false)),
+                    control: Control::new(),
                     done,
                 },
             );
@@ -108,6 +114,7 @@ impl LocalQueue {
             }),
             ready: Notify::new(),
             capacity,
+            job_timeout: None,
             writes,
         };
         let acks: Vec<_> = interrupted.iter().map(|r| q.record(r)).collect();
@@ -115,6 +122,13 @@ impl LocalQueue {
             let _ = a.await;
         }
         Ok(q)
+    }
+
+    /// Jobs may run for `timeout` at most (none: as long as they take): past it a job stops at
+    /// its engine's next check point and fails.
+    pub fn with_job_timeout(mut self, timeout: Option<Duration>) -> LocalQueue {
+        self.job_timeout = timeout;
+        self
     }
 
     fn lock(&self) -> std::sync::MutexGuard<'_, Inner> {
@@ -164,6 +178,9 @@ impl Inner {
             return Some(j.record.clone());
         }
         let mut v = j.record.clone();
+        if v.state == State::Running {
+            v.progress = j.control.progress();
+        }
         v.position = (v.state == State::Queued)
             .then(|| self.queue.iter().position(|q| q == id).map(|p| p + 1))
             .flatten();
@@ -225,7 +242,7 @@ impl JobQueue for LocalQueue {
                     enqueued: Instant::now(),
                     started: None,
                     finished: None,
-                    canceled: Arc::new(AtomicBool::new(false)),
+                    control: Control::new(),
                     done,
                 },
             );
@@ -263,7 +280,10 @@ impl JobQueue for LocalQueue {
                     format!("job {id} has already {}", job.record.state.name()),
                 ));
             }
-            job.canceled.store(true, Ordering::SeqCst);
+            job.control.cancel();
+            if job.record.state == State::Running {
+                job.record.progress = job.control.progress();
+            }
             job.record.state = State::Canceled;
             job.finished = Some(Instant::now());
             job.work = None;
@@ -300,11 +320,15 @@ impl JobQueue for LocalQueue {
                     let job = inner.jobs.get_mut(&id).expect("queued job exists");
                     job.record.state = State::Running;
                     job.started = Some(now);
+                    if let Some(at) = self.job_timeout.and_then(|t| now.checked_add(t)) {
+                        job.control.set_deadline(at);
+                    }
                     job.done.send_replace(State::Running);
                     return Some(Claim {
                         work: job.work.clone().expect("queued work"),
                         name: job.record.name.clone(),
-                        canceled: job.canceled.clone(),
+                        control: job.control.clone(),
+                        timeout: self.job_timeout,
                         id,
                     });
                 }
@@ -335,6 +359,7 @@ impl JobQueue for LocalQueue {
                 }
                 Err(e) => {
                     job.record.state = State::Failed;
+                    job.record.progress = job.control.progress();
                     job.record.error = Some(e);
                 }
             }

@@ -7,13 +7,13 @@
 pub mod local;
 
 use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 use async_trait::async_trait;
 use serde::{Deserialize, Serialize};
 
 use crate::app::{Error, Prepared, Result};
+use crate::cancel::Control;
 use crate::grid::Grid;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -83,8 +83,12 @@ pub struct Claim {
     pub id: String,
     pub work: Arc<Prepared>,
     pub name: Option<String>,
-    /// Set when the job is canceled while it runs: its result is then discarded.
-    pub canceled: Arc<AtomicBool>,
+    /// The job's control: canceled when the job is canceled while it runs (the work stops at
+    /// its next check point and its result is discarded), with the job's deadline when the
+    /// queue has a job timeout; the job's record shows its progress while it runs.
+    pub control: Control,
+    /// The job timeout the deadline came from, for the problem of a job that outlives it.
+    pub timeout: Option<Duration>,
 }
 
 /// What `/metrics` and `/readyz` report.

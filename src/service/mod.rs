@@ -8,6 +8,7 @@ mod extract;
 mod metrics;
 pub mod problem;
 pub mod routes;
+pub mod server;
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -36,6 +37,11 @@ pub struct Config {
     pub workers: usize,
     pub limits: Limits,
     pub max_store_bytes: u64,
+    pub connections: server::ConnectionLimits,
+    /// How long shutdown waits for requests and running jobs before it gives up on them.
+    pub shutdown_timeout: std::time::Duration,
+    /// How long one job may run (`--job-timeout`); past it the job is stopped and fails.
+    pub job_timeout: Option<std::time::Duration>,
 }
 
 /// The state every handler sees.
@@ -44,6 +50,12 @@ pub struct App {
     pub store: Arc<dyn VolumeStore>,
     pub queue: Arc<dyn JobQueue>,
     pub limits: Limits,
+    pub http: server::ConnectionLimits,
+    /// Kibibytes of request bodies in memory, over all requests (`http.max_inflight_bytes`).
+    inflight: Arc<tokio::sync::Semaphore>,
+    /// Parsing and validating uploads runs here, not on the engine's threads, so a running job
+    /// never delays accepting (or refusing) the next one.
+    ingest: Arc<rayon::ThreadPool>,
     metrics: metrics::Metrics,
 }
 
@@ -54,13 +66,24 @@ impl App {
         store: Arc<dyn VolumeStore>,
         queue: Arc<dyn JobQueue>,
         limits: Limits,
+        http: server::ConnectionLimits,
     ) -> Arc<App> {
+        let kib = (http.max_inflight_bytes >> 10).clamp(1, tokio::sync::Semaphore::MAX_PERMITS as u64);
+        let threads = std::thread::available_parallelism().map_or(2, |n| n.get()).clamp(1, 4);
+        let ingest = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .thread_name(|i| format!("voxd-ingest-{i}"))
+            .build()
+            .expect("a thread pool for uploads");
         Arc::new(App {
             metrics: metrics::Metrics::new(&engine.describe()),
             engine,
             store,
             queue,
             limits,
+            http,
+            inflight: Arc::new(tokio::sync::Semaphore::new(kib as usize)),
+            ingest: Arc::new(ingest),
         })
     }
 
@@ -109,9 +132,10 @@ pub async fn open(config: &Config) -> Result<Arc<App>, String> {
     let queue: Arc<dyn JobQueue> = Arc::new(
         LocalQueue::open(config.queue_capacity.max(1), store.clone())
             .await
-            .map_err(|e| format!("{}: {e}", config.data_dir.display()))?,
+            .map_err(|e| format!("{}: {e}", config.data_dir.display()))?
+            .with_job_timeout(config.job_timeout),
     );
-    Ok(App::new(engine, store, queue, config.limits))
+    Ok(App::new(engine, store, queue, config.limits, config.connections))
 }
 
 /// Serves until `shutdown` resolves; then refuses new jobs, fails queued ones explicitly,
@@ -152,12 +176,29 @@ pub async fn serve(
             "shutting down: finishing running jobs"
         );
     };
-    axum::serve(listener, router(app))
-        .with_graceful_shutdown(stop)
+    server::run(
+        listener,
+        router(app),
+        config.connections,
+        stop,
+        config.shutdown_timeout,
+    )
+    .await;
+    // Running jobs finish (their volumes are stored) unless they outlast the shutdown timeout;
+    // then the process leaves them, and a restart shows them as interrupted.
+    let finish = async {
+        for w in workers {
+            let _ = w.await;
+        }
+    };
+    if tokio::time::timeout(config.shutdown_timeout, finish)
         .await
-        .map_err(|e| e.to_string())?;
-    for w in workers {
-        let _ = w.await;
+        .is_err()
+    {
+        tracing::warn!(
+            "jobs still running after the shutdown timeout ({} s); leaving them",
+            config.shutdown_timeout.as_secs()
+        );
     }
     tracing::info!("stopped");
     Ok(())

@@ -13,7 +13,7 @@ use crate::app::{Error, ErrorKind};
 pub const TYPE_BASE: &str = "https://voxd.dev/problems/";
 
 /// Every kind with its status and title.
-pub const KINDS: [(ErrorKind, u16, &str); 17] = [
+pub const KINDS: [(ErrorKind, u16, &str); 21] = [
     (ErrorKind::InvalidMesh, 422, "The mesh cannot be used"),
     (ErrorKind::UnsupportedMediaType, 415, "Unknown mesh format"),
     (
@@ -46,6 +46,10 @@ pub const KINDS: [(ErrorKind, u16, &str); 17] = [
         422,
         "The intersection is empty",
     ),
+    (ErrorKind::Timeout, 408, "Too slow"),
+    (ErrorKind::Busy, 503, "The server is busy"),
+    (ErrorKind::MethodNotAllowed, 405, "Method not allowed"),
+    (ErrorKind::PreconditionFailed, 412, "Precondition failed"),
     (ErrorKind::Internal, 500, "Internal error"),
 ];
 

@@ -4,8 +4,15 @@
 //! killed mid-write leaves either a whole volume or nothing that is listed (leftovers are removed
 //! at open).
 //!
+//! Every read checks the bytes against the metadata's length and sha256 (a mismatch, a torn or a
+//! missing file is [`StoreError::Corrupt`], never silently served), and a put refuses metadata
+//! that does not describe its bytes. The quota counts both files of a volume, data and metadata.
+//!
 //! The catalogue is held in memory (read once at open); every file operation runs on tokio's
 //! blocking pool, never on a runtime worker, and never under the catalogue's lock.
+//!
+//! With the `fault-injection` feature (tests only), `VOXD_FAULT` makes the process abort at a
+//! chosen point inside a write (see [`fault`]), so crash tests can stop it there.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -28,14 +35,21 @@ pub struct FsStore {
 }
 
 struct Inner {
-    index: BTreeMap<String, VolumeMeta>,
-    /// Bytes of the volumes in `index`.
+    index: BTreeMap<String, Entry>,
+    /// Bytes of the volumes in `index` (data and metadata files).
     used: u64,
     /// Bytes of puts in progress: counted against the quota from the check to the commit.
     reserved: u64,
     /// When a write last succeeded (a put or a probe) and whether the last write failed.
     last_ok_write: Option<Instant>,
     last_write_failed: bool,
+}
+
+/// A catalogue entry: the metadata and what the volume's two files take on disk.
+struct Entry {
+    meta: VolumeMeta,
+    /// Bytes of `{id}.vxl` + `{id}.json`, as counted against the quota.
+    stored: u64,
 }
 
 /// Runs blocking file work off the async runtime.
@@ -67,12 +81,26 @@ impl FsStore {
                 continue;
             }
             if p.extension().is_some_and(|e| e == "json") {
-                match std::fs::read(p)
-                    .ok()
-                    .and_then(|b| serde_json::from_slice::<VolumeMeta>(&b).ok())
-                {
-                    Some(m) if volumes.join(format!("{}.vxl", m.id)).exists() => {
-                        index.insert(m.id.clone(), m);
+                let parsed = std::fs::read(p).ok().and_then(|b| {
+                    let m = serde_json::from_slice::<VolumeMeta>(&b).ok()?;
+                    Some((m, b.len() as u64))
+                });
+                let data = parsed.as_ref().and_then(|(m, _)| {
+                    std::fs::metadata(volumes.join(format!("{}.vxl", m.id))).ok()
+                });
+                match (parsed, data) {
+                    (Some((m, json_len)), Some(data)) => {
+                        if data.len() != m.bytes {
+                            // Kept listed, so that reading it says what is wrong (Corrupt).
+                            tracing::error!(
+                                id = %m.id,
+                                "stored volume data is {} bytes, its metadata says {}",
+                                data.len(),
+                                m.bytes
+                            );
+                        }
+                        let stored = data.len() + json_len;
+                        index.insert(m.id.clone(), Entry { meta: m, stored });
                     }
                     _ => tracing::warn!(path = %p.display(), "ignoring unreadable volume metadata"),
                 }
@@ -96,7 +124,7 @@ impl FsStore {
             }
         }
         tracing::info!(volumes = index.len(), dir = %volumes.display(), "store opened");
-        let used = index.values().map(|m| m.bytes).sum();
+        let used = index.values().map(|e| e.stored).sum();
         Ok(FsStore {
             volumes,
             jobs,
@@ -131,13 +159,51 @@ fn safe_id(id: &str) -> bool {
     !id.is_empty() && id.len() <= 128 && id.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'-')
 }
 
+/// Do `bytes` match what `meta` says of them (length, sha256)?
+fn check(id: &str, bytes: &[u8], meta: &VolumeMeta) -> Result<(), StoreError> {
+    if bytes.len() as u64 != meta.bytes {
+        return Err(StoreError::Corrupt(format!(
+            "volume {id}: the data is {} bytes but its metadata says {} (a torn or damaged file)",
+            bytes.len(),
+            meta.bytes
+        )));
+    }
+    let sha = sha256_hex(bytes);
+    if sha != meta.sha256 {
+        return Err(StoreError::Corrupt(format!(
+            "volume {id}: the data's sha256 is {sha} but its metadata says {:?} (damaged)",
+            meta.sha256
+        )));
+    }
+    Ok(())
+}
+
+fn sha256_hex(b: &[u8]) -> String {
+    use sha2::Digest;
+    use std::fmt::Write;
+    let mut s = String::with_capacity(64);
+    for x in sha2::Sha256::digest(b) {
+        let _ = write!(s, "{x:02x}");
+    }
+    s
+}
+
 #[async_trait]
 impl VolumeStore for FsStore {
     async fn put(&self, meta: VolumeMeta, vxl: Bytes) -> Result<(), StoreError> {
         if !safe_id(&meta.id) {
             return Err(StoreError::Corrupt(format!("bad volume id {:?}", meta.id)));
         }
-        let need = vxl.len() as u64;
+        // The metadata must describe the bytes (or every later read would fail), and the
+        // metadata file counts against the quota as much as the data: both are known before
+        // anything is written.
+        let (m, data) = (meta.clone(), vxl.clone());
+        let json = blocking(move || {
+            check(&m.id, &data, &m)?;
+            Ok(serde_json::to_vec_pretty(&m).expect("metadata serialises"))
+        })
+        .await?;
+        let need = (vxl.len() + json.len()) as u64;
         {
             let mut i = self.lock();
             let used = i.used + i.reserved;
@@ -151,11 +217,14 @@ impl VolumeStore for FsStore {
             i.reserved += need;
         }
         let dir = self.volumes.clone();
-        let m = meta.clone();
+        let id = meta.id.clone();
         let written = blocking(move || {
-            atomic::write(&dir.join(format!("{}.vxl", m.id)), &vxl)?;
-            let json = serde_json::to_vec_pretty(&m).expect("metadata serialises");
-            atomic::write(&dir.join(format!("{}.json", m.id)), &json)?;
+            atomic::write_with(&dir.join(format!("{id}.vxl")), |w| {
+                fault::write(fault::Site::MidData, w, &vxl)
+            })?;
+            fault::point(fault::Site::AfterData);
+            atomic::write(&dir.join(format!("{id}.json")), &json)?;
+            fault::point(fault::Site::AfterCommit);
             Ok(())
         })
         .await;
@@ -165,29 +234,49 @@ impl VolumeStore for FsStore {
         if written.is_ok() {
             i.last_ok_write = Some(Instant::now());
             i.used += need;
-            if let Some(old) = i.index.insert(meta.id.clone(), meta) {
-                i.used -= old.bytes;
+            let entry = Entry { meta, stored: need };
+            if let Some(old) = i.index.insert(entry.meta.id.clone(), entry) {
+                i.used -= old.stored;
             }
         }
         written
     }
 
     async fn get(&self, id: &str) -> Result<Option<VolumeMeta>, StoreError> {
-        Ok(self.lock().index.get(id).cloned())
+        Ok(self.lock().index.get(id).map(|e| e.meta.clone()))
     }
 
+    /// The bytes, checked against the metadata's length and sha256: a mismatch, a torn file
+    /// or a missing one is `Corrupt`. (Ids are never reused, so the file under a listed id
+    /// changes only by damage.)
     async fn read(&self, id: &str) -> Result<Option<Bytes>, StoreError> {
-        if !self.lock().index.contains_key(id) {
+        let Some(meta) = self.lock().index.get(id).map(|e| e.meta.clone()) else {
             return Ok(None);
-        }
+        };
         let p = self.volumes.join(format!("{id}.vxl"));
-        blocking(move || match std::fs::read(&p) {
-            Ok(b) => Ok(Some(Bytes::from(b))),
-            // Deleted between the check and the read.
+        let read = blocking(move || match std::fs::read(&p) {
+            Ok(b) => {
+                check(&meta.id, &b, &meta)?;
+                Ok(Some(Bytes::from(b)))
+            }
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
             Err(e) => Err(e.into()),
         })
-        .await
+        .await;
+        match read {
+            // Gone although still listed: lost, not deleted (a delete unlists first).
+            Ok(None) if self.lock().index.contains_key(id) => {
+                let e =
+                    StoreError::Corrupt(format!("volume {id}: its data file {id}.vxl is missing"));
+                tracing::error!("{e}");
+                Err(e)
+            }
+            Err(e @ StoreError::Corrupt(_)) => {
+                tracing::error!("{e}");
+                Err(e)
+            }
+            other => other,
+        }
     }
 
     async fn list(
@@ -199,6 +288,7 @@ impl VolumeStore for FsStore {
         let mut it = i
             .index
             .values()
+            .map(|e| &e.meta)
             .filter(|m| after.is_none_or(|a| m.id.as_str() > a));
         let page: Vec<VolumeMeta> = it.by_ref().take(limit).cloned().collect();
         let more = it.next().is_some();
@@ -206,10 +296,13 @@ impl VolumeStore for FsStore {
     }
 
     async fn delete(&self, id: &str) -> Result<bool, StoreError> {
-        let Some(old) = self.lock().index.remove(id) else {
-            return Ok(false);
-        };
-        self.lock().used -= old.bytes;
+        {
+            let mut i = self.lock();
+            let Some(old) = i.index.remove(id) else {
+                return Ok(false);
+            };
+            i.used -= old.stored;
+        }
         let dir = self.volumes.clone();
         let id = id.to_string();
         blocking(move || {
@@ -258,7 +351,12 @@ impl VolumeStore for FsStore {
             return Err(StoreError::Corrupt(format!("bad job id {id:?}")));
         }
         let p = self.jobs.join(format!("{id}.json"));
-        let r = blocking(move || Ok(atomic::write(&p, &record)?)).await;
+        let r = blocking(move || {
+            Ok(atomic::write_with(&p, |w| {
+                fault::write(fault::Site::MidJobRecord, w, &record)
+            })?)
+        })
+        .await;
         self.note_write(r.is_ok());
         r
     }
@@ -288,12 +386,107 @@ impl VolumeStore for FsStore {
     }
 }
 
+/// Fault injection for crash tests: with the `fault-injection` feature, `VOXD_FAULT=SPEC`
+/// aborts the process (`std::process::abort`, as abrupt as SIGKILL) at one point of the
+/// store's writes. `SPEC` is `abort-SITE` or `abort-SITE:N` (the N-th time this process reaches
+/// that point, from 1; default 1), with `SITE` one of
+///
+/// - `mid-data`: inside a put's `.vxl` write, half the bytes in the temporary file, not renamed;
+/// - `after-data` (alias `before-commit`): a put's `.vxl` is durable, its metadata not written;
+/// - `after-commit`: both files durable, the catalogue and the caller not told;
+/// - `mid-job-record`: inside a job record's write, half of it in the temporary file.
+///
+/// Without the feature every hook is an empty inline function and `VOXD_FAULT` is ignored.
+pub mod fault {
+    use std::io::Write;
+
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub enum Site {
+        MidData,
+        AfterData,
+        AfterCommit,
+        MidJobRecord,
+    }
+
+    /// Writes `bytes` to `w` (a temporary file of an atomic write), aborting halfway when the
+    /// fault at `site` fires.
+    #[inline]
+    pub fn write(site: Site, w: &mut impl Write, bytes: &[u8]) -> std::io::Result<()> {
+        #[cfg(feature = "fault-injection")]
+        if armed::hit(site) {
+            w.write_all(&bytes[..bytes.len() / 2])?;
+            w.flush()?;
+            armed::abort(site);
+        }
+        let _ = site;
+        w.write_all(bytes)
+    }
+
+    /// Aborts here when the fault at `site` fires.
+    #[inline]
+    pub fn point(site: Site) {
+        #[cfg(feature = "fault-injection")]
+        if armed::hit(site) {
+            armed::abort(site);
+        }
+        let _ = site;
+    }
+
+    /// Parses a `VOXD_FAULT` value: the site and the hit that fires (from 1).
+    pub fn parse(spec: &str) -> Option<(Site, u64)> {
+        let (name, n) = match spec.trim().split_once(':') {
+            Some((name, n)) => (name, n.parse().ok().filter(|n| *n > 0)?),
+            None => (spec.trim(), 1),
+        };
+        let site = match name.strip_prefix("abort-")? {
+            "mid-data" => Site::MidData,
+            "after-data" | "before-commit" => Site::AfterData,
+            "after-commit" => Site::AfterCommit,
+            "mid-job-record" => Site::MidJobRecord,
+            _ => return None,
+        };
+        Some((site, n))
+    }
+
+    #[cfg(feature = "fault-injection")]
+    mod armed {
+        use super::Site;
+        use std::sync::OnceLock;
+        use std::sync::atomic::{AtomicU64, Ordering};
+
+        static FAULT: OnceLock<Option<(Site, u64)>> = OnceLock::new();
+        static HITS: AtomicU64 = AtomicU64::new(0);
+
+        /// Is this visit of `site` the one that fires?
+        pub fn hit(site: Site) -> bool {
+            let fault = FAULT.get_or_init(|| {
+                let spec = std::env::var("VOXD_FAULT").ok()?;
+                let f = super::parse(&spec);
+                if f.is_none() {
+                    eprintln!("voxd: VOXD_FAULT={spec:?} is not a fault this build knows; ignored");
+                }
+                f
+            });
+            match *fault {
+                Some((s, n)) if s == site => HITS.fetch_add(1, Ordering::SeqCst) + 1 == n,
+                _ => false,
+            }
+        }
+
+        pub fn abort(site: Site) -> ! {
+            eprintln!("voxd: fault injection: aborting at {site:?}");
+            std::process::abort()
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::store::SourceInfo;
 
-    fn meta(id: &str, bytes: u64) -> VolumeMeta {
+    /// Metadata that describes `data` truthfully.
+    fn meta(id: &str, data: &[u8]) -> VolumeMeta {
         VolumeMeta {
             id: id.into(),
             name: None,
@@ -315,23 +508,42 @@ mod tests {
             fill: None,
             engine: "cpu".into(),
             created: String::new(),
-            bytes,
-            sha256: String::new(),
+            bytes: data.len() as u64,
+            sha256: sha256_hex(data),
             provenance: None,
         }
     }
 
+    fn scratch(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("voxd-fsstore-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        dir
+    }
+
+    /// Bytes of every file in `dir/volumes`.
+    fn bytes_on_disk(dir: &Path) -> u64 {
+        std::fs::read_dir(dir.join("volumes"))
+            .unwrap()
+            .map(|e| e.unwrap().metadata().unwrap().len())
+            .sum()
+    }
+
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn quota_is_checked_and_reserved_in_one_step() {
-        let dir = std::env::temp_dir().join(format!("voxd-fsstore-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        let store = std::sync::Arc::new(FsStore::open(&dir, 100).unwrap());
-        // Eight concurrent puts of 30 bytes into 100: exactly three fit.
+        let dir = scratch("quota");
+        // One volume takes its 30 data bytes and its metadata file; the ids are of one length,
+        // so every volume takes the same.
+        let data = vec![0u8; 30];
+        let per = 30 + serde_json::to_vec_pretty(&meta("v0", &data)).unwrap().len() as u64;
+        let limit = 3 * per + per / 2;
+        let store = std::sync::Arc::new(FsStore::open(&dir, limit).unwrap());
+        // Eight concurrent puts into room for three and a half: exactly three fit.
         let puts: Vec<_> = (0..8)
             .map(|n| {
                 let s = store.clone();
+                let data = data.clone();
                 tokio::spawn(async move {
-                    s.put(meta(&format!("v{n}"), 30), Bytes::from(vec![0u8; 30]))
+                    s.put(meta(&format!("v{n}"), &data), Bytes::from(data))
                         .await
                 })
             })
@@ -345,12 +557,138 @@ mod tests {
             }
         }
         assert_eq!(ok, 3);
-        assert_eq!(store.usage().await.unwrap().bytes, 90);
+        assert_eq!(store.usage().await.unwrap().bytes, 3 * per);
+        assert_eq!(bytes_on_disk(&dir), 3 * per);
         assert!(store.health().await.is_ok());
-        // Reopened, the same three are there.
-        let again = FsStore::open(&dir, 100).unwrap();
+        // Reopened, the same three are there and count the same.
+        let again = FsStore::open(&dir, limit).unwrap();
         assert_eq!(again.list(None, 10).await.unwrap().0.len(), 3);
-        assert!(store.delete("v0").await.unwrap() || store.delete("v1").await.unwrap());
+        assert_eq!(again.usage().await.unwrap().bytes, 3 * per);
+        let listed = store.list(None, 10).await.unwrap().0;
+        assert!(store.delete(&listed[0].id).await.unwrap());
+        assert_eq!(store.usage().await.unwrap().bytes, 2 * per);
+        assert_eq!(bytes_on_disk(&dir), 2 * per);
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn metadata_counts_against_the_quota() {
+        let dir = scratch("metaquota");
+        let data = vec![7u8; 1000];
+        let plain = meta("plain", &data);
+        let plain_json = serde_json::to_vec_pretty(&plain).unwrap().len() as u64;
+        // Room for the data and a small metadata file, not for 100 KB of provenance.
+        let limit = 2 * (1000 + plain_json) + 10_000;
+        let store = FsStore::open(&dir, limit).unwrap();
+        let mut big = meta("big", &data);
+        big.provenance = Some(serde_json::json!({
+            "op": "union",
+            "operands": ["x".repeat(100_000)],
+        }));
+        match store.put(big, Bytes::from(data.clone())).await {
+            Err(StoreError::Full {
+                need,
+                used,
+                limit: l,
+            }) => {
+                assert!(need > 100_000, "{need}");
+                assert_eq!((used, l), (0, limit));
+            }
+            other => panic!("a 100 KB provenance fitted: {other:?}"),
+        }
+        assert_eq!(store.usage().await.unwrap().bytes, 0);
+        assert!(store.get("big").await.unwrap().is_none());
+        assert!(!dir.join("volumes/big.vxl").exists());
+        // The same data with small metadata fits, and counts both files.
+        store.put(plain, Bytes::from(data.clone())).await.unwrap();
+        assert_eq!(store.usage().await.unwrap().bytes, 1000 + plain_json);
+        assert_eq!(bytes_on_disk(&dir), 1000 + plain_json);
+        let again = FsStore::open(&dir, limit).unwrap();
+        assert_eq!(again.usage().await.unwrap().bytes, 1000 + plain_json);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn reads_verify_length_and_checksum() {
+        let dir = scratch("checksum");
+        let store = FsStore::open(&dir, 1 << 20).unwrap();
+        let data: Vec<u8> = (0..4096u32).map(|i| (i * 7 % 251) as u8).collect();
+        for id in ["a", "b", "c", "d"] {
+            store
+                .put(meta(id, &data), Bytes::from(data.clone()))
+                .await
+                .unwrap();
+        }
+        assert_eq!(store.read("a").await.unwrap().unwrap(), data);
+        let corrupt = |r: Result<Option<Bytes>, StoreError>, what: &str| match r {
+            Err(StoreError::Corrupt(m)) => assert!(m.contains(what), "{m}"),
+            other => panic!("expected Corrupt ({what}), got {other:?}"),
+        };
+        // One byte flipped on disk.
+        let a = dir.join("volumes/a.vxl");
+        let mut bytes = std::fs::read(&a).unwrap();
+        bytes[1234] ^= 0x10;
+        std::fs::write(&a, &bytes).unwrap();
+        corrupt(store.read("a").await, "sha256");
+        // Torn: cut short.
+        std::fs::write(dir.join("volumes/b.vxl"), &data[..1000]).unwrap();
+        corrupt(store.read("b").await, "1000 bytes");
+        // Missing.
+        std::fs::remove_file(dir.join("volumes/c.vxl")).unwrap();
+        corrupt(store.read("c").await, "missing");
+        // Still corrupt after a reopen (it is listed, and says so when read).
+        let again = FsStore::open(&dir, 1 << 20).unwrap();
+        corrupt(again.read("a").await, "sha256");
+        corrupt(again.read("b").await, "1000 bytes");
+        assert_eq!(again.read("d").await.unwrap().unwrap(), data);
+        // A deleted volume is absent, not corrupt; an unknown one too.
+        assert!(store.delete("d").await.unwrap());
+        assert!(store.read("d").await.unwrap().is_none());
+        assert!(store.read("nope").await.unwrap().is_none());
+        // Metadata that does not describe its bytes is refused, and nothing is stored.
+        let mut lying = meta("e", &data);
+        lying.sha256 = sha256_hex(b"something else");
+        corrupt(
+            store
+                .put(lying, Bytes::from(data.clone()))
+                .await
+                .map(|_| None),
+            "sha256",
+        );
+        let mut short = meta("f", &data);
+        short.bytes -= 1;
+        corrupt(
+            store
+                .put(short, Bytes::from(data.clone()))
+                .await
+                .map(|_| None),
+            "bytes",
+        );
+        assert!(store.get("e").await.unwrap().is_none() && store.get("f").await.unwrap().is_none());
+        assert!(!dir.join("volumes/e.vxl").exists() && !dir.join("volumes/f.vxl").exists());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn fault_specs_parse() {
+        use fault::{Site, parse};
+        assert_eq!(parse("abort-before-commit"), Some((Site::AfterData, 1)));
+        assert_eq!(parse("abort-after-data:3"), Some((Site::AfterData, 3)));
+        assert_eq!(parse("abort-mid-data:2"), Some((Site::MidData, 2)));
+        assert_eq!(parse("abort-after-commit"), Some((Site::AfterCommit, 1)));
+        assert_eq!(
+            parse("abort-mid-job-record:5"),
+            Some((Site::MidJobRecord, 5))
+        );
+        for bad in [
+            "",
+            "abort",
+            "abort-after-data:0",
+            "abort-after-data:x",
+            "after-data",
+            "abort-elsewhere",
+        ] {
+            assert_eq!(parse(bad), None, "{bad}");
+        }
     }
 }

@@ -57,7 +57,7 @@ pub struct SourceInfo {
 #[derive(Debug, thiserror::Error)]
 pub enum StoreError {
     #[error(
-        "storing this volume ({need} bytes) would exceed the store's limit of {limit} bytes ({used} used); delete volumes first"
+        "storing this volume ({need} bytes, data and metadata) would exceed the store's limit of {limit} bytes ({used} used); delete volumes first"
     )]
     Full { need: u64, used: u64, limit: u64 },
     #[error("storage I/O: {0}")]
@@ -69,6 +69,7 @@ pub enum StoreError {
 /// Bytes and volumes stored, against the quota.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub struct Usage {
+    /// Everything stored for the volumes: data and metadata (what the quota counts).
     pub bytes: u64,
     pub volumes: u64,
     pub limit: u64,
@@ -79,10 +80,13 @@ pub struct Usage {
 #[async_trait]
 pub trait VolumeStore: Send + Sync {
     /// Stores a volume: the quota check and the put are one step (two puts cannot both pass a
-    /// check that only one fits). The metadata is written last and is the commit point.
+    /// check that only one fits), and the quota counts the metadata as well as the data. The
+    /// metadata is written last and is the commit point. `meta.bytes` and `meta.sha256` must
+    /// describe `vxl` (`Corrupt` otherwise, and nothing is stored).
     async fn put(&self, meta: VolumeMeta, vxl: Bytes) -> Result<(), StoreError>;
     async fn get(&self, id: &str) -> Result<Option<VolumeMeta>, StoreError>;
-    /// The stored `.vxl` bytes.
+    /// The stored `.vxl` bytes, verified against the metadata's length and sha256: damaged,
+    /// torn or missing data is `Corrupt`, never returned.
     async fn read(&self, id: &str) -> Result<Option<Bytes>, StoreError>;
     /// Up to `limit` volumes with ids after `after`, in id order, and whether more follow.
     async fn list(

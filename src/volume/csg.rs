@@ -4,6 +4,7 @@
 //! Volumes are moved onto the result grid by whole columns and word-wise shifts along z.
 
 use super::{BitVolume, tail_mask};
+use crate::cancel::{Canceled, Control};
 use crate::grid::Grid;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -128,10 +129,39 @@ fn shift_into(src: &[u64], dst: &mut [u64], shift: i64) {
 /// `op` over the operands, n-ary: union/intersection/xor fold over all; difference removes every
 /// later operand from the first.
 pub fn apply(op: CsgOp, operands: &[&BitVolume]) -> Result<BitVolume, CsgError> {
+    apply_with::<Uncanceled>(op, operands, &Control::none()).map_err(|e| e.0)
+}
+
+/// A [`CsgError`] from work that cannot be canceled.
+struct Uncanceled(CsgError);
+
+impl From<CsgError> for Uncanceled {
+    fn from(e: CsgError) -> Self {
+        Uncanceled(e)
+    }
+}
+
+impl From<Canceled> for Uncanceled {
+    fn from(_: Canceled) -> Self {
+        unreachable!("Control::none never stops")
+    }
+}
+
+/// [`apply`], checking `ctl` before each operand and reporting each one done; the error is
+/// either a [`CsgError`] or [`Canceled`], as the caller's `E` holds them.
+pub fn apply_with<E: From<CsgError> + From<Canceled>>(
+    op: CsgOp,
+    operands: &[&BitVolume],
+    ctl: &Control,
+) -> Result<BitVolume, E> {
+    ctl.check()?;
     let grids: Vec<Grid> = operands.iter().map(|v| *v.grid()).collect();
     let grid = result_grid(op, &grids)?;
+    let done = ctl.counter(operands.len() as u64);
     let mut acc = regrid(operands[0], &grid)?;
+    done.add(1);
     for v in &operands[1..] {
+        done.check()?;
         let b = regrid(v, &grid)?;
         match op {
             CsgOp::Union => acc.union_with(&b),
@@ -139,6 +169,7 @@ pub fn apply(op: CsgOp, operands: &[&BitVolume]) -> Result<BitVolume, CsgError> 
             CsgOp::Difference => acc.subtract(&b),
             CsgOp::Xor => acc.xor_with(&b),
         }
+        done.add(1);
     }
     Ok(acc)
 }

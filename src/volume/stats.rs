@@ -10,6 +10,7 @@
 use serde::Serialize;
 
 use super::BitVolume;
+use crate::cancel::{Canceled, Control};
 
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Stats {
@@ -26,6 +27,13 @@ pub struct Stats {
 }
 
 pub fn stats(v: &BitVolume) -> Stats {
+    stats_with(v, &Control::none()).expect("Control::none never stops")
+}
+
+/// [`stats`], checking `ctl` every 2²⁰ solid voxels of the moments and per x-plane of the
+/// surface count and the two component passes, and reporting progress there.
+pub fn stats_with(v: &BitVolume, ctl: &Control) -> Result<Stats, Canceled> {
+    ctl.check()?;
     let g = *v.grid();
     let s = g.voxel_size;
     let n = v.count_ones();
@@ -38,7 +46,12 @@ pub fn stats(v: &BitVolume) -> Stats {
     });
     // Moments about the grid origin in voxel units (exact integer sums).
     let (mut m1, mut m2) = ([0u128; 3], [[0u128; 3]; 3]);
-    for p in v.iter_ones() {
+    let moments = ctl.stage(0.0, 0.25).counter(n);
+    for (i, p) in v.iter_ones().enumerate() {
+        if i % (1 << 20) == 0 && i > 0 {
+            moments.add(1 << 20);
+            ctl.check()?;
+        }
         let c = p.map(|x| x as u128);
         for a in 0..3 {
             m1[a] += c[a];
@@ -70,25 +83,32 @@ pub fn stats(v: &BitVolume) -> Stats {
         });
         (Some(com), Some(i))
     };
-    Stats {
+    let surface_voxels = surface_count(v, &ctl.stage(0.25, 0.4))?;
+    let components_6 = components(v, false, &ctl.stage(0.4, 0.7))?;
+    let components_26 = components(v, true, &ctl.stage(0.7, 1.0))?;
+    ctl.complete();
+    Ok(Stats {
         solid_voxels: n,
         volume: g.volume_of(n),
         bounds_index,
         bounds_world,
-        surface_voxels: surface_count(v),
-        components_6: components(v, false),
-        components_26: components(v, true),
+        surface_voxels,
+        components_6,
+        components_26,
         centre_of_mass,
         inertia,
-    }
+    })
 }
 
-fn surface_count(v: &BitVolume) -> u64 {
+fn surface_count(v: &BitVolume, ctl: &Control) -> Result<u64, Canceled> {
     let [nx, ny, _] = v.dims();
     let wpc = v.words_per_column();
     let empty = vec![0u64; wpc];
     let mut count = 0u64;
+    let planes = ctl.counter(nx as u64);
     for x in 0..nx {
+        ctl.check()?;
+        planes.add(1);
         for y in 0..ny {
             let col = v.column(x, y);
             let nb = |dx: i64, dy: i64| {
@@ -110,17 +130,21 @@ fn surface_count(v: &BitVolume) -> u64 {
             }
         }
     }
-    count
+    Ok(count)
 }
 
 /// Runs of consecutive set bits along z in each column, then union-find across neighbouring
 /// columns: 6-connected runs in face-adjacent columns overlap in z; 26-connected runs in any of the
 /// 8 surrounding columns overlap or touch (z ranges within one voxel).
-fn components(v: &BitVolume, diag: bool) -> u64 {
+fn components(v: &BitVolume, diag: bool, ctl: &Control) -> Result<u64, Canceled> {
     let [nx, ny, nz] = v.dims();
+    // Half the share for finding runs, half for joining them.
+    let planes = ctl.counter(2 * nx as u64);
     let mut runs: Vec<(u32, u32)> = Vec::new(); // (z0, z1) inclusive
     let mut first = vec![0usize; nx as usize * ny as usize + 1];
     for x in 0..nx {
+        ctl.check()?;
+        planes.add(1);
         for y in 0..ny {
             let col = v.column(x, y);
             let mut z = 0;
@@ -153,6 +177,8 @@ fn components(v: &BitVolume, diag: bool) -> u64 {
         &[(1, 0), (0, 1)]
     };
     for x in 0..nx as i64 {
+        ctl.check()?;
+        planes.add(1);
         for y in 0..ny as i64 {
             let here = (x * ny as i64 + y) as usize;
             for &(dx, dy) in offsets {
@@ -173,7 +199,7 @@ fn components(v: &BitVolume, diag: bool) -> u64 {
             }
         }
     }
-    (0..runs.len())
+    Ok((0..runs.len())
         .filter(|&i| find(&mut parent, i) == i)
-        .count() as u64
+        .count() as u64)
 }

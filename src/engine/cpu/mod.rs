@@ -11,6 +11,7 @@ use rayon::prelude::*;
 
 use super::{Engine, EngineError, GridMesh, Method};
 pub(crate) use super::{axis_bounds, box_range, centre_range};
+use crate::cancel::{Canceled, Control};
 use crate::volume::BitVolume;
 
 pub use solid::crossing_voxel;
@@ -26,13 +27,21 @@ impl Engine for CpuEngine {
         "cpu"
     }
 
-    fn voxelize(&self, mesh: &GridMesh, method: Method) -> Result<BitVolume, EngineError> {
+    fn voxelize_with(
+        &self,
+        mesh: &GridMesh,
+        method: Method,
+        ctl: &Control,
+    ) -> Result<BitVolume, EngineError> {
         Ok(match method {
-            Method::Solid => solid::voxelize(mesh),
-            Method::Surface => surface::voxelize(mesh),
+            Method::Solid => solid::voxelize(mesh, ctl)?,
+            Method::Surface => surface::voxelize(mesh, ctl)?,
             Method::Conservative | Method::Interior => {
-                let (mut solid, surface) =
-                    rayon::join(|| solid::voxelize(mesh), || surface::voxelize(mesh));
+                let (solid, surface) = rayon::join(
+                    || solid::voxelize(mesh, &ctl.stage(0.0, 0.5)),
+                    || surface::voxelize(mesh, &ctl.stage(0.5, 1.0)),
+                );
+                let (mut solid, surface) = (solid?, surface?);
                 if method == Method::Conservative {
                     solid.union_with(&surface);
                 } else {
@@ -46,12 +55,16 @@ impl Engine for CpuEngine {
 
 /// Runs `work(band, triangle indices, band words)` for every band of x-rows in parallel.
 /// `x_range(t)` gives the inclusive x-range of columns triangle `t` can touch, or `None`.
+/// `ctl` is checked before each band (bands not started once it says stop are skipped) and
+/// hears each band done.
 fn for_each_band<F>(
     mesh: &GridMesh,
     vol: &mut BitVolume,
     x_range: impl Fn(&[[i64; 3]; 3]) -> Option<(u32, u32)> + Sync,
+    ctl: &Control,
     work: F,
-) where
+) -> Result<(), Canceled>
+where
     F: Fn(Range<u32>, &[u32], &mut [u64]) + Sync,
 {
     let [nx, ny, _] = mesh.grid.dims;
@@ -71,15 +84,20 @@ fn for_each_band<F>(
             }
         }
     }
+    ctl.check()?;
     let chunk = band_len as usize * ny as usize * vol.words_per_column();
+    let done = ctl.counter(nbands as u64);
     vol.words_mut()
         .par_chunks_mut(chunk)
         .zip(bins.par_iter())
         .enumerate()
-        .for_each(|(b, (words, tris))| {
+        .try_for_each(|(b, (words, tris))| {
+            done.check()?;
             let start = b as u32 * band_len;
-            work(start..(start + band_len).min(nx), tris, words)
-        });
+            work(start..(start + band_len).min(nx), tris, words);
+            done.add(1);
+            Ok(())
+        })
 }
 
 pub(crate) use super::widen;

@@ -18,15 +18,16 @@
 use std::ops::Range;
 
 use super::{axis_bounds, centre_range, for_each_band, widen};
+use crate::cancel::{Canceled, Control};
 use crate::engine::{FIXED_HALF, FIXED_ONE, GridMesh};
 use crate::volume::{BitVolume, tail_mask};
 
-pub(super) fn voxelize(mesh: &GridMesh) -> BitVolume {
+pub(super) fn voxelize(mesh: &GridMesh, ctl: &Control) -> Result<BitVolume, Canceled> {
     let mut vol = BitVolume::new(mesh.grid);
     let [nx, ny, nz] = mesh.grid.dims;
     let wpc = vol.words_per_column();
     let x_range = |v: &[[i64; 3]; 3]| covered_rows(v, nx, ny);
-    for_each_band(mesh, &mut vol, x_range, |band, tris, words| {
+    for_each_band(mesh, &mut vol, x_range, ctl, |band, tris, words| {
         for &t in tris {
             toggle_crossings(
                 &widen(&mesh.triangles[t as usize]),
@@ -40,8 +41,8 @@ pub(super) fn voxelize(mesh: &GridMesh) -> BitVolume {
         for col in words.chunks_exact_mut(wpc) {
             prefix_xor_column(col, tail);
         }
-    });
-    vol
+    })?;
+    Ok(vol)
 }
 
 /// The inclusive range of x-rows whose column centres a triangle's xy box holds, `None` when it
@@ -174,17 +175,19 @@ fn for_each_crossing(
 /// the ray from voxel (x, y, z)'s centre towards −z crosses, under the same tie rules as `solid`
 /// (so `counts` is odd exactly where `solid` is set). For a closed mesh (as a chain: every edge
 /// used as often in each direction) this is its winding number at the centre. `decide` writes the
-/// row's bits into `row_words` (Y columns of the volume's words).
+/// row's bits into `row_words` (Y columns of the volume's words). `ctl` is checked per band
+/// and hears each band done (`decide` may check it per row).
 pub(crate) fn signed_counts(
     mesh: &GridMesh,
+    ctl: &Control,
     decide: impl Fn(u32, &[i32], &mut [u64]) + Sync,
-) -> BitVolume {
+) -> Result<BitVolume, Canceled> {
     let mut vol = BitVolume::new(mesh.grid);
     let [nx, ny, nz] = mesh.grid.dims;
     let wpc = vol.words_per_column();
     let x_range = |v: &[[i64; 3]; 3]| covered_rows(v, nx, ny);
     let row_words = ny as usize * wpc;
-    for_each_band(mesh, &mut vol, x_range, |band, tris, words| {
+    for_each_band(mesh, &mut vol, x_range, ctl, |band, tris, words| {
         let mut counts = vec![0i32; ny as usize * nz as usize];
         // Triangles per row of the band, so that each is set up once per row it covers.
         let mut rows: Vec<Vec<u32>> = vec![Vec::new(); band.len()];
@@ -219,8 +222,8 @@ pub(crate) fn signed_counts(
             let r = (x - band.start) as usize * row_words;
             decide(x, &counts, &mut words[r..r + row_words]);
         }
-    });
-    vol
+    })?;
+    Ok(vol)
 }
 
 /// Columns of `grid` (X × Y) whose centre is covered by an odd number of triangles of `mesh`

@@ -8,12 +8,13 @@
 //! (f64, widened by a voxel: it only prunes) and each is decided by the exact z-dependent axes.
 
 use super::{axis_bounds, box_range, for_each_band, widen};
+use crate::cancel::{Canceled, Control};
 use crate::engine::{FIXED_HALF, FIXED_ONE, GridMesh};
 use crate::volume::BitVolume;
 
 const H: i64 = FIXED_HALF;
 
-pub(super) fn voxelize(mesh: &GridMesh) -> BitVolume {
+pub(super) fn voxelize(mesh: &GridMesh, ctl: &Control) -> Result<BitVolume, Canceled> {
     let mut vol = BitVolume::new(mesh.grid);
     let [nx, ny, nz] = mesh.grid.dims;
     let wpc = vol.words_per_column();
@@ -23,7 +24,7 @@ pub(super) fn voxelize(mesh: &GridMesh) -> BitVolume {
         box_range(b[2].0, b[2].1, nz)?;
         box_range(b[0].0, b[0].1, nx)
     };
-    for_each_band(mesh, &mut vol, x_range, |band, tris, words| {
+    for_each_band(mesh, &mut vol, x_range, ctl, |band, tris, words| {
         for &t in tris {
             let tri = Tri::new(widen(&mesh.triangles[t as usize]));
             let b = [0, 1, 2].map(|a| axis_bounds(&tri.v, a));
@@ -51,8 +52,8 @@ pub(super) fn voxelize(mesh: &GridMesh) -> BitVolume {
                 }
             }
         }
-    });
-    vol
+    })?;
+    Ok(vol)
 }
 
 /// A triangle prepared for box tests: vertices, edges and (unnormalised) normal.

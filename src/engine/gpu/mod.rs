@@ -19,6 +19,7 @@ use device::GpuDevice;
 use wgpu::util::DeviceExt;
 
 use super::{Engine, EngineError, GridMesh, Method};
+use crate::cancel::Control;
 use crate::volume::{BitVolume, words_per_column};
 
 /// Settings of the GPU engine.
@@ -109,6 +110,18 @@ impl GpuEngine {
         mesh: &GridMesh,
         method: Method,
     ) -> Result<(BitVolume, GpuTimings), EngineError> {
+        self.voxelize_timed_with(mesh, method, &Control::none())
+    }
+
+    /// [`GpuEngine::voxelize_timed`], checking `ctl` before each slab (a submitted slab runs to
+    /// its end: kernels are not interruptible) and reporting each slab done.
+    pub fn voxelize_timed_with(
+        &self,
+        mesh: &GridMesh,
+        method: Method,
+        ctl: &Control,
+    ) -> Result<(BitVolume, GpuTimings), EngineError> {
+        ctl.check()?;
         let mut guard = self.device.lock().unwrap_or_else(|e| e.into_inner());
         if guard.is_lost() {
             tracing::warn!("GPU device was lost; opening it again");
@@ -117,7 +130,7 @@ impl GpuEngine {
         let dev = &*guard;
         let scope = dev.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let oom = dev.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-        let result = self.run(dev, mesh, method);
+        let result = self.run(dev, mesh, method, ctl);
         let oom_err = pollster::block_on(oom.pop());
         let val_err = pollster::block_on(scope.pop());
         if let Some(e) = oom_err.or(val_err) {
@@ -140,6 +153,7 @@ impl GpuEngine {
         dev: &GpuDevice,
         mesh: &GridMesh,
         method: Method,
+        ctl: &Control,
     ) -> Result<(BitVolume, GpuTimings), EngineError> {
         let grid = mesh.grid;
         let [nx, ny, nz] = grid.dims;
@@ -211,7 +225,9 @@ impl GpuEngine {
         });
 
         let words64_per_row = ny as usize * words_per_column(nz);
+        let done = ctl.counter(nx.div_ceil(slab_rows.max(1)) as u64);
         for x0 in (0..nx).step_by(slab_rows as usize) {
+            done.check()?;
             let rows = slab_rows.min(nx - x0);
             let params = Params {
                 dims: [nx, ny, nz],
@@ -316,6 +332,7 @@ impl GpuEngine {
             staging.unmap();
             timings.readback += t_read.elapsed();
             timings.slabs += 1;
+            done.add(1);
         }
         Ok((vol, timings))
     }
@@ -405,7 +422,12 @@ impl Engine for GpuEngine {
     fn describe(&self) -> String {
         format!("gpu ({})", self.adapter().name)
     }
-    fn voxelize(&self, mesh: &GridMesh, method: Method) -> Result<BitVolume, EngineError> {
-        self.voxelize_timed(mesh, method).map(|(v, _)| v)
+    fn voxelize_with(
+        &self,
+        mesh: &GridMesh,
+        method: Method,
+        ctl: &Control,
+    ) -> Result<BitVolume, EngineError> {
+        self.voxelize_timed_with(mesh, method, ctl).map(|(v, _)| v)
     }
 }

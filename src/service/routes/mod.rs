@@ -78,9 +78,27 @@ pub fn router(app: Arc<App>) -> Router {
         .fallback(|| async {
             Problem::new(ErrorKind::NotFound, "no such route; see /openapi.yaml")
         })
+        .method_not_allowed_fallback(|| async {
+            Problem::new(
+                ErrorKind::MethodNotAllowed,
+                "this route does not answer that method; see /openapi.yaml",
+            )
+        })
         .layer(compress)
+        .layer(middleware::map_response(volumes::etag_per_coding))
         .layer(middleware::from_fn(request_context))
         .with_state(app)
+}
+
+/// Refuses a volume name that is too long or holds control characters.
+fn check_name(name: &str, limits: &crate::app::Limits) -> crate::app::Result<()> {
+    if name.len() > limits.max_name_bytes || name.chars().any(char::is_control) {
+        return Err(crate::app::Error::invalid(format!(
+            "name must be at most {} bytes without control characters",
+            limits.max_name_bytes
+        )));
+    }
+    Ok(())
 }
 
 /// `201 Created` with `Location` and the volume's metadata.

@@ -40,7 +40,7 @@ async fn harness(name: &str) -> Harness {
         ..Limits::SERVICE
     }
     .with_body_bytes(1 << 16);
-    let app = App::new(engine, store, queue, limits);
+    let app = App::new(engine, store, queue, limits, Default::default());
     tokio::spawn(crate::app::jobs::work(
         app.queue.clone(),
         app.store.clone(),
@@ -397,4 +397,95 @@ async fn a_voxelization_through_the_router() {
         .json();
     assert_eq!(listed["volumes"].as_array().unwrap().len(), 2);
     assert!(listed["next"].is_string());
+}
+
+async fn call_with(
+    app: &Arc<App>,
+    method: &str,
+    uri: &str,
+    headers: &[(&str, &str)],
+    body: &[u8],
+) -> (Reply, axum::http::HeaderMap) {
+    let mut req = Request::builder().method(method).uri(uri);
+    for (k, v) in headers {
+        req = req.header(*k, *v);
+    }
+    let res = router(app.clone())
+        .oneshot(req.body(Body::from(body.to_vec())).unwrap())
+        .await
+        .unwrap();
+    let (status, h) = (res.status(), res.headers().clone());
+    let content_type = h
+        .get("content-type")
+        .map(|v| v.to_str().unwrap().to_string())
+        .unwrap_or_default();
+    let body = axum::body::to_bytes(res.into_body(), usize::MAX)
+        .await
+        .unwrap()
+        .to_vec();
+    (
+        Reply {
+            status,
+            content_type,
+            body,
+        },
+        h,
+    )
+}
+
+/// The contract in both directions: bounded conversions, one ETag per content coding with weak
+/// `If-None-Match`, `If-Match` on delete, content codings refused, names bounded, grids that
+/// cannot be represented refused before anything is stored, 405 as a problem.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn contract_edges() {
+    let h = harness("contract").await;
+    let obj = [("content-type", "model/obj")];
+    // A 4096×1×1 volume is tiny stored, but 4096³ as binvox: refused before any work.
+    let (r, _) = call_with(
+        &h.app,
+        "POST",
+        "/v1/voxelize?origin=0,0,0&voxel_size=0.001&dims=4096,1,1&wait=30",
+        &obj,
+        TETRA,
+    )
+    .await;
+    assert_eq!(r.status, StatusCode::CREATED, "{}", String::from_utf8_lossy(&r.body));
+    let id = r.json()["id"].as_str().unwrap().to_string();
+    let d = call(&h.app, "GET", &format!("/v1/volumes/{id}/data?format=binvox"), None, b"")
+        .await
+        .problem(422, "grid-too-large");
+    assert!(d.contains("binvox"), "{d}");
+    // ETags: identity and gzip differ; a weak If-None-Match of either is fresh.
+    let uri = format!("/v1/volumes/{id}/data?format=npy");
+    let (plain, ph) = call_with(&h.app, "GET", &uri, &[], b"").await;
+    let (gz, gh) = call_with(&h.app, "GET", &uri, &[("accept-encoding", "gzip")], b"").await;
+    assert_eq!((plain.status, gz.status), (StatusCode::OK, StatusCode::OK));
+    assert_eq!(gh.get("content-encoding").unwrap(), "gzip");
+    let (pt, gt) = (ph["etag"].to_str().unwrap(), gh["etag"].to_str().unwrap());
+    assert_ne!(pt, gt);
+    for t in [pt.to_string(), gt.to_string(), format!("W/{gt}")] {
+        let (r, _) = call_with(&h.app, "GET", &uri, &[("if-none-match", &t)], b"").await;
+        assert_eq!(r.status, StatusCode::NOT_MODIFIED, "{t}");
+    }
+    // If-Match on delete.
+    let (r, _) = call_with(&h.app, "DELETE", &format!("/v1/volumes/{id}"), &[("if-match", "\"0000000000000000-vxl\"")], b"").await;
+    r.problem(412, "precondition-failed");
+    let (r, _) = call_with(&h.app, "DELETE", &format!("/v1/volumes/{id}"), &[("if-match", pt)], b"").await;
+    assert_eq!(r.status, StatusCode::NO_CONTENT);
+    // Content codings.
+    let (r, _) = call_with(&h.app, "POST", "/v1/voxelize", &[("content-type", "model/obj"), ("content-encoding", "br")], TETRA).await;
+    r.problem(415, "unsupported-media-type");
+    let (r, _) = call_with(&h.app, "POST", "/v1/voxelize", &[("content-type", "model/obj"), ("content-encoding", "gzip")], TETRA).await;
+    r.problem(400, "invalid-parameter");
+    let (r, _) = call_with(&h.app, "POST", "/v1/volumes/intersect", &[("content-encoding", "gzip")], b"{}").await;
+    r.problem(415, "unsupported-media-type");
+    // Names, empty queries, grids that cannot be represented, methods.
+    let long = format!("/v1/voxelize?name={}", "n".repeat(300));
+    call(&h.app, "POST", &long, Some("model/obj"), TETRA).await.problem(400, "invalid-parameter");
+    call(&h.app, "POST", "/v1/volumes/x/query", None, b"{}").await.problem(400, "invalid-parameter");
+    call(&h.app, "POST", "/v1/volumes/x/query", None, b"null").await.problem(400, "invalid-parameter");
+    let subnormal = b"v 0 0 0\nv 5e-324 0 0\nv 0 5e-324 0\nv 0 0 5e-324\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+    call(&h.app, "POST", "/v1/voxelize?wait=30", Some("model/obj"), subnormal).await.problem(400, "invalid-parameter");
+    assert_eq!(h.app.store.usage().await.unwrap().volumes, 0, "nothing was stored");
+    call(&h.app, "PUT", "/v1/volumes", None, b"").await.problem(405, "method-not-allowed");
 }

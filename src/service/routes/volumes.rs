@@ -12,7 +12,7 @@ use super::super::extract::{Json, Query};
 use super::super::problem::Problem;
 use super::{AppState, VXL_MEDIA_TYPE, created};
 use crate::app::{
-    CsgExpr, Error, MorphologyRequest, PreviewRequest, PreviewView, QueryRequest, ops,
+    CsgExpr, Error, ErrorKind, MorphologyRequest, PreviewRequest, PreviewView, QueryRequest, ops,
 };
 use crate::codec::VolumeFormat;
 use crate::volume::preview::Projection;
@@ -35,11 +35,20 @@ pub async fn list(
             app.limits.max_list_page
         )));
     }
-    let (page, more) = app
+    let (mut page, mut more) = app
         .store
         .list(q.after.as_deref(), limit)
         .await
         .map_err(Error::from)?;
+    // A page is bounded in bytes too: the rest is on the next page.
+    let mut bytes = 0;
+    if let Some(cut) = page.iter().position(|m| {
+        bytes += serde_json::to_vec(m).map_or(0, |b| b.len());
+        bytes > app.limits.max_list_page_bytes
+    }) {
+        page.truncate(cut.max(1));
+        more = true;
+    }
     let next = more
         .then(|| page.last())
         .flatten()
@@ -63,12 +72,51 @@ pub async fn get(
 pub async fn delete(
     axum::extract::State(app): AppState,
     Path(id): Path<String>,
+    headers: HeaderMap,
 ) -> Result<Response, Problem> {
+    if let Some(want) = headers.get(header::IF_MATCH) {
+        let meta = app
+            .store
+            .get(&id)
+            .await
+            .map_err(Error::from)?
+            .ok_or_else(|| Error::not_found("volume", &id))?;
+        let want = want.to_str().unwrap_or("");
+        // Strong comparison: the ETag of any download of this volume's current content.
+        let prefix = format!("\"{}-", etag_sha(&meta.sha256));
+        let matches = want
+            .split(',')
+            .map(str::trim)
+            .any(|t| t == "*" || (t.starts_with(&prefix) && t.ends_with('"')));
+        if !matches {
+            return Err(Error::new(
+                ErrorKind::PreconditionFailed,
+                format!("volume {id} does not match If-Match {want:?}"),
+            )
+            .into());
+        }
+    }
     if app.store.delete(&id).await.map_err(Error::from)? {
         Ok(StatusCode::NO_CONTENT.into_response())
     } else {
         Err(Error::not_found("volume", &id).into())
     }
+}
+
+/// The part of a volume's sha256 its ETags carry.
+fn etag_sha(sha256: &str) -> &str {
+    &sha256[..16.min(sha256.len())]
+}
+
+/// Does `If-None-Match` hold one of `tags` (weak comparison: `W/` is ignored), or `*`?
+fn none_match_hits(headers: &HeaderMap, tags: &[String]) -> bool {
+    headers
+        .get_all(header::IF_NONE_MATCH)
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .flat_map(|v| v.split(','))
+        .map(|t| t.trim())
+        .any(|t| t == "*" || tags.iter().any(|e| t.strip_prefix("W/").unwrap_or(t) == e))
 }
 
 #[derive(Debug, Deserialize)]
@@ -96,17 +144,15 @@ pub async fn data(
         .map_err(Error::from)?
         .ok_or_else(|| Error::not_found("volume", &id))?;
     ops::check_format(&meta.kind, format)?;
-    let etag = format!(
-        "\"{}-{}\"",
-        &meta.sha256[..16.min(meta.sha256.len())],
-        format.name()
-    );
+    ops::check_conversion(&meta.grid, format, &app.limits)?;
+    // One ETag per representation: the identity body's, and (set on the way out, see
+    // `etag_per_coding`) one per content coding; a cached copy of any of them is fresh.
+    let etag = format!("\"{}-{}\"", etag_sha(&meta.sha256), format.name());
     let etag_value = HeaderValue::from_str(&etag).map_err(|e| Error::internal(e.to_string()))?;
-    if headers
-        .get(header::IF_NONE_MATCH)
-        .and_then(|v| v.to_str().ok())
-        .is_some_and(|v| v.split(',').any(|t| t.trim() == etag || t.trim() == "*"))
-    {
+    let tags: Vec<String> = std::iter::once(etag.clone())
+        .chain(CODINGS.iter().map(|c| coded_etag(&etag, c)))
+        .collect();
+    if none_match_hits(&headers, &tags) {
         let mut r = StatusCode::NOT_MODIFIED.into_response();
         r.headers_mut().insert(header::ETAG, etag_value);
         return Ok(r);
@@ -139,6 +185,29 @@ pub async fn data(
     Ok(r)
 }
 
+/// Content codings the compression layer may apply.
+const CODINGS: [&str; 2] = ["gzip", "zstd"];
+
+/// The ETag of `etag`'s representation under a content coding.
+fn coded_etag(etag: &str, coding: &str) -> String {
+    format!("{}+{coding}\"", etag.trim_end_matches('"'))
+}
+
+/// Gives a compressed response its own ETag (RFC 9110: one per content coding).
+pub async fn etag_per_coding(mut r: Response) -> Response {
+    let coding = r
+        .headers()
+        .get(header::CONTENT_ENCODING)
+        .and_then(|v| v.to_str().ok())
+        .map(str::to_string);
+    if let (Some(c), Some(tag)) = (coding, r.headers().get(header::ETAG)) {
+        if let Ok(v) = HeaderValue::from_str(&coded_etag(tag.to_str().unwrap_or(""), &c)) {
+            r.headers_mut().insert(header::ETAG, v);
+        }
+    }
+    r
+}
+
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct NameQuery {
@@ -150,6 +219,9 @@ pub async fn csg(
     Query(q): Query<NameQuery>,
     Json(expr): Json<Value>,
 ) -> Result<Response, Problem> {
+    if let Some(n) = &q.name {
+        super::check_name(n, &app.limits)?;
+    }
     let expr = CsgExpr::from_json(&expr, &app.limits)?;
     let meta = ops::csg_stored(&*app.store, expr, q.name).await?;
     Ok(created(&meta))
@@ -176,6 +248,9 @@ pub async fn morphology(
     Query(q): Query<NameQuery>,
     Json(req): Json<MorphologyRequest>,
 ) -> Result<Response, Problem> {
+    if let Some(n) = &q.name {
+        super::check_name(n, &app.limits)?;
+    }
     let meta = ops::morphology_stored(&*app.store, &id, req, q.name, app.limits).await?;
     Ok(created(&meta))
 }

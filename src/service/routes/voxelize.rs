@@ -9,9 +9,9 @@ use axum::http::{HeaderMap, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde::Deserialize;
 
-use super::super::extract::{Query, triple};
+use super::super::extract::{Query, check_content_encoding, read_body, triple};
 use super::super::problem::Problem;
-use super::{AppState, created, set_location};
+use super::{AppState, check_name, created, set_location};
 use crate::app::request::MethodName;
 use crate::app::{
     self, Error, ErrorKind, GridOptions, MeshSource, MethodSpec, VoxelizeRequest, ops,
@@ -119,23 +119,32 @@ pub async fn submit(
         .max_voxels
         .unwrap_or(limits.max_voxels)
         .min(limits.max_voxels);
+    if let Some(name) = &q.name {
+        check_name(name, &app.limits)?;
+    }
     let format = format_of(&q, &headers)?;
-    let max = limits.max_body_bytes;
-    let bytes = axum::body::to_bytes(body, max).await.map_err(|_| {
-        Problem::new(
-            ErrorKind::BodyTooLarge,
-            format!("the request body is larger than {max} bytes"),
-        )
-    })?;
+    let gzip = check_content_encoding(&headers, true)?;
+    let body = read_body(&app, &headers, body, limits.max_body_bytes).await?;
+    if gzip && !body.bytes.starts_with(&[0x1f, 0x8b]) {
+        return Err(Problem::invalid(
+            "Content-Encoding says gzip, but the body is not gzip data",
+        ));
+    }
     let req = VoxelizeRequest {
-        source: MeshSource::Bytes { bytes, format },
+        source: MeshSource::Bytes {
+            bytes: body.bytes.clone(),
+            format,
+        },
         grid,
         padding: q.padding,
         method,
         fill: q.fill.unwrap_or(Fill::Parity),
         limits,
     };
-    let work = ops::blocking(move || app::prepare(&req)).await?;
+    let ingest = app.ingest.clone();
+    let work = ops::blocking(move || ingest.install(|| app::prepare(&req))).await?;
+    // The upload's bytes leave the in-flight budget once parsed.
+    drop(body);
     let id = app::new_id();
     let record = app
         .queue

@@ -1,0 +1,183 @@
+//! Property tests (proptest) of the codecs' round trips: random volumes of random dims (1..40
+//! per axis) on random grids through every format that reads back, compared exactly where the
+//! format keeps a thing and as documented where it does not (npy keeps no grid, binvox is cubic
+//! and stores the cube's edge rather than the voxel size).
+
+use proptest::prelude::*;
+use voxd::codec::{binvox, npy, vxl};
+use voxd::grid::Grid;
+use voxd::volume::{BitVolume, DensityVolume, Volume};
+
+/// Cases per property: enough to vary dims, grids and fill, few enough to stay fast.
+fn config() -> ProptestConfig {
+    ProptestConfig {
+        cases: 64,
+        ..ProptestConfig::default()
+    }
+}
+
+fn dims() -> impl Strategy<Value = [u32; 3]> {
+    [1u32..=40, 1u32..=40, 1u32..=40]
+}
+
+/// Any grid a voxelization could give: origins of either sign over many magnitudes, voxel
+/// sizes from 1e-6 to 1e3, each an arbitrary f64 in its range (not a round number).
+fn grid(dims: impl Strategy<Value = [u32; 3]>) -> impl Strategy<Value = Grid> {
+    (
+        [-1e6f64..1e6, -1e3f64..1e3, -1.0f64..1.0],
+        -6.0f64..3.0,
+        dims,
+    )
+        .prop_map(|(origin, log_size, dims)| Grid {
+            origin,
+            voxel_size: 10f64.powf(log_size),
+            dims,
+        })
+}
+
+/// A deterministic fill of `n` voxels from a seed, each set with probability `p`.
+fn fill(seed: u64, p: f64, n: usize) -> impl Iterator<Item = u64> {
+    let mut s = seed | 1;
+    let cut = (p * u32::MAX as f64) as u64;
+    (0..n).map(move |_| {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        if (s >> 32) < cut { s & 0xff } else { u64::MAX }
+    })
+}
+
+fn bits(grid: Grid, seed: u64, p: f64) -> BitVolume {
+    let [x, y, z] = grid.dims;
+    let mut v = BitVolume::new(grid);
+    let mut f = fill(seed, p, (x * y * z) as usize);
+    for i in 0..x {
+        for j in 0..y {
+            for k in 0..z {
+                if f.next().unwrap() != u64::MAX {
+                    v.set(i, j, k, true);
+                }
+            }
+        }
+    }
+    v
+}
+
+fn density(grid: Grid, max: u8, seed: u64, p: f64) -> DensityVolume {
+    let [x, y, z] = grid.dims;
+    let mut v = DensityVolume::new(grid, max);
+    let mut f = fill(seed, p, (x * y * z) as usize);
+    for i in 0..x {
+        for j in 0..y {
+            for k in 0..z {
+                let r = f.next().unwrap();
+                if r != u64::MAX {
+                    v.set(i, j, k, (r % max as u64 + 1) as u8);
+                }
+            }
+        }
+    }
+    v
+}
+
+fn bits_volume() -> impl Strategy<Value = BitVolume> {
+    (grid(dims()), any::<u64>(), 0.0f64..=1.0).prop_map(|(g, s, p)| bits(g, s, p))
+}
+
+proptest! {
+    #![proptest_config(config())]
+
+    /// vxl keeps everything: bits, dims, origin and voxel size, bit for bit.
+    #[test]
+    fn bits_through_vxl(v in bits_volume()) {
+        let vol = Volume::Bits(v);
+        let (back, _) = vxl::decode(&vxl::encode(&vol, &Default::default()).unwrap()).unwrap();
+        prop_assert_eq!(back.grid(), vol.grid());
+        prop_assert_eq!(back, vol);
+    }
+
+    /// npy keeps the bits and dims; the grid comes back as origin 0, voxel size 1.
+    #[test]
+    fn bits_through_npy(v in bits_volume()) {
+        let Volume::Bits(b) = npy::decode(&npy::encode(&Volume::Bits(v.clone()))).unwrap() else {
+            panic!("0/1 data reads back as bits");
+        };
+        prop_assert_eq!(b.grid(), &Grid { origin: [0.0; 3], voxel_size: 1.0, dims: v.dims() });
+        prop_assert_eq!(b.words(), v.words());
+    }
+
+    /// binvox on a cube keeps the bits and the origin exactly; the voxel size comes back as
+    /// the stored edge length over n, within a few ulps.
+    #[test]
+    fn cubic_bits_through_binvox(
+        g in grid((1u32..=40).prop_map(|n| [n; 3])),
+        seed in any::<u64>(),
+        p in 0.0f64..=1.0,
+    ) {
+        let v = bits(g, seed, p);
+        let back = binvox::decode(&binvox::encode(&Volume::Bits(v.clone())).unwrap()).unwrap();
+        prop_assert_eq!(back.dims(), v.dims());
+        prop_assert_eq!(back.grid().origin, v.grid().origin);
+        let (a, b) = (back.grid().voxel_size, v.grid().voxel_size);
+        prop_assert!((a - b).abs() <= 4.0 * f64::EPSILON * b, "{} vs {}", a, b);
+        prop_assert_eq!(back.words(), v.words());
+    }
+
+    /// binvox pads any other grid on its high sides to a cube of the longest axis: the bits
+    /// are where they were and nothing is set in the padding.
+    #[test]
+    fn other_bits_through_binvox_are_padded(v in bits_volume()) {
+        let back = binvox::decode(&binvox::encode(&Volume::Bits(v.clone())).unwrap()).unwrap();
+        let n = *v.dims().iter().max().unwrap();
+        prop_assert_eq!(back.dims(), [n; 3]);
+        prop_assert_eq!(back.grid().origin, v.grid().origin);
+        prop_assert_eq!(back.count_ones(), v.count_ones());
+        prop_assert!(v.iter_ones().all(|p| back.get(p[0], p[1], p[2])));
+    }
+
+    /// Density volumes (maximum 8 or 64) through vxl: values, maximum and grid exactly.
+    #[test]
+    fn density_through_vxl(
+        g in grid(dims()),
+        max in prop_oneof![Just(8u8), Just(64u8)],
+        seed in any::<u64>(),
+        p in 0.0f64..=1.0,
+    ) {
+        let vol = Volume::Density(density(g, max, seed, p));
+        let (back, _) = vxl::decode(&vxl::encode(&vol, &Default::default()).unwrap()).unwrap();
+        prop_assert_eq!(back, vol);
+    }
+
+    /// Density volumes through npy: the values come back (as a density volume with maximum 8,
+    /// or 64 once a value is over 8; as bits when every value is 0 or 1), on origin 0, size 1.
+    #[test]
+    fn density_through_npy(
+        g in grid(dims()),
+        max in prop_oneof![Just(8u8), Just(64u8)],
+        seed in any::<u64>(),
+        p in 0.0f64..=1.0,
+    ) {
+        let d = density(g, max, seed, p);
+        let back = npy::decode(&npy::encode(&Volume::Density(d.clone()))).unwrap();
+        prop_assert_eq!(back.grid(), &Grid { origin: [0.0; 3], voxel_size: 1.0, dims: d.grid().dims });
+        let top = d.data().iter().copied().max().unwrap();
+        match back {
+            Volume::Density(b) => {
+                prop_assert!(top > 1);
+                prop_assert_eq!(b.max(), if top <= 8 { 8 } else { 64 });
+                prop_assert_eq!(b.data(), d.data());
+            }
+            Volume::Bits(b) => {
+                prop_assert!(top <= 1);
+                let [x, y, z] = d.grid().dims;
+                for i in 0..x {
+                    for j in 0..y {
+                        for k in 0..z {
+                            prop_assert_eq!(b.get(i, j, k), d.get(i, j, k) == 1);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
