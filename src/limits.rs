@@ -25,6 +25,8 @@ pub struct Limits {
     pub max_csg_depth: usize,
     /// Operands of one CSG operation.
     pub max_csg_operands: usize,
+    /// Voxels all nodes of one CSG expression may combine, in grids of `max_voxels`.
+    pub max_csg_work: u64,
     /// Radius of a morphology kernel.
     pub max_morph_radius: u32,
     /// Seconds a request may wait for its job (`wait=`).
@@ -65,6 +67,7 @@ impl Limits {
         max_preview_pixels: 1 << 24,
         max_csg_depth: 32,
         max_csg_operands: 256,
+        max_csg_work: 64,
         max_morph_radius: 64,
         max_wait_s: 300.0,
         max_list_page: 1000,

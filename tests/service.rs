@@ -1515,7 +1515,7 @@ fn a_job_past_its_deadline_fails_with_the_timeout_problem() {
         &[("Content-Type", "model/obj")],
         &spot,
     );
-    let p = assert_problem(&r, 500, "engine-failure");
+    let p = assert_problem(&r, 408, "timeout");
     let detail = p["detail"].as_str().unwrap();
     assert!(
         detail.contains("the job ran longer than --job-timeout (0.000001 s)"),

@@ -175,6 +175,9 @@ impl From<EngineError> for Error {
         let kind = match e {
             // A vertex too far from the grid for the fixed-point lattice: the mesh's fault.
             EngineError::OutOfRange { .. } => ErrorKind::InvalidMesh,
+            // Stopped at a check point: past its deadline, or canceled (a canceled job's
+            // record says canceled; a canceled request has no one left to tell).
+            EngineError::Canceled(_) => ErrorKind::Timeout,
             _ => ErrorKind::EngineFailure,
         };
         Error::new(kind, e.to_string())

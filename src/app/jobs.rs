@@ -61,7 +61,7 @@ pub fn timed_out(timeout: Option<Duration>) -> Error {
         |t| format!("--job-timeout ({} s)", t.as_secs_f64()),
     );
     Error::new(
-        ErrorKind::EngineFailure,
+        ErrorKind::Timeout,
         format!(
             "the job ran longer than {limit} and was stopped; use a coarser grid or a cheaper fill, or raise the server's --job-timeout"
         ),

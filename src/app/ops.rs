@@ -379,6 +379,68 @@ pub async fn csg_stored(
     csg_stored_with(store, expr, name, &Control::new()).await
 }
 
+/// Checks a CSG expression's cost before anything is read: every node's result grid (from the
+/// operands' stored grids) must be within the voxel limit, and the voxels all nodes produce
+/// together within [`Limits::max_csg_work`] grids of that size.
+pub async fn check_csg(store: &dyn VolumeStore, expr: &CsgExpr, limits: &Limits) -> Result<()> {
+    let mut grids = HashMap::new();
+    for id in expr.volume_ids() {
+        let meta = store
+            .get(&id)
+            .await?
+            .ok_or_else(|| Error::not_found("volume", &id))?;
+        if meta.kind != "bits" {
+            return Err(Error::new(
+                ErrorKind::WrongVolumeKind,
+                format!("volume {id}: a density volume; CSG works on bit volumes (solid, surface, conservative, interior)"),
+            ));
+        }
+        grids.insert(id, meta.grid);
+    }
+    fn grid_of(
+        e: &CsgExpr,
+        grids: &HashMap<String, Grid>,
+        limits: &Limits,
+        work: &mut u128,
+    ) -> Result<Grid> {
+        match e {
+            CsgExpr::Volume(id) => Ok(grids[id]),
+            CsgExpr::Op { op, operands } => {
+                let gs = operands
+                    .iter()
+                    .map(|o| grid_of(o, grids, limits, work))
+                    .collect::<Result<Vec<_>>>()?;
+                let g = csg::result_grid(*op, &gs)?;
+                let n = g.voxel_count();
+                if n > limits.max_voxels {
+                    return Err(Error::new(
+                        ErrorKind::GridTooLarge,
+                        format!(
+                            "the {} of these volumes lives on a {:?} grid of {n} voxels, over the limit of {}",
+                            op.name(),
+                            g.dims,
+                            crate::limits::describe_voxels(limits.max_voxels)
+                        ),
+                    ));
+                }
+                *work += u128::from(n) * operands.len() as u128;
+                Ok(g)
+            }
+        }
+    }
+    let mut work = 0u128;
+    grid_of(expr, &grids, limits, &mut work)?;
+    let budget = u128::from(limits.max_voxels) * u128::from(limits.max_csg_work);
+    if work > budget {
+        return Err(Error::invalid(format!(
+            "the expression would combine {work} voxels in all, over the limit of {} × {}",
+            limits.max_csg_work,
+            crate::limits::describe_voxels(limits.max_voxels)
+        )));
+    }
+    Ok(())
+}
+
 /// [`csg_stored`] under `ctl` (cancel, deadline, progress).
 pub async fn csg_stored_with(
     store: &dyn VolumeStore,

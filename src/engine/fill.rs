@@ -233,7 +233,7 @@ fn parity_along(
     // Back to the grid's own axes: voxel (x, y, z) is r at its rotated index.
     let mut out = BitVolume::new(*grid);
     for (i, p) in r.iter_ones().enumerate() {
-        if i % (1 << 20) == 0 {
+        if i.is_multiple_of(1 << 20) {
             ctl.check()?;
         }
         let mut q = [0u32; 3];
@@ -299,7 +299,7 @@ pub fn flood_with(walls: &BitVolume, ctl: &Control) -> Result<BitVolume, Cancele
     }
     while let Some(p) = queue.pop_front() {
         popped += 1;
-        if popped % (1 << 16) == 0 {
+        if popped.is_multiple_of(1 << 16) {
             reached_count.add(1 << 16);
             ctl.check()?;
         }

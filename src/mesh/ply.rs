@@ -349,9 +349,9 @@ fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
     hay.windows(needle.len()).position(|w| w == needle)
 }
 
-fn read_body(
+fn read_body<S: Source>(
     elements: &[Element],
-    src: &mut dyn Source,
+    src: &mut S,
     opts: &LoadOptions,
 ) -> Result<Mesh, MeshError> {
     let mut positions: Vec<[f64; 3]> = Vec::new();

@@ -63,6 +63,7 @@ impl<'a> Stream<'a> {
     }
 
     /// The unconsumed bytes at hand.
+    #[inline]
     pub(super) fn available(&self) -> &[u8] {
         &self.buf[self.pos..]
     }
@@ -93,6 +94,7 @@ impl<'a> Stream<'a> {
         self.peek(usize::MAX)
     }
 
+    #[inline]
     pub(super) fn consume(&mut self, n: usize) {
         self.pos += n;
         debug_assert!(self.pos <= self.buf.len());

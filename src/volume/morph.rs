@@ -472,14 +472,14 @@ mod tests {
                 let limit = 150u16;
                 let (mut out, mut s, mut t) = (vec![0; n], vec![0; n], vec![0; n]);
                 parabolas(&f, &mut out, &mut s, &mut t, limit);
-                for u in 0..n {
+                for (u, &got) in out.iter().enumerate() {
                     let best = (0..n)
                         .filter(|&i| f[i] != FAR)
                         .map(|i| (u as i64 - i as i64).pow(2) + f[i] as i64)
                         .min()
                         .filter(|&d| d <= limit as i64)
                         .map_or(FAR, |d| d as u16);
-                    assert_eq!(out[u], best, "n {n} u {u} f {f:?}");
+                    assert_eq!(got, best, "n {n} u {u} f {f:?}");
                 }
             }
         }

@@ -48,7 +48,7 @@ pub fn stats_with(v: &BitVolume, ctl: &Control) -> Result<Stats, Canceled> {
     let (mut m1, mut m2) = ([0u128; 3], [[0u128; 3]; 3]);
     let moments = ctl.stage(0.0, 0.25).counter(n);
     for (i, p) in v.iter_ones().enumerate() {
-        if i % (1 << 20) == 0 && i > 0 {
+        if i > 0 && i.is_multiple_of(1 << 20) {
             moments.add(1 << 20);
             ctl.check()?;
         }

@@ -488,4 +488,17 @@ async fn contract_edges() {
     call(&h.app, "POST", "/v1/voxelize?wait=30", Some("model/obj"), subnormal).await.problem(400, "invalid-parameter");
     assert_eq!(h.app.store.usage().await.unwrap().volumes, 0, "nothing was stored");
     call(&h.app, "PUT", "/v1/volumes", None, b"").await.problem(405, "method-not-allowed");
+    // A union of two small volumes far apart lives on a huge grid: refused before any is read.
+    let mut ids = vec![];
+    for o in ["0,0,0", "100,100,100"] {
+        let uri = format!("/v1/voxelize?origin={o}&voxel_size=0.25&dims=4,4,4&wait=30");
+        let (r, _) = call_with(&h.app, "POST", &uri, &obj, TETRA).await;
+        assert_eq!(r.status, StatusCode::CREATED, "{}", String::from_utf8_lossy(&r.body));
+        ids.push(r.json()["id"].as_str().unwrap().to_string());
+    }
+    let body = format!(r#"{{"op":"union","operands":["{}","{}"]}}"#, ids[0], ids[1]);
+    let d = call(&h.app, "POST", "/v1/volumes/csg", None, body.as_bytes())
+        .await
+        .problem(422, "grid-too-large");
+    assert!(d.contains("union"), "{d}");
 }

@@ -223,6 +223,7 @@ pub async fn csg(
         super::check_name(n, &app.limits)?;
     }
     let expr = CsgExpr::from_json(&expr, &app.limits)?;
+    ops::check_csg(&*app.store, &expr, &app.limits).await?;
     let meta = ops::csg_stored(&*app.store, expr, q.name).await?;
     Ok(created(&meta))
 }
