@@ -153,10 +153,7 @@ impl Grid {
                 || origin[a] + voxel_size == origin[a]
                 || origin[a].abs() / voxel_size > MAX_ORIGIN_VOXELS
             {
-                return Err(GridError::Unrepresentable {
-                    origin,
-                    voxel_size,
-                });
+                return Err(GridError::Unrepresentable { origin, voxel_size });
             }
         }
         if dims.iter().any(|&d| d > MAX_DIM as u64) {
@@ -385,7 +382,10 @@ mod tests {
                 l,
             )
         };
-        assert!(matches!(explicit([0.0; 3], 1e-310), Err(GridError::BadVoxelSize(_))));
+        assert!(matches!(
+            explicit([0.0; 3], 1e-310),
+            Err(GridError::BadVoxelSize(_))
+        ));
         assert!(matches!(
             explicit([1e9, 0.0, 0.0], 1e-9),
             Err(GridError::Unrepresentable { .. })

@@ -684,3 +684,29 @@ fn declared_counts_are_checked_before_the_work() {
         "STL: 25000000 triangles declared in the binary header, over the limit of 1000"
     );
 }
+
+/// Inputs the fuzzers found (fuzz/, scripts/fuzz.sh), in tests/data/fuzz-regressions, each with
+/// what it must give, in memory and gzip'd.
+#[test]
+fn fuzz_regressions() {
+    let cases = [
+        // POSITION naming an accessor that does not exist: gltf-json's validation indexed the
+        // accessors with it and panicked (caught, it became a vague error; uncaught, a crash).
+        (
+            "gltf-position-accessor-out-of-range-1.gltf",
+            "accessor 2 does not exist",
+        ),
+        (
+            "gltf-position-accessor-out-of-range-2.gltf",
+            "does not exist",
+        ),
+        ("glb-position-accessor-out-of-range.glb", "does not exist"),
+    ];
+    for (file, want) in cases {
+        let bytes = std::fs::read(data(&format!("fuzz-regressions/{file}"))).unwrap();
+        for b in [bytes.clone(), gz(&bytes)] {
+            let e = load(&b, None).unwrap_err().to_string();
+            assert!(e.contains(want), "{file}: {e}");
+        }
+    }
+}

@@ -1,10 +1,13 @@
 //! The input, gzip'd, through `mesh::load_bytes` (the streaming path: sniffing on the first
 //! bytes, loaders reading as they decode), against the same input in memory: both must give the
-//! same mesh or the same error (a fuzzer's inputs are shorter than what is decoded first, so
-//! nothing may differ).
+//! same mesh, or the same kind of error (a fuzzer's inputs are shorter than what is decoded
+//! first, so nothing else may differ; the text of an error may: a compressed .gltf is read by
+//! serde_json's reader, whose positions are one column later than its slice parser's).
 #![no_main]
 
 use std::io::Write;
+
+use voxd::mesh::MeshError::{CountOverLimit, Malformed};
 
 #[path = "common.rs"]
 mod common;
@@ -26,5 +29,26 @@ libfuzzer_sys::fuzz_target!(|data: &[u8]| {
     });
     let plain = voxd::mesh::load_bytes(data, format, &opts);
     let gz = voxd::mesh::load_bytes(&z, format, &opts);
-    assert_eq!(plain, gz, "in memory and gzip'd differ ({format:?})");
+    match (&plain, &gz) {
+        (Ok(a), Ok(b)) => assert_eq!(a, b, "in memory and gzip'd give different meshes"),
+        (Err(a), Err(b)) => assert!(
+            std::mem::discriminant(a) == std::mem::discriminant(b)
+                && match (a, b) {
+                    (Malformed { format: f, .. }, Malformed { format: g, .. }) => f == g,
+                    (
+                        CountOverLimit {
+                            what: w, count: c, ..
+                        },
+                        CountOverLimit {
+                            what: v, count: d, ..
+                        },
+                    ) => {
+                        (w, c) == (v, d)
+                    }
+                    _ => a == b,
+                },
+            "in memory and gzip'd differ ({format:?}): {a:?} / {b:?}"
+        ),
+        _ => panic!("in memory and gzip'd differ ({format:?}): {plain:?} / {gz:?}"),
+    }
 });

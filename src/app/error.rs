@@ -149,7 +149,9 @@ impl From<MeshError> for Error {
     fn from(e: MeshError) -> Error {
         let kind = match &e {
             MeshError::ExternalRefused { .. } => ErrorKind::ExternalResource,
-            MeshError::TooManyTriangles { .. } => ErrorKind::TooManyTriangles,
+            MeshError::TooManyTriangles { .. } | MeshError::CountOverLimit { .. } => {
+                ErrorKind::TooManyTriangles
+            }
             MeshError::UnknownFormat => ErrorKind::UnsupportedMediaType,
             MeshError::TooLarge(_) => ErrorKind::BodyTooLarge,
             _ => ErrorKind::InvalidMesh,

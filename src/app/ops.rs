@@ -392,7 +392,9 @@ pub async fn check_csg(store: &dyn VolumeStore, expr: &CsgExpr, limits: &Limits)
         if meta.kind != "bits" {
             return Err(Error::new(
                 ErrorKind::WrongVolumeKind,
-                format!("volume {id}: a density volume; CSG works on bit volumes (solid, surface, conservative, interior)"),
+                format!(
+                    "volume {id}: a density volume; CSG works on bit volumes (solid, surface, conservative, interior)"
+                ),
             ));
         }
         grids.insert(id, meta.grid);

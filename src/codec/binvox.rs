@@ -114,7 +114,7 @@ pub fn decode_limited(bytes: &[u8], max_voxels: u64) -> Result<BitVolume, CodecE
     let data = &bytes[pos..];
     // The runs must cover the grid exactly; checked before the volume is allocated, so a header
     // naming a huge grid over a few bytes of data costs nothing.
-    if data.len() % 2 != 0 {
+    if !data.len().is_multiple_of(2) {
         return Err(malformed("binvox", "odd number of data bytes"));
     }
     let covered: u64 = data.chunks_exact(2).map(|p| p[1] as u64).sum();

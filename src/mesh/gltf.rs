@@ -10,7 +10,7 @@ use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::Mode;
 
 use super::stream::Stream;
-use super::{ExternalResources, LoadOptions, Mesh, MeshError, malformed};
+use super::{ExternalResources, HEAD, LoadOptions, Mesh, MeshError, malformed};
 
 type Mat4 = [[f64; 4]; 4];
 const IDENTITY: Mat4 = [
@@ -27,18 +27,21 @@ const GLB_HEADER: usize = 12;
 const CHUNK_HEADER: usize = 8;
 
 pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshError> {
-    let doc = if s.peek(GLB_HEADER)?.starts_with(b"glTF") {
-        let bytes = glb_bytes(s, opts)?;
-        document(bytes)?
-    } else if s.is_compressed() {
-        document_from_stream(s)?
-    } else {
-        document(s.rest()?)?
-    };
     // The gltf crate asserts on some malformed accessors; a panic must become an error, not a
-    // dead worker.
-    std::panic::catch_unwind(|| parse_document(&doc, opts))
-        .unwrap_or_else(|_| Err(malformed("glTF", "malformed accessor or buffer data")))
+    // dead worker. (The stream is not used again after one.)
+    let mut s = std::panic::AssertUnwindSafe(s);
+    std::panic::catch_unwind(move || {
+        let s = &mut **s;
+        let doc = if s.peek(GLB_HEADER)?.starts_with(b"glTF") {
+            document(glb_bytes(s, opts)?)?
+        } else if s.is_compressed() {
+            document_from_stream(s)?
+        } else {
+            document(s.rest()?)?
+        };
+        parse_document(&doc, opts)
+    })
+    .unwrap_or_else(|_| Err(malformed("glTF", "malformed accessor or buffer data")))
 }
 
 /// The bytes of a GLB: its header's length is checked first (a compressed file is never
@@ -59,7 +62,9 @@ fn glb_bytes<'s>(s: &'s mut Stream, opts: &LoadOptions) -> Result<&'s [u8], Mesh
             format!("GLB header says the file has {length} bytes, too few for a JSON chunk"),
         ));
     }
-    if !s.is_compressed() {
+    // In memory, or all of it decoded with the first bytes: read as it is.
+    s.fill_to(HEAD)?;
+    if s.at_end() {
         return s.rest();
     }
     if length as u64 > s.limit() {
@@ -70,7 +75,7 @@ fn glb_bytes<'s>(s: &'s mut Stream, opts: &LoadOptions) -> Result<&'s [u8], Mesh
         if json_end <= length {
             let a = s.peek(json_end)?;
             if let Some(json) = a.get(GLB_HEADER + CHUNK_HEADER..json_end) {
-                let doc = document(json)?;
+                let doc = json_document(json)?;
                 check_limits(&doc, opts)?;
             }
         }
@@ -82,46 +87,70 @@ fn glb_bytes<'s>(s: &'s mut Stream, opts: &LoadOptions) -> Result<&'s [u8], Mesh
 
 /// The glTF document of a .gltf or a GLB's JSON chunk (or a whole GLB).
 fn document(bytes: &[u8]) -> Result<gltf::Gltf, MeshError> {
-    match gltf::Gltf::from_slice(bytes) {
-        Ok(d) => Ok(d),
-        Err(gltf::Error::Validation(errs)) if only_min_max(&errs) => {
-            gltf::Gltf::from_slice_without_validation(bytes)
-                .map_err(|e| malformed("glTF", e.to_string()))
-        }
-        Err(e) => Err(malformed("glTF", e.to_string())),
+    let bad = |e: gltf::json::Error| malformed("glTF", e.to_string());
+    if bytes.starts_with(b"glTF") {
+        let glb = gltf::Glb::from_slice(bytes).map_err(|e| malformed("glTF", e.to_string()))?;
+        let root = gltf::json::deserialize::from_slice(&glb.json).map_err(bad)?;
+        validated(root, glb.bin.map(|b| b.into_owned()))
+    } else {
+        json_document(bytes)
     }
 }
 
-/// POSITION min/max are required by the spec but often missing in real files, and nothing here
-/// needs them: a file whose only validation errors are those is accepted.
-fn only_min_max(errs: &[(gltf::json::Path, gltf::json::validation::Error)]) -> bool {
-    errs.iter().all(|(p, _)| {
-        let p = p.to_string();
-        p.ends_with(".min") || p.ends_with(".max")
-    })
+/// The glTF document of JSON text (a .gltf, or a GLB's JSON chunk).
+fn json_document(bytes: &[u8]) -> Result<gltf::Gltf, MeshError> {
+    let root = gltf::json::deserialize::from_slice(bytes)
+        .map_err(|e: gltf::json::Error| malformed("glTF", e.to_string()))?;
+    validated(root, None)
 }
 
 /// The document of a compressed .gltf, deserialized as it is decoded: what it holds is kept,
 /// not its whitespace.
 fn document_from_stream(s: &mut Stream) -> Result<gltf::Gltf, MeshError> {
-    use gltf::json::validation::Validate;
     let mut r = StreamRead { s, failed: None };
     let root: Result<gltf::json::Root, _> = gltf::json::deserialize::from_reader(&mut r);
-    let root = match (root, r.failed) {
-        (_, Some(e)) => return Err(e),
-        (Err(e), None) => return Err(malformed("glTF", e.to_string())),
-        (Ok(root), None) => root,
-    };
+    match (root, r.failed) {
+        (_, Some(e)) => Err(e),
+        (Err(e), None) => Err(malformed("glTF", e.to_string())),
+        (Ok(root), None) => validated(root, None),
+    }
+}
+
+/// The spec's validation of a document (gltf's own), except that POSITION min/max may be
+/// missing: required by the spec but often missing in real files, and nothing here needs them.
+fn validated(root: gltf::json::Root, blob: Option<Vec<u8>>) -> Result<gltf::Gltf, MeshError> {
+    use gltf::json::validation::Validate;
+    // gltf-json 1.4's validation indexes the accessors by each POSITION attribute unchecked
+    // (and panics on a bad index): those indices are checked first.
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            for a in prim.attributes.values() {
+                if a.value() >= root.accessors.len() {
+                    return Err(malformed(
+                        "glTF",
+                        format!(
+                            "mesh {m} primitive {p}: accessor {} does not exist",
+                            a.value()
+                        ),
+                    ));
+                }
+            }
+        }
+    }
     let mut errs = Vec::new();
     root.validate(&root, gltf::json::Path::new, &mut |path, e| {
         errs.push((path(), e))
     });
-    if !only_min_max(&errs) {
+    let only_min_max = errs.iter().all(|(p, _)| {
+        let p = p.to_string();
+        p.ends_with(".min") || p.ends_with(".max")
+    });
+    if !only_min_max {
         return Err(malformed("glTF", gltf::Error::Validation(errs).to_string()));
     }
     Ok(gltf::Gltf {
         document: gltf::Document::from_json_without_validation(root),
-        blob: None,
+        blob,
     })
 }
 

@@ -341,8 +341,11 @@ impl JobQueue for LocalQueue {
     }
 
     async fn finish(&self, id: &str, result: Result<String>) {
-        let durable = {
+        // The final record is made durable first and shown after: a job seen finished stays
+        // finished through a crash.
+        let (record, durable) = {
             let mut inner = self.lock();
+            let now = Instant::now();
             let Some(job) = inner.jobs.get_mut(id) else {
                 return;
             };
@@ -350,24 +353,36 @@ impl JobQueue for LocalQueue {
             if job.record.state == State::Canceled {
                 return;
             }
-            job.finished = Some(Instant::now());
+            let progress = job.control.progress();
+            job.finished = Some(now);
+            let mut v = inner.view(id).expect("present");
             match result {
                 Ok(volume) => {
-                    job.record.state = State::Succeeded;
-                    job.record.volume_id = Some(volume);
-                    job.record.progress = 1.0;
+                    v.state = State::Succeeded;
+                    v.volume_id = Some(volume);
+                    v.progress = 1.0;
                 }
                 Err(e) => {
-                    job.record.state = State::Failed;
-                    job.record.progress = job.control.progress();
-                    job.record.error = Some(e);
+                    v.state = State::Failed;
+                    v.progress = progress;
+                    v.error = Some(e);
                 }
             }
-            job.done.send_replace(job.record.state);
-            let v = inner.view(id).expect("present");
-            self.record(&v)
+            let durable = self.record(&v);
+            (v, durable)
         };
         let _ = durable.await;
+        let mut inner = self.lock();
+        if let Some(job) = inner.jobs.get_mut(id) {
+            // A cancel that came meanwhile was recorded after this record, and wins.
+            if job.record.state == State::Running {
+                job.record.state = record.state;
+                job.record.volume_id = record.volume_id;
+                job.record.progress = record.progress;
+                job.record.error = record.error;
+                job.done.send_replace(job.record.state);
+            }
+        }
     }
 
     async fn close(&self, why: Error) -> usize {

@@ -43,7 +43,12 @@ pub struct BodyBytes {
 /// the idle timeout, the average rate after the grace period must be at least the minimum, and
 /// the bytes count against the budget of bodies in flight over all requests. A declared
 /// `Content-Length` over the limit is refused before anything is read.
-pub async fn read_body(app: &App, headers: &HeaderMap, body: Body, limit: usize) -> Result<BodyBytes> {
+pub async fn read_body(
+    app: &App,
+    headers: &HeaderMap,
+    body: Body,
+    limit: usize,
+) -> Result<BodyBytes> {
     let http = &app.http;
     let too_large = || {
         Error::new(
@@ -137,7 +142,11 @@ pub fn check_content_encoding(headers: &HeaderMap, gzip_ok: bool) -> Result<bool
             ErrorKind::UnsupportedMediaType,
             format!(
                 "Content-Encoding {other:?} is not accepted here; send {}",
-                if gzip_ok { "identity or gzip" } else { "identity" }
+                if gzip_ok {
+                    "identity or gzip"
+                } else {
+                    "identity"
+                }
             ),
         )),
     }

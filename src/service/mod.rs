@@ -68,8 +68,11 @@ impl App {
         limits: Limits,
         http: server::ConnectionLimits,
     ) -> Arc<App> {
-        let kib = (http.max_inflight_bytes >> 10).clamp(1, tokio::sync::Semaphore::MAX_PERMITS as u64);
-        let threads = std::thread::available_parallelism().map_or(2, |n| n.get()).clamp(1, 4);
+        let kib =
+            (http.max_inflight_bytes >> 10).clamp(1, tokio::sync::Semaphore::MAX_PERMITS as u64);
+        let threads = std::thread::available_parallelism()
+            .map_or(2, |n| n.get())
+            .clamp(1, 4);
         let ingest = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .thread_name(|i| format!("voxd-ingest-{i}"))
@@ -135,7 +138,13 @@ pub async fn open(config: &Config) -> Result<Arc<App>, String> {
             .map_err(|e| format!("{}: {e}", config.data_dir.display()))?
             .with_job_timeout(config.job_timeout),
     );
-    Ok(App::new(engine, store, queue, config.limits, config.connections))
+    Ok(App::new(
+        engine,
+        store,
+        queue,
+        config.limits,
+        config.connections,
+    ))
 }
 
 /// Serves until `shutdown` resolves; then refuses new jobs, fails queued ones explicitly,

@@ -449,11 +449,22 @@ async fn contract_edges() {
         TETRA,
     )
     .await;
-    assert_eq!(r.status, StatusCode::CREATED, "{}", String::from_utf8_lossy(&r.body));
+    assert_eq!(
+        r.status,
+        StatusCode::CREATED,
+        "{}",
+        String::from_utf8_lossy(&r.body)
+    );
     let id = r.json()["id"].as_str().unwrap().to_string();
-    let d = call(&h.app, "GET", &format!("/v1/volumes/{id}/data?format=binvox"), None, b"")
-        .await
-        .problem(422, "grid-too-large");
+    let d = call(
+        &h.app,
+        "GET",
+        &format!("/v1/volumes/{id}/data?format=binvox"),
+        None,
+        b"",
+    )
+    .await
+    .problem(422, "grid-too-large");
     assert!(d.contains("binvox"), "{d}");
     // ETags: identity and gzip differ; a weak If-None-Match of either is fresh.
     let uri = format!("/v1/volumes/{id}/data?format=npy");
@@ -468,32 +479,93 @@ async fn contract_edges() {
         assert_eq!(r.status, StatusCode::NOT_MODIFIED, "{t}");
     }
     // If-Match on delete.
-    let (r, _) = call_with(&h.app, "DELETE", &format!("/v1/volumes/{id}"), &[("if-match", "\"0000000000000000-vxl\"")], b"").await;
+    let (r, _) = call_with(
+        &h.app,
+        "DELETE",
+        &format!("/v1/volumes/{id}"),
+        &[("if-match", "\"0000000000000000-vxl\"")],
+        b"",
+    )
+    .await;
     r.problem(412, "precondition-failed");
-    let (r, _) = call_with(&h.app, "DELETE", &format!("/v1/volumes/{id}"), &[("if-match", pt)], b"").await;
+    let (r, _) = call_with(
+        &h.app,
+        "DELETE",
+        &format!("/v1/volumes/{id}"),
+        &[("if-match", pt)],
+        b"",
+    )
+    .await;
     assert_eq!(r.status, StatusCode::NO_CONTENT);
     // Content codings.
-    let (r, _) = call_with(&h.app, "POST", "/v1/voxelize", &[("content-type", "model/obj"), ("content-encoding", "br")], TETRA).await;
+    let (r, _) = call_with(
+        &h.app,
+        "POST",
+        "/v1/voxelize",
+        &[("content-type", "model/obj"), ("content-encoding", "br")],
+        TETRA,
+    )
+    .await;
     r.problem(415, "unsupported-media-type");
-    let (r, _) = call_with(&h.app, "POST", "/v1/voxelize", &[("content-type", "model/obj"), ("content-encoding", "gzip")], TETRA).await;
+    let (r, _) = call_with(
+        &h.app,
+        "POST",
+        "/v1/voxelize",
+        &[("content-type", "model/obj"), ("content-encoding", "gzip")],
+        TETRA,
+    )
+    .await;
     r.problem(400, "invalid-parameter");
-    let (r, _) = call_with(&h.app, "POST", "/v1/volumes/intersect", &[("content-encoding", "gzip")], b"{}").await;
+    let (r, _) = call_with(
+        &h.app,
+        "POST",
+        "/v1/volumes/intersect",
+        &[("content-encoding", "gzip")],
+        b"{}",
+    )
+    .await;
     r.problem(415, "unsupported-media-type");
     // Names, empty queries, grids that cannot be represented, methods.
     let long = format!("/v1/voxelize?name={}", "n".repeat(300));
-    call(&h.app, "POST", &long, Some("model/obj"), TETRA).await.problem(400, "invalid-parameter");
-    call(&h.app, "POST", "/v1/volumes/x/query", None, b"{}").await.problem(400, "invalid-parameter");
-    call(&h.app, "POST", "/v1/volumes/x/query", None, b"null").await.problem(400, "invalid-parameter");
-    let subnormal = b"v 0 0 0\nv 5e-324 0 0\nv 0 5e-324 0\nv 0 0 5e-324\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
-    call(&h.app, "POST", "/v1/voxelize?wait=30", Some("model/obj"), subnormal).await.problem(400, "invalid-parameter");
-    assert_eq!(h.app.store.usage().await.unwrap().volumes, 0, "nothing was stored");
-    call(&h.app, "PUT", "/v1/volumes", None, b"").await.problem(405, "method-not-allowed");
+    call(&h.app, "POST", &long, Some("model/obj"), TETRA)
+        .await
+        .problem(400, "invalid-parameter");
+    call(&h.app, "POST", "/v1/volumes/x/query", None, b"{}")
+        .await
+        .problem(400, "invalid-parameter");
+    call(&h.app, "POST", "/v1/volumes/x/query", None, b"null")
+        .await
+        .problem(400, "invalid-parameter");
+    let subnormal =
+        b"v 0 0 0\nv 5e-324 0 0\nv 0 5e-324 0\nv 0 0 5e-324\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+    call(
+        &h.app,
+        "POST",
+        "/v1/voxelize?wait=30",
+        Some("model/obj"),
+        subnormal,
+    )
+    .await
+    .problem(400, "invalid-parameter");
+    assert_eq!(
+        h.app.store.usage().await.unwrap().volumes,
+        0,
+        "nothing was stored"
+    );
+    call(&h.app, "PUT", "/v1/volumes", None, b"")
+        .await
+        .problem(405, "method-not-allowed");
     // A union of two small volumes far apart lives on a huge grid: refused before any is read.
     let mut ids = vec![];
     for o in ["0,0,0", "100,100,100"] {
         let uri = format!("/v1/voxelize?origin={o}&voxel_size=0.25&dims=4,4,4&wait=30");
         let (r, _) = call_with(&h.app, "POST", &uri, &obj, TETRA).await;
-        assert_eq!(r.status, StatusCode::CREATED, "{}", String::from_utf8_lossy(&r.body));
+        assert_eq!(
+            r.status,
+            StatusCode::CREATED,
+            "{}",
+            String::from_utf8_lossy(&r.body)
+        );
         ids.push(r.json()["id"].as_str().unwrap().to_string());
     }
     let body = format!(r#"{{"op":"union","operands":["{}","{}"]}}"#, ids[0], ids[1]);
