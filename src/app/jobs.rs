@@ -259,7 +259,7 @@ mod tests {
         let claim = q.next().await.unwrap();
         assert!(claim.control.deadline().is_some());
         let e = run(Arc::new(CpuEngine), &*store, &claim).await.unwrap_err();
-        assert_eq!(e.kind, ErrorKind::EngineFailure);
+        assert_eq!(e.kind, ErrorKind::Timeout);
         assert!(
             e.detail
                 .starts_with("the job ran longer than --job-timeout (0 s)"),
