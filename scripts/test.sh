@@ -25,4 +25,5 @@ cargo clippy --locked --all-targets --quiet -- -D warnings
 # --show-output: skip notices (e.g. ../shared/meshes absent) stay visible. fault-injection: the
 # crash test (tests/crash.rs) aborts the server inside store writes (VOXD_FAULT; inert otherwise).
 cargo test --locked --features fault-injection -- --show-output
+./scripts/fuzz.sh 15    # every fuzz target of fuzz/ for 15 s (installs cargo-fuzz if missing)
 ./scripts/contract.sh   # openapi.yaml valid, and schemathesis against the running service
