@@ -18,8 +18,7 @@
 //! never assertions.
 
 use std::collections::{BTreeMap, BTreeSet};
-use std::io::{BufRead, BufReader, Read, Write};
-use std::net::TcpStream;
+use std::io::{BufRead, BufReader};
 use std::os::unix::process::ExitStatusExt;
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
@@ -53,70 +52,9 @@ fn request(
     ctype: &str,
     body: &[u8],
 ) -> std::io::Result<Resp> {
-    let bad = |m: &str| std::io::Error::new(std::io::ErrorKind::InvalidData, m.to_string());
-    let mut s = TcpStream::connect(addr)?;
-    s.set_read_timeout(Some(Duration::from_secs(120)))?;
-    s.set_write_timeout(Some(Duration::from_secs(120)))?;
-    let mut head = format!(
-        "{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nContent-Length: {}\r\n",
-        body.len()
-    );
-    if !ctype.is_empty() {
-        head += &format!("Content-Type: {ctype}\r\n");
-    }
-    head += "\r\n";
-    s.write_all(head.as_bytes())?;
-    s.write_all(body)?;
-    let mut raw = Vec::new();
-    s.read_to_end(&mut raw)?;
-    let split = raw
-        .windows(4)
-        .position(|w| w == b"\r\n\r\n")
-        .ok_or_else(|| bad("no response head"))?;
-    let head = String::from_utf8_lossy(&raw[..split]).to_string();
-    let mut lines = head.split("\r\n");
-    let status = lines
-        .next()
-        .and_then(|l| l.split(' ').nth(1))
-        .and_then(|s| s.parse().ok())
-        .ok_or_else(|| bad("no status"))?;
-    let headers: BTreeMap<String, String> = lines
-        .filter_map(|l| l.split_once(':'))
-        .map(|(k, v)| (k.trim().to_ascii_lowercase(), v.trim().to_string()))
-        .collect();
-    let mut body = raw[split + 4..].to_vec();
-    if headers
-        .get("transfer-encoding")
-        .is_some_and(|t| t == "chunked")
-    {
-        let mut out = Vec::new();
-        let mut rest = &body[..];
-        loop {
-            let eol = rest
-                .windows(2)
-                .position(|w| w == b"\r\n")
-                .ok_or_else(|| bad("torn chunk"))?;
-            let n = std::str::from_utf8(&rest[..eol])
-                .ok()
-                .and_then(|n| usize::from_str_radix(n.trim(), 16).ok())
-                .ok_or_else(|| bad("bad chunk size"))?;
-            if n == 0 {
-                break;
-            }
-            let chunk = rest
-                .get(eol + 2..eol + 2 + n)
-                .ok_or_else(|| bad("torn chunk"))?;
-            out.extend_from_slice(chunk);
-            rest = rest.get(eol + 4 + n..).ok_or_else(|| bad("torn chunk"))?;
-        }
-        body = out;
-    } else if headers
-        .get("content-length")
-        .and_then(|n| n.parse::<usize>().ok())
-        .is_some_and(|n| n != body.len())
-    {
-        return Err(bad("torn body"));
-    }
+    let h = [("Content-Type", ctype)];
+    let headers: &[(&str, &str)] = if ctype.is_empty() { &[] } else { &h };
+    let (status, headers, body) = crate::common::http_exchange(addr, method, path, headers, body)?;
     Ok(Resp {
         status,
         headers,

@@ -649,3 +649,82 @@ pub fn open_bowl() -> Mesh {
     t.remove(7);
     Mesh::new(p, t).unwrap()
 }
+
+/// One HTTP/1.1 exchange over a fresh connection (`Connection: close`): the status, the headers
+/// (names lowercased) and the body (chunked or not). Any failure, such as a server killed
+/// mid-way, is an error, never a panic.
+pub fn http_exchange(
+    addr: &str,
+    method: &str,
+    path: &str,
+    headers: &[(&str, &str)],
+    body: &[u8],
+) -> std::io::Result<(u16, std::collections::BTreeMap<String, String>, Vec<u8>)> {
+    use std::collections::BTreeMap;
+    use std::io::{Read, Write};
+    let bad = |m: &str| std::io::Error::new(std::io::ErrorKind::InvalidData, m.to_string());
+    let mut s = std::net::TcpStream::connect(addr)?;
+    s.set_read_timeout(Some(std::time::Duration::from_secs(120)))?;
+    s.set_write_timeout(Some(std::time::Duration::from_secs(120)))?;
+    let mut head = format!(
+        "{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nContent-Length: {}\r\n",
+        body.len()
+    );
+    for (k, v) in headers {
+        head += &format!("{k}: {v}\r\n");
+    }
+    head += "\r\n";
+    s.write_all(head.as_bytes())?;
+    s.write_all(body)?;
+    let mut raw = Vec::new();
+    s.read_to_end(&mut raw)?;
+    let split = raw
+        .windows(4)
+        .position(|w| w == b"\r\n\r\n")
+        .ok_or_else(|| bad("no response head"))?;
+    let head = String::from_utf8_lossy(&raw[..split]).to_string();
+    let mut lines = head.split("\r\n");
+    let status = lines
+        .next()
+        .and_then(|l| l.split(' ').nth(1))
+        .and_then(|s| s.parse().ok())
+        .ok_or_else(|| bad("no status"))?;
+    let headers: BTreeMap<String, String> = lines
+        .filter_map(|l| l.split_once(':'))
+        .map(|(k, v)| (k.trim().to_ascii_lowercase(), v.trim().to_string()))
+        .collect();
+    let mut body = raw[split + 4..].to_vec();
+    if headers
+        .get("transfer-encoding")
+        .is_some_and(|t| t == "chunked")
+    {
+        let mut out = Vec::new();
+        let mut rest = &body[..];
+        loop {
+            let eol = rest
+                .windows(2)
+                .position(|w| w == b"\r\n")
+                .ok_or_else(|| bad("torn chunk"))?;
+            let n = std::str::from_utf8(&rest[..eol])
+                .ok()
+                .and_then(|n| usize::from_str_radix(n.trim(), 16).ok())
+                .ok_or_else(|| bad("bad chunk size"))?;
+            if n == 0 {
+                break;
+            }
+            let chunk = rest
+                .get(eol + 2..eol + 2 + n)
+                .ok_or_else(|| bad("torn chunk"))?;
+            out.extend_from_slice(chunk);
+            rest = rest.get(eol + 4 + n..).ok_or_else(|| bad("torn chunk"))?;
+        }
+        body = out;
+    } else if headers
+        .get("content-length")
+        .and_then(|n| n.parse::<usize>().ok())
+        .is_some_and(|n| n != body.len())
+    {
+        return Err(bad("torn body"));
+    }
+    Ok((status, headers, body))
+}
