@@ -5,6 +5,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use bytes::Bytes;
+use tracing::Instrument;
 
 use super::error::{Error, ErrorKind, Result};
 use super::metadata::{self, Origin};
@@ -82,21 +83,16 @@ pub async fn work(
 ) {
     while let Some(claim) = queue.next().await {
         let span = tracing::info_span!("job", id = %claim.id, method = claim.work.method.name(), dims = ?claim.work.grid.dims);
+        span.in_scope(|| tracing::info!("job started"));
         let t = Instant::now();
-        let result = {
-            let _e = span.enter();
-            tracing::info!("job started");
-            drop(_e);
-            run(engine.clone(), &*store, &claim).await
-        };
+        let result = run(engine.clone(), &*store, &claim)
+            .instrument(span.clone())
+            .await;
         let secs = t.elapsed().as_secs_f64();
-        {
-            let _e = span.enter();
-            match &result {
-                Ok(m) => tracing::info!(volume = %m.id, secs, "job succeeded"),
-                Err(e) => tracing::warn!(problem = %e.detail, secs, "job failed"),
-            }
-        }
+        span.in_scope(|| match &result {
+            Ok(m) => tracing::info!(volume = %m.id, secs, "job succeeded"),
+            Err(e) => tracing::warn!(problem = %e.detail, secs, "job failed"),
+        });
         observer.job_done(secs, &result);
         queue.finish(&claim.id, result.map(|m| m.id)).await;
     }
@@ -107,7 +103,6 @@ mod tests {
     use std::time::Duration;
 
     use super::*;
-    use crate::app::{GridOptions, MeshSource, MethodSpec, VoxelizeRequest};
     use crate::cancel::Control;
     use crate::engine::cpu::CpuEngine;
     use crate::engine::{EngineError, GridMesh, Method};
@@ -142,24 +137,7 @@ mod tests {
     }
 
     fn job(id: &str) -> NewJob {
-        let tetra = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
-        let req = VoxelizeRequest {
-            source: MeshSource::Bytes {
-                bytes: Bytes::from_static(tetra),
-                format: None,
-            },
-            grid: GridOptions::default().spec(16).unwrap(),
-            padding: 0,
-            method: MethodSpec::Bits(Method::Solid),
-            fill: crate::engine::fill::Fill::Parity,
-            limits: crate::limits::Limits::SERVICE,
-        };
-        NewJob {
-            id: id.into(),
-            work: crate::app::prepare(&req).unwrap(),
-            name: None,
-            created: String::new(),
-        }
+        crate::app::testing::tiny_job(id, 16)
     }
 
     struct Dir(std::path::PathBuf);

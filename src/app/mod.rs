@@ -104,3 +104,37 @@ mod tests {
         );
     }
 }
+
+/// What the crate's unit tests share: a tiny closed mesh and a queued job made of it.
+#[cfg(test)]
+pub(crate) mod testing {
+    use bytes::Bytes;
+
+    use super::{GridOptions, MeshSource, MethodSpec, VoxelizeRequest};
+    use crate::queue::NewJob;
+
+    /// A closed, outward-facing tetrahedron as OBJ.
+    pub const TETRA_OBJ: &[u8] =
+        b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+
+    /// A solid, parity voxelization of [`TETRA_OBJ`] at `resolution`, prepared and ready to queue.
+    pub fn tiny_job(id: &str, resolution: u32) -> NewJob {
+        let req = VoxelizeRequest {
+            source: MeshSource::Bytes {
+                bytes: Bytes::from_static(TETRA_OBJ),
+                format: None,
+            },
+            grid: GridOptions::default().spec(resolution).unwrap(),
+            padding: 0,
+            method: MethodSpec::Bits(crate::engine::Method::Solid),
+            fill: crate::engine::fill::Fill::Parity,
+            limits: crate::limits::Limits::SERVICE,
+        };
+        NewJob {
+            id: id.into(),
+            work: super::prepare(&req).unwrap(),
+            name: None,
+            created: String::new(),
+        }
+    }
+}

@@ -436,27 +436,9 @@ impl JobQueue for LocalQueue {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::app::{GridOptions, MeshSource, MethodSpec, VoxelizeRequest};
 
     fn tiny_job(id: &str) -> NewJob {
-        let tetra = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
-        let req = VoxelizeRequest {
-            source: MeshSource::Bytes {
-                bytes: Bytes::from_static(tetra),
-                format: None,
-            },
-            grid: GridOptions::default().spec(4).unwrap(),
-            padding: 0,
-            method: MethodSpec::Bits(crate::engine::Method::Solid),
-            fill: crate::engine::fill::Fill::Parity,
-            limits: crate::limits::Limits::SERVICE,
-        };
-        NewJob {
-            id: id.into(),
-            work: crate::app::prepare(&req).unwrap(),
-            name: None,
-            created: String::new(),
-        }
+        crate::app::testing::tiny_job(id, 4)
     }
 
     /// A job that finished before anyone waited is seen as finished at once (on a paused
