@@ -22,7 +22,10 @@ use std::time::{Duration, Instant};
 use async_trait::async_trait;
 use bytes::Bytes;
 
-use super::{StoreError, Usage, VolumeMeta, VolumeStore, atomic};
+use super::{ByteStream, StoreError, Usage, VolumeMeta, VolumeStore, atomic, verified};
+
+/// Bytes per chunk of a streamed read.
+const CHUNK: usize = 256 << 10;
 
 /// How long a successful write probe vouches for the store's health.
 const HEALTH_TTL: Duration = Duration::from_secs(30);
@@ -30,6 +33,7 @@ const HEALTH_TTL: Duration = Duration::from_secs(30);
 pub struct FsStore {
     volumes: PathBuf,
     jobs: PathBuf,
+    uploads: PathBuf,
     limit: u64,
     inner: Mutex<Inner>,
 }
@@ -67,8 +71,10 @@ impl FsStore {
     pub fn open(data_dir: &Path, limit: u64) -> Result<FsStore, StoreError> {
         let volumes = data_dir.join("volumes");
         let jobs = data_dir.join("jobs");
+        let uploads = data_dir.join("uploads");
         std::fs::create_dir_all(&volumes)?;
         std::fs::create_dir_all(&jobs)?;
+        std::fs::create_dir_all(&uploads)?;
         let mut index = BTreeMap::new();
         let mut files: Vec<PathBuf> = std::fs::read_dir(&volumes)?
             .filter_map(|e| e.ok().map(|e| e.path()))
@@ -114,7 +120,7 @@ impl FsStore {
                 }
             }
         }
-        for e in std::fs::read_dir(&jobs)? {
+        for e in std::fs::read_dir(&jobs)?.chain(std::fs::read_dir(&uploads)?) {
             let p = e?.path();
             if p.file_name()
                 .and_then(|n| n.to_str())
@@ -128,6 +134,7 @@ impl FsStore {
         Ok(FsStore {
             volumes,
             jobs,
+            uploads,
             limit,
             inner: Mutex::new(Inner {
                 index,
@@ -279,6 +286,54 @@ impl VolumeStore for FsStore {
         }
     }
 
+    /// Chunks of `{id}.vxl` read on the blocking pool, checked by [`verified`]; a file of
+    /// another length than the metadata's is `Corrupt` before anything streams.
+    async fn read_stream(&self, id: &str) -> Result<Option<ByteStream>, StoreError> {
+        let Some(meta) = self.lock().index.get(id).map(|e| e.meta.clone()) else {
+            return Ok(None);
+        };
+        let p = self.volumes.join(format!("{id}.vxl"));
+        let (id, want) = (id.to_string(), meta.bytes);
+        let file = blocking(move || match std::fs::File::open(&p) {
+            Ok(f) => {
+                let len = f.metadata()?.len();
+                if len != want {
+                    return Err(StoreError::Corrupt(format!(
+                        "volume {id}: the data is {len} bytes but its metadata says {want} (a torn or damaged file)"
+                    )));
+                }
+                Ok(f)
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Err(StoreError::Corrupt(
+                format!("volume {id}: its data file {id}.vxl is missing"),
+            )),
+            Err(e) => Err(e.into()),
+        })
+        .await
+        .inspect_err(|e| {
+            if matches!(e, StoreError::Corrupt(_)) {
+                tracing::error!("{e}")
+            }
+        })?;
+        let chunks = futures_util::stream::unfold(Some(file), |file| async move {
+            let mut f = file?;
+            let r = blocking(move || {
+                use std::io::Read;
+                let mut buf = vec![0u8; CHUNK];
+                let n = f.read(&mut buf)?;
+                buf.truncate(n);
+                Ok((f, buf))
+            })
+            .await;
+            match r {
+                Ok((_, buf)) if buf.is_empty() => None,
+                Ok((f, buf)) => Some((Ok(Bytes::from(buf)), Some(f))),
+                Err(e) => Some((Err(e), None)),
+            }
+        });
+        Ok(Some(verified(&meta, chunks)))
+    }
+
     async fn list(
         &self,
         after: Option<&str>,
@@ -377,6 +432,41 @@ impl VolumeStore for FsStore {
                 }
             }
             Ok(out)
+        })
+        .await
+    }
+
+    async fn put_upload(&self, id: &str, bytes: Bytes) -> Result<(), StoreError> {
+        if !safe_id(id) {
+            return Err(StoreError::Corrupt(format!("bad job id {id:?}")));
+        }
+        let p = self.uploads.join(id);
+        let r = blocking(move || Ok(atomic::write(&p, &bytes)?)).await;
+        self.note_write(r.is_ok());
+        r
+    }
+
+    async fn get_upload(&self, id: &str) -> Result<Option<Bytes>, StoreError> {
+        if !safe_id(id) {
+            return Ok(None);
+        }
+        let p = self.uploads.join(id);
+        blocking(move || match std::fs::read(&p) {
+            Ok(b) => Ok(Some(Bytes::from(b))),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+            Err(e) => Err(e.into()),
+        })
+        .await
+    }
+
+    async fn delete_upload(&self, id: &str) -> Result<(), StoreError> {
+        if !safe_id(id) {
+            return Ok(());
+        }
+        let p = self.uploads.join(id);
+        blocking(move || match std::fs::remove_file(&p) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e.into()),
+            _ => Ok(()),
         })
         .await
     }
@@ -606,6 +696,76 @@ mod tests {
         let again = FsStore::open(&dir, limit).unwrap();
         assert_eq!(again.usage().await.unwrap().bytes, 1000 + plain_json);
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn streamed_reads_are_checked_before_their_last_byte() {
+        use futures_util::StreamExt;
+        let dir = scratch("stream");
+        let store = FsStore::open(&dir, 16 << 20).unwrap();
+        let data: Vec<u8> = (0..3 * CHUNK as u32 + 17)
+            .map(|i| (i % 253) as u8)
+            .collect();
+        for id in ["a", "b", "c"] {
+            store
+                .put(meta(id, &data), Bytes::from(data.clone()))
+                .await
+                .unwrap();
+        }
+        // Drains a stream: the bytes that came out, and the error that ended it.
+        async fn drain(mut s: ByteStream) -> (Vec<u8>, Option<StoreError>) {
+            let mut out = vec![];
+            while let Some(c) = s.next().await {
+                match c {
+                    Ok(c) => out.extend_from_slice(&c),
+                    Err(e) => return (out, Some(e)),
+                }
+            }
+            (out, None)
+        }
+        let (got, err) = drain(store.read_stream("a").await.unwrap().unwrap()).await;
+        assert!(err.is_none(), "{err:?}");
+        assert_eq!(got, data);
+        // A byte flipped in the first chunk: everything but the last chunk streams, then the
+        // stream ends with Corrupt (the client never holds a whole, damaged volume).
+        let a = dir.join("volumes/a.vxl");
+        let mut bytes = std::fs::read(&a).unwrap();
+        bytes[100] ^= 1;
+        std::fs::write(&a, &bytes).unwrap();
+        let (got, err) = drain(store.read_stream("a").await.unwrap().unwrap()).await;
+        assert!(
+            matches!(&err, Some(StoreError::Corrupt(m)) if m.contains("sha256")),
+            "{err:?}"
+        );
+        assert!(got.len() < data.len(), "{} bytes streamed", got.len());
+        // Torn or missing: refused before anything streams.
+        std::fs::write(dir.join("volumes/b.vxl"), &data[..1000]).unwrap();
+        assert!(
+            matches!(store.read_stream("b").await, Err(StoreError::Corrupt(m)) if m.contains("1000 bytes"))
+        );
+        std::fs::remove_file(dir.join("volumes/c.vxl")).unwrap();
+        assert!(
+            matches!(store.read_stream("c").await, Err(StoreError::Corrupt(m)) if m.contains("missing"))
+        );
+        assert!(store.read_stream("nope").await.unwrap().is_none());
+        // Uploads: kept, read back, removed; an absent one is None, a hostile id never a path.
+        store
+            .put_upload("j1", Bytes::from_static(b"mesh"))
+            .await
+            .unwrap();
+        assert_eq!(store.get_upload("j1").await.unwrap().unwrap(), "mesh");
+        store.delete_upload("j1").await.unwrap();
+        store.delete_upload("j1").await.unwrap();
+        assert!(store.get_upload("j1").await.unwrap().is_none());
+        assert!(
+            store
+                .get_upload("../volumes/a.vxl")
+                .await
+                .unwrap()
+                .is_none()
+        );
+        assert!(store.put_upload("../x", Bytes::new()).await.is_err());
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

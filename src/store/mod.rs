@@ -9,9 +9,14 @@
 pub mod atomic;
 pub mod fs;
 
+use std::pin::Pin;
+use std::task::{Context, Poll};
+
 use async_trait::async_trait;
 use bytes::Bytes;
+use futures_util::Stream;
 use serde::{Deserialize, Serialize};
+use sha2::Digest;
 
 use crate::engine::fill::FillReport;
 use crate::grid::Grid;
@@ -94,6 +99,10 @@ pub trait VolumeStore: Send + Sync {
         after: Option<&str>,
         limit: usize,
     ) -> Result<(Vec<VolumeMeta>, bool), StoreError>;
+    /// The stored `.vxl` bytes as a stream of chunks, for downloads that need not hold a whole
+    /// volume: checked while they stream ([`verified`]), so damaged data ends the stream with
+    /// `Corrupt` before its last byte (a client sees a broken transfer, never a whole one).
+    async fn read_stream(&self, id: &str) -> Result<Option<ByteStream>, StoreError>;
     /// Removes a volume; false when there was none.
     async fn delete(&self, id: &str) -> Result<bool, StoreError>;
     async fn usage(&self) -> Result<Usage, StoreError>;
@@ -103,6 +112,180 @@ pub trait VolumeStore: Send + Sync {
     async fn put_job_record(&self, id: &str, record: Bytes) -> Result<(), StoreError>;
     /// Every job record, in no particular order.
     async fn job_records(&self) -> Result<Vec<Bytes>, StoreError>;
+    /// Keeps the uploaded mesh of a queued job (`id` is the job's), so that whichever process
+    /// runs the job can read it. Not counted against the volume quota: the queue's capacity and
+    /// the body limit bound it.
+    async fn put_upload(&self, id: &str, bytes: Bytes) -> Result<(), StoreError>;
+    async fn get_upload(&self, id: &str) -> Result<Option<Bytes>, StoreError>;
+    /// Removes a job's upload (none is not an error).
+    async fn delete_upload(&self, id: &str) -> Result<(), StoreError>;
     /// Where the store is, for logs.
     fn describe(&self) -> String;
+}
+
+/// Chunks of a stored volume's bytes.
+pub type ByteStream = Pin<Box<dyn Stream<Item = Result<Bytes, StoreError>> + Send>>;
+
+/// Wraps the raw chunks of volume `id` so that they are checked against `meta`'s length and
+/// sha256 as they pass: a chunk that would go past the length, a stream that ends short, or a
+/// checksum that differs is `Corrupt`. The checksum is known when the last byte arrives, and
+/// the chunk holding it is only passed on once it matches, so a damaged volume never streams
+/// out whole. Every store's `read_stream` goes through this.
+pub fn verified(
+    meta: &VolumeMeta,
+    chunks: impl Stream<Item = Result<Bytes, StoreError>> + Send + 'static,
+) -> ByteStream {
+    Box::pin(Verified {
+        id: meta.id.clone(),
+        want_len: meta.bytes,
+        want_sha: meta.sha256.clone(),
+        seen: 0,
+        hasher: sha2::Sha256::new(),
+        inner: Box::pin(chunks),
+        done: false,
+    })
+}
+
+struct Verified {
+    id: String,
+    want_len: u64,
+    want_sha: String,
+    seen: u64,
+    hasher: sha2::Sha256,
+    inner: ByteStream,
+    done: bool,
+}
+
+impl Verified {
+    fn corrupt(&mut self, why: String) -> Poll<Option<Result<Bytes, StoreError>>> {
+        self.done = true;
+        let e = StoreError::Corrupt(format!("volume {}: {why}", self.id));
+        tracing::error!("{e}");
+        Poll::Ready(Some(Err(e)))
+    }
+
+    /// Is the finished hash the one the metadata gives?
+    fn sha_matches(&mut self) -> Result<(), String> {
+        let got = std::mem::take(&mut self.hasher).finalize();
+        let hex: String = got.iter().map(|b| format!("{b:02x}")).collect();
+        if hex == self.want_sha {
+            Ok(())
+        } else {
+            Err(format!(
+                "the data's sha256 is {hex} but its metadata says {:?} (damaged)",
+                self.want_sha
+            ))
+        }
+    }
+}
+
+impl Stream for Verified {
+    type Item = Result<Bytes, StoreError>;
+
+    fn poll_next(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<Option<Self::Item>> {
+        if self.done {
+            return Poll::Ready(None);
+        }
+        match self.inner.as_mut().poll_next(cx) {
+            Poll::Pending => Poll::Pending,
+            Poll::Ready(Some(Err(e))) => {
+                self.done = true;
+                Poll::Ready(Some(Err(e)))
+            }
+            Poll::Ready(Some(Ok(chunk))) => {
+                let seen = self.seen + chunk.len() as u64;
+                if seen > self.want_len {
+                    let why = format!(
+                        "the data is longer than the {} bytes its metadata says",
+                        self.want_len
+                    );
+                    return self.corrupt(why);
+                }
+                self.seen = seen;
+                self.hasher.update(&chunk);
+                if seen == self.want_len {
+                    // The last byte: check before letting it out.
+                    if let Err(why) = self.sha_matches() {
+                        return self.corrupt(why);
+                    }
+                    self.done = true;
+                }
+                Poll::Ready(Some(Ok(chunk)))
+            }
+            Poll::Ready(None) if self.seen < self.want_len => {
+                let why = format!(
+                    "the data is {} bytes but its metadata says {} (a torn or damaged file)",
+                    self.seen, self.want_len
+                );
+                self.corrupt(why)
+            }
+            Poll::Ready(None) => {
+                // Only an empty volume gets here (any other ended at its last byte).
+                self.done = true;
+                match self.sha_matches() {
+                    Ok(()) => Poll::Ready(None),
+                    Err(why) => self.corrupt(why),
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use futures_util::StreamExt;
+
+    fn meta_of(data: &[u8]) -> VolumeMeta {
+        let sha: String = sha2::Sha256::digest(data)
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect();
+        serde_json::from_value(serde_json::json!({
+            "id": "v", "name": null, "kind": "bits", "method": "solid",
+            "grid": {"origin": [0.0, 0.0, 0.0], "voxel_size": 1.0, "dims": [1, 1, 1]},
+            "solid_voxels": 0, "volume": 0.0,
+            "source": {"format": "obj", "sha256": "", "triangles": 0},
+            "diagnostics": null, "engine": "cpu", "created": "",
+            "bytes": data.len(), "sha256": sha,
+        }))
+        .unwrap()
+    }
+
+    /// What comes out of `verified(meta, chunks)`: the bytes, then the error if one ended it.
+    async fn run(meta: &VolumeMeta, chunks: Vec<&'static [u8]>) -> (Vec<u8>, Option<String>) {
+        let mut s = verified(
+            meta,
+            futures_util::stream::iter(chunks.into_iter().map(|c| Ok(Bytes::from_static(c)))),
+        );
+        let mut out = vec![];
+        while let Some(c) = s.next().await {
+            match c {
+                Ok(c) => out.extend_from_slice(&c),
+                Err(e) => return (out, Some(e.to_string())),
+            }
+        }
+        (out, None)
+    }
+
+    #[tokio::test]
+    async fn verified_streams_pass_only_what_matches_the_metadata() {
+        let m = meta_of(b"hello world");
+        assert_eq!(
+            run(&m, vec![b"hello", b" ", b"world"]).await,
+            (b"hello world".to_vec(), None)
+        );
+        // Same length, other bytes: the last chunk is held back.
+        let (out, e) = run(&m, vec![b"hello", b" ", b"w0rld"]).await;
+        assert_eq!(out, b"hello ");
+        assert!(e.unwrap().contains("sha256"));
+        // Longer: the chunk crossing the length is refused.
+        let (out, e) = run(&m, vec![b"hello", b" world!"]).await;
+        assert_eq!(out, b"hello");
+        assert!(e.unwrap().contains("longer"));
+        // Shorter.
+        let (out, e) = run(&m, vec![b"hello"]).await;
+        assert_eq!(out, b"hello");
+        assert!(e.unwrap().contains("5 bytes"));
+    }
 }
