@@ -14,14 +14,14 @@ use voxd::engine::{Engine, GridMesh, Method};
 use voxd::grid::{Grid, GridSpec};
 use voxd::volume::Volume;
 
-struct Server {
-    child: Child,
-    addr: String,
+pub(crate) struct Server {
+    pub child: Child,
+    pub addr: String,
     dir: PathBuf,
 }
 
 impl Server {
-    fn start(dir: &Path, extra: &[&str]) -> Server {
+    pub fn start(dir: &Path, extra: &[&str]) -> Server {
         let mut child = Command::new(env!("CARGO_BIN_EXE_voxd"))
             .args([
                 "serve",
@@ -1108,7 +1108,7 @@ fn fills_over_http() {
     assert_eq!(got, want);
 }
 
-fn box_obj(lo: [f64; 3], hi: [f64; 3]) -> Vec<u8> {
+pub(crate) fn box_obj(lo: [f64; 3], hi: [f64; 3]) -> Vec<u8> {
     to_obj(&box_mesh(lo, hi))
 }
 

@@ -7,6 +7,7 @@ mod common;
 
 mod cli;
 mod codecs;
+mod connections;
 mod crash;
 mod csg;
 mod density;

@@ -41,6 +41,11 @@ pub enum ErrorKind {
     MethodNotAllowed,
     /// A conditional request's precondition (`If-Match`) does not hold.
     PreconditionFailed,
+    /// The request's target (path and query) is longer than allowed.
+    UriTooLong,
+    /// The request's head (request line and headers) is larger, or has more headers, than
+    /// allowed.
+    HeadersTooLarge,
     Internal,
 }
 
@@ -67,6 +72,8 @@ impl crate::names::Named for ErrorKind {
         ErrorKind::Busy,
         ErrorKind::MethodNotAllowed,
         ErrorKind::PreconditionFailed,
+        ErrorKind::UriTooLong,
+        ErrorKind::HeadersTooLarge,
         ErrorKind::Internal,
     ];
     fn name(self) -> &'static str {
@@ -99,6 +106,8 @@ impl ErrorKind {
             ErrorKind::Busy => "busy",
             ErrorKind::MethodNotAllowed => "method-not-allowed",
             ErrorKind::PreconditionFailed => "precondition-failed",
+            ErrorKind::UriTooLong => "uri-too-long",
+            ErrorKind::HeadersTooLarge => "headers-too-large",
             ErrorKind::Internal => "internal",
         }
     }

@@ -18,7 +18,7 @@ use crate::codec::{VolumeFormat, vxl};
 use crate::grid::Grid;
 use crate::limits::Limits;
 use crate::names::Named;
-use crate::store::{VolumeMeta, VolumeStore};
+use crate::store::{ByteStream, StoreError, VolumeMeta, VolumeStore};
 use crate::volume::morph::{self, MorphOp};
 use crate::volume::{BitVolume, Volume, csg};
 
@@ -549,23 +549,103 @@ pub async fn with_stored<T: Send + 'static>(
     blocking(move || f(&v)).await
 }
 
-/// A stored volume in `format` (the stored bytes themselves for `.vxl`).
-pub async fn download(store: &dyn VolumeStore, id: &str, format: VolumeFormat) -> Result<Bytes> {
+/// A download: its length when known before encoding, and its bytes as they are produced.
+pub struct Download {
+    pub len: Option<u64>,
+    pub body: ByteStream,
+}
+
+/// Bytes per chunk of a converted download.
+const DOWNLOAD_CHUNK: usize = 256 << 10;
+
+/// A stored volume in `format`, as a stream. `.vxl` streams the stored bytes (checked as they
+/// pass, [`crate::store::verified`]); any other format decodes the volume once (what its codec
+/// needs) and encodes it a piece at a time on the blocking pool, at most a few chunks ahead of
+/// the client: a client that stops reading stops the encoder, and one that goes away ends it.
+pub async fn download(store: &dyn VolumeStore, id: &str, format: VolumeFormat) -> Result<Download> {
+    let meta = store
+        .get(id)
+        .await?
+        .ok_or_else(|| Error::not_found("volume", id))?;
+    if format == VolumeFormat::Vxl {
+        let body = store
+            .read_stream(id)
+            .await?
+            .ok_or_else(|| Error::not_found("volume", id))?;
+        return Ok(Download {
+            len: Some(meta.bytes),
+            body,
+        });
+    }
     let stored = store
         .read(id)
         .await?
         .ok_or_else(|| Error::not_found("volume", id))?;
-    if format == VolumeFormat::Vxl {
-        return Ok(stored);
-    }
-    let id = id.to_string();
-    blocking(move || {
+    let name = id.to_string();
+    let v = blocking(move || {
         let (v, _) = vxl::decode(&stored)
-            .map_err(|e| Error::internal(format!("stored volume {id}: {e}")))?;
-        format
-            .encode(&v)
-            .map(Bytes::from)
-            .map_err(|e| Error::internal(format!("stored volume {id}: {e}")))
+            .map_err(|e| Error::internal(format!("stored volume {name}: {e}")))?;
+        format.check(&v)?;
+        Ok(v)
     })
-    .await
+    .await?;
+    let len = format.encoded_len(&v);
+    let (tx, rx) = tokio::sync::mpsc::channel::<std::result::Result<Bytes, StoreError>>(4);
+    let name = id.to_string();
+    tokio::task::spawn_blocking(move || {
+        let mut w = ChunkSender {
+            buf: Vec::with_capacity(DOWNLOAD_CHUNK),
+            tx,
+        };
+        let r = format.write(&v, &mut w).and_then(|()| w.send());
+        match r {
+            // The client went away (the receiver is gone): nothing to tell.
+            Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {}
+            Err(e) => {
+                tracing::error!("encoding volume {name} as {}: {e}", format.name());
+                let _ = w.tx.blocking_send(Err(StoreError::Io(e)));
+            }
+            Ok(()) => {}
+        }
+    });
+    let body =
+        futures_util::stream::unfold(rx, |mut rx| async move { rx.recv().await.map(|c| (c, rx)) });
+    Ok(Download {
+        len,
+        body: Box::pin(body),
+    })
+}
+
+/// An `io::Write` that hands its bytes to a channel in chunks (from a blocking thread); a
+/// closed channel is `BrokenPipe`, which stops the writer.
+struct ChunkSender {
+    buf: Vec<u8>,
+    tx: tokio::sync::mpsc::Sender<std::result::Result<Bytes, StoreError>>,
+}
+
+impl ChunkSender {
+    fn send(&mut self) -> std::io::Result<()> {
+        if self.buf.is_empty() {
+            return Ok(());
+        }
+        let chunk = std::mem::replace(&mut self.buf, Vec::with_capacity(DOWNLOAD_CHUNK));
+        self.tx
+            .blocking_send(Ok(Bytes::from(chunk)))
+            .map_err(|_| std::io::Error::from(std::io::ErrorKind::BrokenPipe))
+    }
+}
+
+impl std::io::Write for ChunkSender {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        let room = DOWNLOAD_CHUNK - self.buf.len();
+        let n = b.len().min(room);
+        self.buf.extend_from_slice(&b[..n]);
+        if self.buf.len() == DOWNLOAD_CHUNK {
+            self.send()?;
+        }
+        Ok(n)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
 }

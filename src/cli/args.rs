@@ -207,6 +207,16 @@ pub struct ServeArgs {
     /// Seconds a connection may take to send a request's head, or sit idle between requests.
     #[arg(long, env = "VOXD_HEADER_TIMEOUT", default_value_t = 20.0)]
     pub header_timeout: f64,
+    /// Seconds a request body may pause between chunks (then 408).
+    #[arg(long, env = "VOXD_BODY_TIMEOUT", default_value_t = 20.0)]
+    pub body_timeout: f64,
+    /// Bytes per second a request body must average after its first 10 s (then 408).
+    #[arg(long, env = "VOXD_MIN_BODY_RATE", default_value_t = 16384)]
+    pub min_body_rate: u64,
+    /// Seconds a response may wait for its client to read more of it; past it the connection
+    /// is closed and the work behind the response stops.
+    #[arg(long, env = "VOXD_SEND_TIMEOUT", default_value_t = 20.0)]
+    pub send_timeout: f64,
     /// Open connections at most (more wait until one closes).
     #[arg(long, env = "VOXD_MAX_CONNECTIONS", default_value_t = 512)]
     pub max_connections: usize,
@@ -242,6 +252,9 @@ impl ServeArgs {
             connections: voxd::service::server::ConnectionLimits {
                 header_read_timeout: secs(self.header_timeout),
                 max_connections: self.max_connections.max(1),
+                send_timeout: secs(self.send_timeout.max(1.0)),
+                body_idle_timeout: secs(self.body_timeout.max(0.1)),
+                min_body_rate: self.min_body_rate,
                 ..Default::default()
             },
             shutdown_timeout: secs(self.shutdown_timeout),

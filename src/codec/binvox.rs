@@ -7,45 +7,110 @@ use super::{CodecError, malformed};
 use crate::grid::Grid;
 use crate::volume::{BitVolume, Volume};
 
-pub fn encode(v: &Volume) -> Result<Vec<u8>, CodecError> {
-    let Volume::Bits(b) = v else {
-        return Err(CodecError::Unsupported {
+/// Can `.binvox` hold `v`? (Bit volumes only.)
+pub fn check(v: &Volume) -> Result<(), CodecError> {
+    match v {
+        Volume::Bits(_) => Ok(()),
+        Volume::Density(_) => Err(CodecError::Unsupported {
             format: "binvox",
             detail: "it stores one bit per voxel; use vxl or npy for density".into(),
-        });
+        }),
+    }
+}
+
+pub fn encode(v: &Volume) -> Result<Vec<u8>, CodecError> {
+    check(v)?;
+    let mut out = vec![];
+    write(v, &mut out).expect("writing to memory");
+    Ok(out)
+}
+
+/// Streams the `.binvox` of `v` to `out` in pieces of at most 64 KiB (the padded cube of a
+/// long, thin grid is far larger than the grid). `InvalidInput` for a density volume (see
+/// [`check`]).
+pub fn write(v: &Volume, out: &mut impl std::io::Write) -> std::io::Result<()> {
+    let Volume::Bits(b) = v else {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "binvox stores one bit per voxel",
+        ));
     };
     let g = b.grid();
     let n = *g.dims.iter().max().unwrap();
-    let mut out = format!(
-        "#binvox 1\ndim {n} {n} {n}\ntranslate {} {} {}\nscale {}\ndata\n",
-        g.origin[0],
-        g.origin[1],
-        g.origin[2],
-        n as f64 * g.voxel_size
-    )
-    .into_bytes();
-    let mut run: Option<(u8, u8)> = None;
-    let mut push = |val: u8, out: &mut Vec<u8>| match &mut run {
-        Some((v, c)) if *v == val && *c < 255 => *c += 1,
-        _ => {
-            if let Some((v, c)) = run.replace((val, 1)) {
-                out.extend_from_slice(&[v, c]);
-            }
-        }
+    out.write_all(
+        format!(
+            "#binvox 1\ndim {n} {n} {n}\ntranslate {} {} {}\nscale {}\ndata\n",
+            g.origin[0],
+            g.origin[1],
+            g.origin[2],
+            n as f64 * g.voxel_size
+        )
+        .as_bytes(),
+    )?;
+    let mut rle = Rle {
+        buf: Vec::with_capacity(PIECE + 2),
+        run: None,
     };
     let [dx, dy, dz] = g.dims;
     for x in 0..n {
         for z in 0..n {
-            for y in 0..n {
-                let bit = x < dx && y < dy && z < dz && b.get(x, y, z);
-                push(bit as u8, &mut out);
+            if x >= dx || z >= dz {
+                // Padding: a whole column of empty voxels at once (the padded cube of a long,
+                // thin grid is mostly this).
+                rle.push(0, n as u64, out)?;
+                continue;
             }
+            for y in 0..dy {
+                rle.push(b.get(x, y, z) as u8, 1, out)?;
+            }
+            rle.push(0, (n - dy) as u64, out)?;
         }
     }
-    if let Some((v, c)) = run {
-        out.extend_from_slice(&[v, c]);
+    if let Some((v, c)) = rle.run {
+        rle.buf.extend_from_slice(&[v, c]);
     }
-    Ok(out)
+    out.write_all(&rle.buf)
+}
+
+/// Bytes of output held before they are written.
+const PIECE: usize = 64 << 10;
+
+/// The run-length encoder: the open run and the pairs not yet written.
+struct Rle {
+    buf: Vec<u8>,
+    run: Option<(u8, u8)>,
+}
+
+impl Rle {
+    /// Appends `count` voxels of `val`.
+    fn push(
+        &mut self,
+        val: u8,
+        mut count: u64,
+        out: &mut impl std::io::Write,
+    ) -> std::io::Result<()> {
+        while count > 0 {
+            match &mut self.run {
+                Some((v, c)) if *v == val && *c < 255 => {
+                    let add = count.min(255 - *c as u64);
+                    *c += add as u8;
+                    count -= add;
+                }
+                _ => {
+                    let add = count.min(255);
+                    if let Some((v, c)) = self.run.replace((val, add as u8)) {
+                        self.buf.extend_from_slice(&[v, c]);
+                        if self.buf.len() >= PIECE {
+                            out.write_all(&self.buf)?;
+                            self.buf.clear();
+                        }
+                    }
+                    count -= add;
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 pub fn decode(bytes: &[u8]) -> Result<BitVolume, CodecError> {

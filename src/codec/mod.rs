@@ -78,16 +78,51 @@ impl VolumeFormat {
         }
     }
 
-    pub fn encode(self, v: &Volume) -> Result<Vec<u8>, CodecError> {
+    /// Can this format hold `v`? (`.binvox` holds bit volumes only.) Checked before anything
+    /// is written.
+    pub fn check(self, v: &Volume) -> Result<(), CodecError> {
         match self {
-            VolumeFormat::Vxl => vxl::encode(v, &serde_json::Map::new()),
-            VolumeFormat::Binvox => binvox::encode(v),
-            VolumeFormat::Npy => Ok(npy::encode(v)),
-            VolumeFormat::Raw => {
-                let n = npy::encode(v);
-                let hlen = u16::from_le_bytes([n[8], n[9]]) as usize;
-                Ok(n[10 + hlen..].to_vec())
+            VolumeFormat::Binvox => binvox::check(v),
+            _ => Ok(()),
+        }
+    }
+
+    pub fn encode(self, v: &Volume) -> Result<Vec<u8>, CodecError> {
+        self.check(v)?;
+        let mut out = vec![];
+        match self {
+            VolumeFormat::Vxl => return vxl::encode(v, &serde_json::Map::new()),
+            _ => self.write(v, &mut out).expect("writing to memory"),
+        }
+        Ok(out)
+    }
+
+    /// Writes `v` in this format to `out` a piece at a time: `.npy`, `.raw` and `.binvox` are
+    /// generated column by column (a 2048³ volume is 8 GiB as `.npy`, and the padded cube of
+    /// a long, thin grid far more than the grid), `.vxl` is compressed first (it is small).
+    /// A volume the format cannot hold is `InvalidInput`: call [`VolumeFormat::check`] first
+    /// for the reason.
+    pub fn write(self, v: &Volume, out: &mut impl std::io::Write) -> std::io::Result<()> {
+        match self {
+            VolumeFormat::Vxl => {
+                let b = vxl::encode(v, &serde_json::Map::new())
+                    .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidInput, e))?;
+                out.write_all(&b)
             }
+            VolumeFormat::Binvox => binvox::write(v, out),
+            VolumeFormat::Npy => npy::write(v, out),
+            VolumeFormat::Raw => npy::write_data(v, out),
+        }
+    }
+
+    /// The exact length of `v` in this format, where it is known without encoding (`.npy`,
+    /// `.raw`).
+    pub fn encoded_len(self, v: &Volume) -> Option<u64> {
+        let n = v.grid().voxel_count();
+        match self {
+            VolumeFormat::Npy => Some(npy::header(v.grid().dims).len() as u64 + n),
+            VolumeFormat::Raw => Some(n),
+            VolumeFormat::Vxl | VolumeFormat::Binvox => None,
         }
     }
 

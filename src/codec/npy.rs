@@ -15,26 +15,38 @@ pub fn encode(v: &Volume) -> Vec<u8> {
     out
 }
 
-/// Streams the `.npy` to `out` (a 2048³ volume is 8 GiB as bytes: no need to hold it).
-pub fn write(v: &Volume, out: &mut impl std::io::Write) -> std::io::Result<()> {
-    let d = v.grid().dims;
+/// The `.npy` header of an array of `dims` (magic to the padding newline).
+pub fn header(dims: [u32; 3]) -> Vec<u8> {
     let mut header = format!(
         "{{'descr': '|u1', 'fortran_order': False, 'shape': ({}, {}, {}), }}",
-        d[0], d[1], d[2]
+        dims[0], dims[1], dims[2]
     );
     // Magic (6) + version (2) + length (2) + header + '\n' must be a multiple of 64.
     while (10 + header.len() + 1) % 64 != 0 {
         header.push(' ');
     }
     header.push('\n');
-    out.write_all(MAGIC)?;
-    out.write_all(&[1, 0])?;
-    out.write_all(&(header.len() as u16).to_le_bytes())?;
-    out.write_all(header.as_bytes())?;
+    let mut out = Vec::with_capacity(10 + header.len());
+    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(&[1, 0]);
+    out.extend_from_slice(&(header.len() as u16).to_le_bytes());
+    out.extend_from_slice(header.as_bytes());
+    out
+}
+
+/// Streams the `.npy` to `out` (a 2048³ volume is 8 GiB as bytes: no need to hold it).
+pub fn write(v: &Volume, out: &mut impl std::io::Write) -> std::io::Result<()> {
+    out.write_all(&header(v.grid().dims))?;
+    write_data(v, out)
+}
+
+/// The array's bytes alone, one byte per voxel in C order (the `.raw` format), a column at a
+/// time.
+pub fn write_data(v: &Volume, out: &mut impl std::io::Write) -> std::io::Result<()> {
     match v {
         Volume::Density(dv) => out.write_all(dv.data()),
         Volume::Bits(b) => {
-            let z = d[2] as usize;
+            let z = v.grid().dims[2] as usize;
             let mut buf = vec![0u8; z];
             for col in b.words().chunks_exact(b.words_per_column()) {
                 for (k, o) in buf.iter_mut().enumerate() {

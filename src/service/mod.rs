@@ -90,6 +90,35 @@ impl App {
         })
     }
 
+    /// Holds `bytes` of the in-memory budget (`http.max_inflight_bytes`, shared with request
+    /// bodies) for as long as the permit lives; `busy` when it does not free up within
+    /// `http.body_idle_timeout`. More than the whole budget holds the whole budget.
+    pub async fn hold_memory(
+        &self,
+        bytes: u64,
+        what: &str,
+    ) -> app::Result<tokio::sync::OwnedSemaphorePermit> {
+        let total = (self.http.max_inflight_bytes >> 10)
+            .clamp(1, tokio::sync::Semaphore::MAX_PERMITS as u64);
+        let kib = bytes.div_ceil(1024).clamp(1, total).min(u32::MAX as u64) as u32;
+        tokio::time::timeout(
+            self.http.body_idle_timeout,
+            self.inflight.clone().acquire_many_owned(kib),
+        )
+        .await
+        .map_err(|_| {
+            Error::new(
+                ErrorKind::Busy,
+                format!(
+                    "{what} need {bytes} bytes of memory, and uploads and downloads already hold the {} allowed; retry later",
+                    self.http.max_inflight_bytes
+                ),
+            )
+            .retry_after(5)
+        })
+        .map(|p| p.expect("the semaphore is never closed"))
+    }
+
     /// Jobs this process runs at once: `workers` on the CPU engine (however it was chosen),
     /// one on a GPU, which runs one job at a time anyway.
     pub fn workers(&self, workers: usize) -> usize {

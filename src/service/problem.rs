@@ -13,7 +13,7 @@ use crate::app::{Error, ErrorKind};
 pub const TYPE_BASE: &str = "https://voxd.dev/problems/";
 
 /// Every kind with its status and title.
-pub const KINDS: [(ErrorKind, u16, &str); 21] = [
+pub const KINDS: [(ErrorKind, u16, &str); 23] = [
     (ErrorKind::InvalidMesh, 422, "The mesh cannot be used"),
     (ErrorKind::UnsupportedMediaType, 415, "Unknown mesh format"),
     (
@@ -50,6 +50,12 @@ pub const KINDS: [(ErrorKind, u16, &str); 21] = [
     (ErrorKind::Busy, 503, "The server is busy"),
     (ErrorKind::MethodNotAllowed, 405, "Method not allowed"),
     (ErrorKind::PreconditionFailed, 412, "Precondition failed"),
+    (ErrorKind::UriTooLong, 414, "Request target too long"),
+    (
+        ErrorKind::HeadersTooLarge,
+        431,
+        "Request header fields too large",
+    ),
     (ErrorKind::Internal, 500, "Internal error"),
 ];
 

@@ -86,7 +86,7 @@ pub fn router(app: Arc<App>) -> Router {
         })
         .layer(compress)
         .layer(middleware::map_response(volumes::etag_per_coding))
-        .layer(middleware::from_fn(request_context))
+        .layer(middleware::from_fn_with_state(app.clone(), request_context))
         .with_state(app)
 }
 
@@ -116,7 +116,34 @@ fn set_location(r: &mut Response, path: &str) {
 
 /// Gives every request an id (the caller's `x-request-id` or a new one), a tracing span, the
 /// id in the response header, and the id and path in every problem document.
-async fn request_context(req: Request, next: Next) -> Response {
+/// The request's head within the service's bounds (`http.max_uri_bytes`, `max_headers`,
+/// `max_header_bytes`), or the problem (414, 431) that refuses it. The HTTP parser lets heads
+/// up to twice these bounds through so that this check, not the parser, answers them.
+fn check_head(req: &Request, http: &super::server::ConnectionLimits) -> Option<Problem> {
+    let uri = req.uri().path_and_query().map_or(0, |p| p.as_str().len());
+    if uri > http.max_uri_bytes {
+        return Some(Problem::new(
+            ErrorKind::UriTooLong,
+            format!(
+                "the request target is {uri} bytes; at most {} are allowed (send large inputs in the body)",
+                http.max_uri_bytes
+            ),
+        ));
+    }
+    let (n, bytes) = (req.headers().len(), super::server::head_bytes(req));
+    if n > http.max_headers || bytes > http.max_header_bytes {
+        return Some(Problem::new(
+            ErrorKind::HeadersTooLarge,
+            format!(
+                "the request's head is {bytes} bytes in {n} header fields; at most {} bytes and {} fields are allowed",
+                http.max_header_bytes, http.max_headers
+            ),
+        ));
+    }
+    None
+}
+
+async fn request_context(State(app): AppState, req: Request, next: Next) -> Response {
     let rid = req
         .headers()
         .get("x-request-id")
@@ -126,7 +153,10 @@ async fn request_context(req: Request, next: Next) -> Response {
         .unwrap_or_else(crate::app::new_id);
     let path = req.uri().path().to_string();
     let span = tracing::info_span!("request", id = %rid, method = %req.method(), path = %path);
-    let mut res = next.run(req).instrument(span).await;
+    let mut res = match check_head(&req, &app.http) {
+        Some(p) => p.into_response(),
+        None => next.run(req).instrument(span).await,
+    };
     let is_problem = res
         .headers()
         .get(header::CONTENT_TYPE)

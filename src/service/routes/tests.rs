@@ -553,3 +553,112 @@ async fn contract_edges() {
         .problem(422, "grid-too-large");
     assert!(d.contains("union"), "{d}");
 }
+
+/// Downloads stream: a conversion arrives in bounded chunks with its exact length announced
+/// (the whole response is never built in memory), and a damaged stored volume ends its stream
+/// with an error instead of arriving whole.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn downloads_stream_in_bounded_chunks() {
+    use futures_util::StreamExt;
+    let h = harness("stream").await;
+    // 1024×32×32 = 2^20 voxels (the harness's limit): 1 MiB as .npy.
+    let (r, _) = call_with(
+        &h.app,
+        "POST",
+        "/v1/voxelize?origin=0,0,0&voxel_size=0.001&dims=1024,32,32&wait=30",
+        &[("content-type", "model/obj")],
+        TETRA,
+    )
+    .await;
+    assert_eq!(
+        r.status,
+        StatusCode::CREATED,
+        "{}",
+        String::from_utf8_lossy(&r.body)
+    );
+    let id = r.json()["id"].as_str().unwrap().to_string();
+    let get = |uri: String| {
+        let app = h.app.clone();
+        async move {
+            router(app)
+                .oneshot(Request::get(uri).body(Body::empty()).unwrap())
+                .await
+                .unwrap()
+        }
+    };
+    let res = get(format!("/v1/volumes/{id}/data?format=npy")).await;
+    assert_eq!(res.status(), StatusCode::OK);
+    let len: usize = res.headers()["content-length"]
+        .to_str()
+        .unwrap()
+        .parse()
+        .unwrap();
+    let mut body = res.into_body().into_data_stream();
+    let (mut frames, mut got) = (0, vec![]);
+    while let Some(c) = body.next().await {
+        let c = c.unwrap();
+        assert!(c.len() <= 256 << 10, "a chunk of {} bytes", c.len());
+        frames += 1;
+        got.extend_from_slice(&c);
+    }
+    assert_eq!(got.len(), len);
+    assert!(frames >= 4, "{frames} chunks");
+    let stored = h.app.store.read(&id).await.unwrap().unwrap();
+    let (v, _) = crate::codec::vxl::decode(&stored).unwrap();
+    assert_eq!(got, crate::codec::npy::encode(&v));
+    // Stored bytes damaged on disk: a volume within the first chunk is a problem document; a
+    // longer one fails before its last chunk (never arrives whole).
+    let file = h.dir.join(format!("volumes/{id}.vxl"));
+    let mut bytes = std::fs::read(&file).unwrap();
+    assert!(bytes.len() < 256 << 10);
+    let last = bytes.len() - 1;
+    bytes[last] ^= 0x40;
+    std::fs::write(&file, &bytes).unwrap();
+    call(&h.app, "GET", &format!("/v1/volumes/{id}/data"), None, b"")
+        .await
+        .problem(500, "internal");
+    // Random bits do not compress: a .vxl of several chunks.
+    let mut noisy = crate::volume::BitVolume::new(crate::Grid {
+        origin: [0.0; 3],
+        voxel_size: 1.0,
+        dims: [4096, 32, 32],
+    });
+    let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+    for x in 0..4096 {
+        for y in 0..32 {
+            for z in 0..32 {
+                seed ^= seed << 13;
+                seed ^= seed >> 7;
+                seed ^= seed << 17;
+                noisy.set(x, y, z, seed & 1 == 1);
+            }
+        }
+    }
+    let vxl = crate::codec::vxl::encode(&crate::volume::Volume::Bits(noisy), &Default::default())
+        .unwrap();
+    assert!(vxl.len() > 256 << 10, "{} bytes", vxl.len());
+    let mut meta = h.app.store.get(&id).await.unwrap().unwrap();
+    meta.id = "big".into();
+    meta.bytes = vxl.len() as u64;
+    meta.sha256 = crate::app::sha256_hex(&vxl);
+    h.app.store.put(meta, vxl.clone().into()).await.unwrap();
+    let file = h.dir.join("volumes/big.vxl");
+    let mut bytes = vxl.clone();
+    bytes[last] ^= 0x40;
+    std::fs::write(&file, &bytes).unwrap();
+    let res = get("/v1/volumes/big/data".into()).await;
+    assert_eq!(res.status(), StatusCode::OK);
+    let mut body = res.into_body().into_data_stream();
+    let mut got = 0;
+    let err = loop {
+        match body.next().await {
+            Some(Ok(c)) => got += c.len(),
+            Some(Err(e)) => break e,
+            None => panic!("a damaged volume streamed whole ({got} bytes)"),
+        }
+    };
+    assert!(
+        got < vxl.len() && err.to_string().contains("sha256"),
+        "{got}: {err}"
+    );
+}

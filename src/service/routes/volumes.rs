@@ -2,9 +2,11 @@
 //! operations on them (CSG, overlap, morphology, statistics, queries, normals, previews). Each
 //! handler translates into an application call (`app::ops`) and back.
 
+use axum::body::Body;
 use axum::extract::Path;
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
+use futures_util::StreamExt;
 use serde::Deserialize;
 use serde_json::{Value, json};
 
@@ -157,7 +159,13 @@ pub async fn data(
         r.headers_mut().insert(header::ETAG, etag_value);
         return Ok(r);
     }
-    let bytes = ops::download(&*app.store, &id, format).await?;
+    // A conversion holds the decoded volume while it streams: that memory comes out of the
+    // same budget as request bodies, for as long as the download lasts.
+    let hold = match format {
+        VolumeFormat::Vxl => None,
+        _ => Some(app.hold_memory(decoded_bytes(&meta), "downloads").await?),
+    };
+    let download = ops::download(&*app.store, &id, format).await?;
     let media = match format {
         VolumeFormat::Vxl => VXL_MEDIA_TYPE,
         VolumeFormat::Npy => "application/x-npy",
@@ -168,8 +176,22 @@ pub async fn data(
         |c: char| !c.is_ascii_alphanumeric() && c != '-' && c != '_',
         "_",
     );
-    let mut r = bytes.into_response();
+    // The first chunk before the status line: a volume that fits in it (most `.vxl`s) and is
+    // damaged, or a conversion that fails at once, is still a problem document; past it, a
+    // failure can only end the transfer early (the client sees a short body).
+    let mut rest = download.body;
+    let first = rest.next().await.transpose().map_err(Error::from)?;
+    let body = futures_util::stream::iter(first.map(Ok))
+        .chain(rest)
+        .map(move |c| {
+            let _hold = &hold;
+            c
+        });
+    let mut r = Body::from_stream(body).into_response();
     let h = r.headers_mut();
+    if let Some(n) = download.len {
+        h.insert(header::CONTENT_LENGTH, HeaderValue::from(n));
+    }
     h.insert(header::CONTENT_TYPE, HeaderValue::from_static(media));
     h.insert(header::ETAG, etag_value);
     h.insert(
@@ -183,6 +205,16 @@ pub async fn data(
         h.insert(header::CONTENT_DISPOSITION, v);
     }
     Ok(r)
+}
+
+/// Bytes of a stored volume once decoded (one bit or one byte per voxel).
+fn decoded_bytes(meta: &crate::store::VolumeMeta) -> u64 {
+    let n = meta.grid.voxel_count();
+    if meta.kind == "density" {
+        n
+    } else {
+        n.div_ceil(8)
+    }
 }
 
 /// Content codings the compression layer may apply.

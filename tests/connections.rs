@@ -1,0 +1,186 @@
+//! Connections a hostile or broken client holds open (issue 11, defect 3), against the real
+//! server with short limits: idle and half-sent heads are closed after the header timeout, a
+//! paused body gets 408, a client that stops reading a response is disconnected after the send
+//! timeout, open connections stay under the cap (file descriptors counted in /proc), and heads
+//! over the limits get problem documents (414, 431). Loopback only; every wait is bounded.
+
+use std::io::{Read, Write};
+use std::net::TcpStream;
+use std::time::{Duration, Instant};
+
+use crate::common::http_exchange;
+use crate::service::{Server, box_obj};
+
+fn scratch(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("voxd-conn-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+/// Reads until the peer closes (Ok: bytes read) or `within` passes (Err).
+fn read_until_closed(s: &mut TcpStream, within: Duration) -> Result<Vec<u8>, String> {
+    s.set_read_timeout(Some(Duration::from_millis(200)))
+        .unwrap();
+    let deadline = Instant::now() + within;
+    let mut got = vec![];
+    let mut buf = [0u8; 64 << 10];
+    loop {
+        match s.read(&mut buf) {
+            Ok(0) => return Ok(got),
+            Ok(n) => got.extend_from_slice(&buf[..n]),
+            Err(e) if matches!(e.kind(), std::io::ErrorKind::ConnectionReset) => return Ok(got),
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                ) => {}
+            Err(e) => return Err(e.to_string()),
+        }
+        if Instant::now() > deadline {
+            return Err(format!(
+                "still open after {within:?} ({} bytes read)",
+                got.len()
+            ));
+        }
+    }
+}
+
+fn open_fds(pid: u32) -> usize {
+    std::fs::read_dir(format!("/proc/{pid}/fd")).map_or(0, |d| d.count())
+}
+
+#[test]
+fn idle_half_sent_and_slow_connections_are_closed() {
+    let dir = scratch("idle");
+    let srv = Server::start(
+        &dir,
+        &[
+            "--header-timeout",
+            "1",
+            "--body-timeout",
+            "1",
+            "--max-connections",
+            "16",
+        ],
+    );
+    // Idle: never a byte.
+    let mut idle = TcpStream::connect(&srv.addr).unwrap();
+    // Half a head.
+    let mut half = TcpStream::connect(&srv.addr).unwrap();
+    half.write_all(b"GET /healthz HTTP/1.1\r\nHost: x\r\n")
+        .unwrap();
+    // A body that stops after its first bytes.
+    let mut paused = TcpStream::connect(&srv.addr).unwrap();
+    paused
+        .write_all(b"POST /v1/voxelize?format=obj HTTP/1.1\r\nHost: x\r\nContent-Length: 100000\r\n\r\nv 0 0 0\n")
+        .unwrap();
+    // Each is closed by the server (the whole test has a 30 s bound per socket; the limits
+    // are 1 s).
+    let within = Duration::from_secs(30);
+    read_until_closed(&mut idle, within).expect("idle connection");
+    read_until_closed(&mut half, within).expect("half-sent head");
+    let reply = read_until_closed(&mut paused, within).expect("paused body");
+    let reply = String::from_utf8_lossy(&reply);
+    assert!(reply.starts_with("HTTP/1.1 408"), "{reply}");
+    assert!(reply.contains("application/problem+json"), "{reply}");
+    // Still serving.
+    let (status, _, _) = http_exchange(&srv.addr, "GET", "/healthz", &[], b"").unwrap();
+    assert_eq!(status, 200);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn open_connections_stay_under_the_cap() {
+    let dir = scratch("cap");
+    let srv = Server::start(&dir, &["--header-timeout", "1", "--max-connections", "8"]);
+    let pid = srv.child.id();
+    let before = open_fds(pid);
+    // 40 idle sockets: the server accepts 8, the rest wait in the kernel's backlog.
+    let socks: Vec<TcpStream> = (0..40)
+        .map(|_| TcpStream::connect(&srv.addr).unwrap())
+        .collect();
+    std::thread::sleep(Duration::from_millis(500));
+    let during = open_fds(pid);
+    assert!(
+        during <= before + 8 + 2,
+        "{before} descriptors before, {during} with 40 idle clients (cap 8)"
+    );
+    // As the idle ones time out, the waiting ones get their turn; a real request is served.
+    let (status, _, _) = http_exchange(&srv.addr, "GET", "/healthz", &[], b"").unwrap();
+    assert_eq!(status, 200);
+    drop(socks);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_client_that_stops_reading_is_disconnected() {
+    let dir = scratch("send");
+    let srv = Server::start(&dir, &["--send-timeout", "1"]);
+    // A 320³ volume: 32 MiB as .npy, more than loopback's socket buffers hold.
+    let (status, _, body) = http_exchange(
+        &srv.addr,
+        "POST",
+        "/v1/voxelize?format=obj&origin=-1,-1,-1&voxel_size=0.00625&dims=320,320,320&wait=120",
+        &[],
+        &box_obj([-0.5; 3], [0.5; 3]),
+    )
+    .unwrap();
+    assert_eq!(status, 201, "{}", String::from_utf8_lossy(&body));
+    let id = serde_json::from_slice::<serde_json::Value>(&body).unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    let mut s = TcpStream::connect(&srv.addr).unwrap();
+    write!(
+        s,
+        "GET /v1/volumes/{id}/data?format=npy HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n"
+    )
+    .unwrap();
+    // Take nothing for well past the send timeout, then everything that is left.
+    std::thread::sleep(Duration::from_secs(4));
+    let got = read_until_closed(&mut s, Duration::from_secs(60)).expect("the download");
+    let full = 32_768_000 + 128;
+    assert!(
+        got.len() < full,
+        "the whole download ({} bytes) waited for a client that stopped reading",
+        got.len()
+    );
+    let (status, _, _) = http_exchange(&srv.addr, "GET", "/healthz", &[], b"").unwrap();
+    assert_eq!(status, 200);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn heads_over_the_limits_get_problem_documents() {
+    let dir = scratch("head");
+    let srv = Server::start(&dir, &[]);
+    let problem = |status: u16, slug: &str, path: &str, headers: &[(&str, &str)]| {
+        let (s, h, body) = http_exchange(&srv.addr, "GET", path, headers, b"").unwrap();
+        assert_eq!(s, status, "{}", String::from_utf8_lossy(&body));
+        assert_eq!(
+            h.get("content-type").map(String::as_str),
+            Some("application/problem+json")
+        );
+        let p: serde_json::Value = serde_json::from_slice(&body).unwrap();
+        assert_eq!(
+            p["type"],
+            format!("https://voxd.dev/problems/{slug}"),
+            "{p}"
+        );
+    };
+    // A target over 8 KiB.
+    let long = format!("/healthz?{}", "a".repeat(9000));
+    problem(414, "uri-too-long", &long, &[]);
+    // More than 100 fields.
+    let names: Vec<String> = (0..120).map(|i| format!("x-h{i}")).collect();
+    let many: Vec<(&str, &str)> = names.iter().map(|n| (n.as_str(), "1")).collect();
+    problem(431, "headers-too-large", "/healthz", &many);
+    // More than 64 KiB in one field.
+    let big = "b".repeat(70 << 10);
+    problem(431, "headers-too-large", "/healthz", &[("x-big", &big)]);
+    // Just under the limits: served.
+    let ok = "c".repeat(60 << 10);
+    let (s, _, _) = http_exchange(&srv.addr, "GET", "/healthz", &[("x-ok", &ok)], b"").unwrap();
+    assert_eq!(s, 200);
+    let _ = std::fs::remove_dir_all(&dir);
+}
