@@ -257,6 +257,28 @@ fn info_and_convert() {
 
 #[test]
 fn bad_input_exits_non_zero_with_one_line_naming_the_file() {
+    // A .vxl of a few tens of KB whose zstd payload inflates to the 1.16 GB of a 2100³ grid:
+    // over the command line's voxel limit (2048³), refused before it is inflated.
+    let bomb = tmp("bomb.vxl");
+    {
+        use std::io::Write;
+        let header = br#"{"kind":"bits","dims":[2100,2100,2100],"origin":[0.0,0.0,0.0],"voxel_size":1.0,"layout":"x-y-zcolumns-u64le","meta":{}}"#;
+        let payload = 2100u64 * 2100 * 2100u64.div_ceil(64) * 8;
+        let mut out = b"\x89VXL\r\n\x1a\n".to_vec();
+        out.extend_from_slice(&1u32.to_le_bytes());
+        out.extend_from_slice(&(header.len() as u32).to_le_bytes());
+        out.extend_from_slice(header);
+        let mut enc = zstd::Encoder::new(out, 1).unwrap();
+        enc.include_checksum(true).unwrap();
+        enc.set_pledged_src_size(Some(payload)).unwrap();
+        let zeros = vec![0u8; 1 << 20];
+        for _ in 0..payload / zeros.len() as u64 {
+            enc.write_all(&zeros).unwrap();
+        }
+        enc.write_all(&zeros[..(payload % zeros.len() as u64) as usize])
+            .unwrap();
+        std::fs::write(&bomb, enc.finish().unwrap()).unwrap();
+    }
     let junk = tmp("junk.obj");
     std::fs::write(&junk, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n").unwrap();
     let out = tmp("x.vxl");
@@ -314,6 +336,7 @@ fn bad_input_exits_non_zero_with_one_line_naming_the_file() {
             "over the limit of 1000",
         ),
         (vec!["info".into(), s(&junk).into()], "junk.obj"),
+        (vec!["info".into(), s(&bomb).into()], "over the limit"),
         (
             vec!["convert".into(), s(&junk).into(), s(&out).into()],
             "not a volume file",

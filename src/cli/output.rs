@@ -86,7 +86,8 @@ pub fn read_volume(p: &Path) -> Result<Volume, String> {
     let f = VolumeFormat::sniff(&bytes)
         .or_else(|| VolumeFormat::from_path(p))
         .ok_or_else(|| format!("{}: not a volume file (.vxl, .binvox, .npy)", p.display()))?;
-    f.decode(&bytes)
+    // A few bytes of .vxl or .binvox can name a huge grid: refused before it is allocated.
+    f.decode_limited(&bytes, voxd::limits::Limits::LOCAL.max_voxels)
         .map_err(|e| format!("{}: {e}", p.display()))
 }
 

@@ -30,6 +30,10 @@ impl Drop for Harness {
 }
 
 async fn harness(name: &str) -> Harness {
+    harness_with(name, |l| l).await
+}
+
+async fn harness_with(name: &str, tune: impl FnOnce(Limits) -> Limits) -> Harness {
     let dir = std::env::temp_dir().join(format!("voxd-router-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let store: Arc<dyn VolumeStore> = Arc::new(FsStore::open(&dir, 1 << 30).unwrap());
@@ -40,6 +44,7 @@ async fn harness(name: &str) -> Harness {
         ..Limits::SERVICE
     }
     .with_body_bytes(1 << 16);
+    let limits = tune(limits);
     let app = App::new(engine, store, queue, limits, Default::default());
     tokio::spawn(crate::app::jobs::work(
         app.queue.clone(),
@@ -661,4 +666,58 @@ async fn downloads_stream_in_bounded_chunks() {
         got < vxl.len() && err.to_string().contains("sha256"),
         "{got}: {err}"
     );
+}
+
+/// A list page is bounded in bytes as well as in count, and the pages together hold every
+/// volume once.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn list_pages_are_bounded_in_bytes() {
+    let h = harness_with("listbytes", |l| Limits {
+        max_list_page_bytes: 1500,
+        ..l
+    })
+    .await;
+    let mut ids = std::collections::BTreeSet::new();
+    for _ in 0..5 {
+        let r = call(
+            &h.app,
+            "POST",
+            "/v1/voxelize?resolution=4&wait=30",
+            Some("model/obj"),
+            TETRA,
+        )
+        .await;
+        assert_eq!(r.status, StatusCode::CREATED);
+        ids.insert(r.json()["id"].as_str().unwrap().to_string());
+    }
+    let (mut seen, mut uri, mut pages) = (
+        std::collections::BTreeSet::new(),
+        "/v1/volumes?limit=100".to_string(),
+        0,
+    );
+    loop {
+        let r = call(&h.app, "GET", &uri, None, b"").await;
+        assert_eq!(r.status, StatusCode::OK);
+        assert_eq!(r.content_type, "application/json");
+        let page = r.json();
+        let vols = page["volumes"].as_array().unwrap();
+        assert!(!vols.is_empty());
+        // One volume alone may pass the bound; more than one never do.
+        assert!(
+            vols.len() == 1 || r.body.len() <= 1500 + 100,
+            "{} bytes",
+            r.body.len()
+        );
+        for v in vols {
+            assert!(seen.insert(v["id"].as_str().unwrap().to_string()));
+        }
+        pages += 1;
+        match page["next"].as_str() {
+            Some(n) => uri = n.to_string(),
+            None => break,
+        }
+        assert!(pages < 10);
+    }
+    assert_eq!(seen, ids);
+    assert!(pages >= 3, "{pages} pages");
 }

@@ -37,25 +37,40 @@ pub async fn list(
             app.limits.max_list_page
         )));
     }
-    let (mut page, mut more) = app
+    let (page, mut more) = app
         .store
         .list(q.after.as_deref(), limit)
         .await
         .map_err(Error::from)?;
-    // A page is bounded in bytes too: the rest is on the next page.
-    let mut bytes = 0;
-    if let Some(cut) = page.iter().position(|m| {
-        bytes += serde_json::to_vec(m).map_or(0, |b| b.len());
-        bytes > app.limits.max_list_page_bytes
-    }) {
-        page.truncate(cut.max(1));
-        more = true;
+    // A page is bounded in bytes too (at least one volume a page): the rest is on the next
+    // page. Each volume is serialised once, into the body.
+    let mut body = br#"{"volumes":["#.to_vec();
+    let mut last = None;
+    for (n, m) in page.iter().enumerate() {
+        let b = serde_json::to_vec(m).map_err(|e| Error::internal(e.to_string()))?;
+        if n > 0 && body.len() + b.len() > app.limits.max_list_page_bytes {
+            more = true;
+            break;
+        }
+        if n > 0 {
+            body.push(b',');
+        }
+        body.extend_from_slice(&b);
+        last = Some(&m.id);
     }
     let next = more
-        .then(|| page.last())
+        .then_some(last)
         .flatten()
-        .map(|m| format!("/v1/volumes?after={}&limit={limit}", m.id));
-    Ok(axum::Json(json!({ "volumes": page, "next": next })).into_response())
+        .map(|id| format!("/v1/volumes?after={id}&limit={limit}"));
+    body.extend_from_slice(br#"],"next":"#);
+    body.extend_from_slice(&serde_json::to_vec(&next).expect("a string serialises"));
+    body.push(b'}');
+    let mut r = Body::from(body).into_response();
+    r.headers_mut().insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("application/json"),
+    );
+    Ok(r)
 }
 
 pub async fn get(
@@ -179,7 +194,7 @@ pub async fn data(
     // The first chunk before the status line: a volume that fits in it (most `.vxl`s) and is
     // damaged, or a conversion that fails at once, is still a problem document; past it, a
     // failure can only end the transfer early (the client sees a short body).
-    let mut rest = download.body;
+    let mut rest = download.body.fuse();
     let first = rest.next().await.transpose().map_err(Error::from)?;
     let body = futures_util::stream::iter(first.map(Ok))
         .chain(rest)
