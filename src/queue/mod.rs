@@ -7,6 +7,7 @@
 //! [`JobRecord`] (in the store, or in Redis), so a job outlives the process that accepted it.
 
 pub mod local;
+pub mod redis;
 
 use std::sync::Arc;
 use std::time::Duration;
