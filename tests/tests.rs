@@ -18,6 +18,7 @@ mod oracles;
 mod props;
 mod query;
 mod real_meshes;
+mod redis_queue;
 mod service;
 mod stats;
 
