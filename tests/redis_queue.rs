@@ -275,6 +275,30 @@ async fn a_job_canceled_on_another_replica_stops_where_it_runs_and_stores_nothin
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_job_past_its_deadline_fails_with_the_timeout_problem() {
+    let Some(redis) = RedisServer::start("deadline") else {
+        return;
+    };
+    let store = store("deadline");
+    let q = queue(&redis, &store, "t", |o| {
+        o.job_timeout = Some(Duration::ZERO)
+    })
+    .await;
+    q.submit(job("j", 8, false)).await.unwrap();
+    let claim = q.next().await.unwrap();
+    assert!(claim.control.deadline().is_some());
+    assert_eq!(claim.timeout, Some(Duration::ZERO));
+    let e = voxd::app::jobs::run(Arc::new(Slow), &*store, &claim)
+        .await
+        .unwrap_err();
+    assert_eq!(e.kind, ErrorKind::Timeout);
+    q.finish("j", Err(e.clone())).await;
+    let r = q.get("j").await.unwrap().unwrap();
+    assert_eq!((r.state, r.error), (State::Failed, Some(e)));
+    assert!(store.list(None, 10).await.unwrap().0.is_empty());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_dead_workers_job_is_taken_over_then_failed_after_its_last_attempt() {
     let Some(redis) = RedisServer::start("attempts") else {
         return;
@@ -725,6 +749,19 @@ fn cancel_and_the_shared_capacity_span_replicas() {
         a.until(s, 120, "running", |j| state(j) == "running");
     }
     let q1 = a.submit("resolution=16", &spot);
+    // The shared queue's gauges, the same on the replica that did not take it.
+    let m = String::from_utf8(b.req("GET", "/metrics", &[]).body).unwrap();
+    for line in [
+        "voxd_queue_depth 1",
+        "voxd_queue_running 2",
+        "voxd_queue_class_depth{class=\"small\"} 1",
+    ] {
+        assert!(m.lines().any(|l| l == line), "{line} not in\n{m}");
+    }
+    assert!(
+        m.lines()
+            .any(|l| l.starts_with("voxd_queue_oldest_seconds "))
+    );
     let r = b.req("POST", "/v1/voxelize?resolution=16", &spot);
     assert_eq!(r.status, 429, "{}", String::from_utf8_lossy(&r.body));
     assert_eq!(r.headers.get("retry-after").map(String::as_str), Some("5"));
@@ -755,4 +792,32 @@ fn cancel_and_the_shared_capacity_span_replicas() {
     // Free again: a new job runs.
     let j = b.submit("resolution=16", &spot);
     a.until(&j, 120, "succeeded", |j| state(j) == "succeeded");
+}
+
+/// An unreachable or malformed `--queue`: `voxd serve` refuses to start, saying why (and never
+/// showing the URL's password). Needs no Redis.
+#[test]
+fn serve_refuses_to_start_without_its_queue() {
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let dir = tmpdir("no-queue");
+    for (url, says) in [
+        (
+            format!("redis://:hunter2@127.0.0.1:{port}"),
+            "cannot reach the job queue at redis://***@127.0.0.1",
+        ),
+        ("http://example".to_string(), "is not a Redis URL"),
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_voxd"))
+            .args(["serve", "--addr", "127.0.0.1:0", "--engine", "cpu"])
+            .args(["--data-dir", dir.to_str().unwrap(), "--queue", &url])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && out.stdout.is_empty(), "{err}");
+        assert!(err.contains(says) && !err.contains("hunter2"), "{err}");
+    }
 }

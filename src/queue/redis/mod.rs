@@ -191,7 +191,9 @@ impl RedisQueue {
         // Renewals come every third of the lease: not a busy loop.
         opts.lease = opts.lease.max(Duration::from_millis(100));
         let target = redact(url);
-        let client = redis::Client::open(url).map_err(|e| format!("--queue {target}: {e}"))?;
+        let client = redis::Client::open(url).map_err(|e| {
+            format!("--queue {target} is not a Redis URL (redis://HOST:PORT[/DB]): {e}")
+        })?;
         let config = ConnectionManagerConfig::new()
             .set_connection_timeout(Some(Duration::from_secs(2)))
             .set_response_timeout(Some(Duration::from_secs(10)))
