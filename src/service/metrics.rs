@@ -50,7 +50,7 @@ impl Metrics {
         let mut s = String::new();
         let _ = writeln!(
             s,
-            "# HELP voxd_jobs Jobs known to this process, by state and method.\n# TYPE voxd_jobs gauge"
+            "# HELP voxd_jobs Jobs known to this process (with a shared queue: to the queue, over all replicas), by state and method.\n# TYPE voxd_jobs gauge"
         );
         for (state, method, n) in &q.by_state {
             let _ = writeln!(
