@@ -13,6 +13,17 @@ if ! has_py && [[ $(id -u) == 0 ]] && command -v apt-get >/dev/null; then
 fi
 if has_py; then export VOXD_REQUIRE_PYTHON=1; else echo "NOTICE: no python3 with numpy and zstandard; Python checks will skip"; fi
 
+# The shared-queue tests (tests/redis_queue.rs) start their own redis-server (Debian's package)
+# on 127.0.0.1; once it is installed they are required (VOXD_REQUIRE_REDIS=1), else they skip.
+if ! command -v redis-server >/dev/null && [[ $(id -u) == 0 ]] && command -v apt-get >/dev/null; then
+  echo "installing redis-server for the shared-queue tests"
+  (apt-get update -qq || true) >/dev/null 2>&1
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq redis-server >/dev/null || true
+  # Only the binary is wanted: the tests start their own servers, not the packaged service.
+  (systemctl disable --now redis-server || service redis-server stop || true) >/dev/null 2>&1
+fi
+if command -v redis-server >/dev/null; then export VOXD_REQUIRE_REDIS=1; else echo "NOTICE: no redis-server; shared-queue tests will skip"; fi
+
 # The GPU tests run on lavapipe where no GPU exists; once a driver is there they are required.
 "$(dirname "$0")/setup-vulkan.sh"
 if [[ ${CI:-} == true ]] || { compgen -G "/usr/share/vulkan/icd.d/*.json" >/dev/null && ldconfig -p | grep -q libvulkan.so.1; }; then

@@ -20,8 +20,9 @@ pub struct Grid {
     pub dims: [u32; 3],
 }
 
-/// How the caller chose the grid.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// How the caller chose the grid (as data too: a shared queue keeps it with a job).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "by", rename_all = "snake_case")]
 pub enum GridSpec {
     /// `voxel_size = longest bbox edge / n`, origin at the bbox minimum, dims fitted per axis
     /// (or `(n, n, n)` when `cubic`).

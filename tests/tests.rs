@@ -19,6 +19,7 @@ mod oracles;
 mod props;
 mod query;
 mod real_meshes;
+mod redis_queue;
 mod service;
 mod stats;
 

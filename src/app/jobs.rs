@@ -15,10 +15,10 @@ use crate::engine::Engine;
 use crate::queue::{Claim, JobQueue};
 use crate::store::{VolumeMeta, VolumeStore};
 
-/// Runs a claimed job on `engine` under its control and stores its volume. A job canceled
-/// meanwhile stops at the engine's next check point and stores nothing (the error says so); a
-/// job whose deadline (`--job-timeout`) passes stops there too and fails with a problem naming
-/// the timeout.
+/// Runs a claimed job on `engine` under its control and stores its volume (under the claim's
+/// volume id when it has one, once its guard agrees). A job canceled meanwhile stops at the
+/// engine's next check point and stores nothing (the error says so); a job whose deadline
+/// (`--job-timeout`) passes stops there too and fails with a problem naming the timeout.
 pub async fn run(
     engine: Arc<dyn Engine>,
     store: &dyn VolumeStore,
@@ -48,7 +48,13 @@ pub async fn run(
         Err(Canceled::DeadlinePassed) if built.is_err() => return Err(timed_out(claim.timeout)),
         _ => {}
     }
-    let built = built?;
+    let mut built = built?;
+    if let Some(id) = &claim.volume_id {
+        built.meta.id = id.clone();
+    }
+    if let Some(guard) = &claim.guard {
+        guard.confirm().await?;
+    }
     store
         .put(built.meta.clone(), Bytes::from(built.vxl))
         .await?;

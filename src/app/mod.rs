@@ -20,8 +20,8 @@ use std::time::SystemTime;
 pub use crate::limits::Limits;
 pub use error::{Error, ErrorKind, Result};
 pub use request::{
-    CsgExpr, GridOptions, MeshSource, MethodSpec, MorphologyRequest, PreviewRequest, PreviewView,
-    QueryRequest, VoxelizeRequest,
+    CsgExpr, GridOptions, JobSpec, MeshSource, MethodSpec, MorphologyRequest, PreviewRequest,
+    PreviewView, QueryRequest, VoxelizeRequest,
 };
 pub use voxelize::{Loaded, Prepared, Voxelized, prepare, voxelize};
 
@@ -133,6 +133,8 @@ pub(crate) mod testing {
         NewJob {
             id: id.into(),
             work: super::prepare(&req).unwrap(),
+            spec: super::JobSpec::of(&req),
+            upload: Bytes::from_static(TETRA_OBJ),
             name: None,
             created: String::new(),
         }

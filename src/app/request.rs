@@ -134,6 +134,74 @@ pub struct VoxelizeRequest {
     pub limits: Limits,
 }
 
+/// An uploaded voxelization request as data, without the upload's bytes: what a queue shared by
+/// replicas keeps with a job, so that whichever process runs it rebuilds the same request from
+/// the stored upload ([`JobSpec::request`]) and prepares it to the same bits.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct JobSpec {
+    /// The declared mesh format (`None`: sniffed).
+    pub format: Option<String>,
+    pub grid: GridSpec,
+    pub padding: u32,
+    /// A method name (`solid`, …, `density`).
+    pub method: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub density_factor: Option<u32>,
+    pub fill: Fill,
+    /// The limits loading, fitting and running are held to (a request may lower the server's).
+    pub max_voxels: u64,
+    pub max_triangles: usize,
+    pub max_decompressed_bytes: u64,
+}
+
+impl JobSpec {
+    /// The request as data (its source's bytes or path left out).
+    pub fn of(req: &VoxelizeRequest) -> JobSpec {
+        let (MeshSource::File { format, .. } | MeshSource::Bytes { format, .. }) = &req.source;
+        JobSpec {
+            format: format.map(|f| f.name().to_string()),
+            grid: req.grid,
+            padding: req.padding,
+            method: req.method.name().into(),
+            density_factor: match req.method {
+                MethodSpec::Density { factor } => Some(factor),
+                MethodSpec::Bits(_) => None,
+            },
+            fill: req.fill,
+            max_voxels: req.limits.max_voxels,
+            max_triangles: req.limits.max_triangles,
+            max_decompressed_bytes: req.limits.max_decompressed_bytes,
+        }
+    }
+
+    /// The request again, over the upload's `bytes`, within `server`'s limits (those of the
+    /// process that runs it: what a shared queue hands over cannot raise them).
+    pub fn request(&self, bytes: Bytes, server: &Limits) -> Result<VoxelizeRequest> {
+        let format = match &self.format {
+            None => None,
+            Some(f) => Some(
+                Format::from_name(f)
+                    .ok_or_else(|| Error::invalid(format!("unknown mesh format {f:?}")))?,
+            ),
+        };
+        Ok(VoxelizeRequest {
+            source: MeshSource::Bytes { bytes, format },
+            grid: self.grid,
+            padding: self.padding,
+            method: MethodSpec::new(&self.method, self.density_factor)?,
+            fill: self.fill,
+            limits: Limits {
+                max_voxels: self.max_voxels.min(server.max_voxels),
+                max_triangles: self.max_triangles.min(server.max_triangles),
+                max_decompressed_bytes: self
+                    .max_decompressed_bytes
+                    .min(server.max_decompressed_bytes),
+                ..*server
+            },
+        })
+    }
+}
+
 /// How the grid was asked for, as the fronts receive it: every option optional.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct GridOptions {
@@ -355,4 +423,57 @@ pub struct PreviewRequest {
 pub enum PreviewView {
     Slice(u32),
     Projection(crate::volume::preview::Projection),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A request kept as a job spec (JSON, as a shared queue stores it) comes back as the same
+    /// request and prepares to the same grid; the running process's limits cap the spec's.
+    #[test]
+    fn a_job_spec_round_trips_and_cannot_raise_the_limits() {
+        let bytes = Bytes::from_static(crate::app::testing::TETRA_OBJ);
+        let req = VoxelizeRequest {
+            source: MeshSource::Bytes {
+                bytes: bytes.clone(),
+                format: Some(Format::Obj),
+            },
+            grid: GridSpec::Explicit {
+                origin: [-0.1, -0.2, 0.1 + 0.2],
+                voxel_size: 0.1 / 3.0,
+                dims: [40, 41, 42],
+            },
+            padding: 2,
+            method: MethodSpec::Density { factor: 4 },
+            fill: Fill::Winding,
+            limits: Limits {
+                max_voxels: 1 << 30,
+                ..Limits::SERVICE
+            },
+        };
+        let spec = JobSpec::of(&req);
+        let json = serde_json::to_string(&spec).unwrap();
+        let back: JobSpec = serde_json::from_str(&json).unwrap();
+        assert_eq!(back, spec);
+        let again = back.request(bytes.clone(), &Limits::SERVICE).unwrap();
+        assert_eq!(
+            (again.grid, again.padding, again.method, again.fill),
+            (req.grid, req.padding, req.method, req.fill)
+        );
+        assert_eq!(again.limits, req.limits);
+        let (a, b) = (
+            crate::app::prepare(&req).unwrap(),
+            crate::app::prepare(&again).unwrap(),
+        );
+        assert_eq!((a.grid, a.source), (b.grid, b.source));
+        let small = Limits {
+            max_voxels: 1000,
+            ..Limits::SERVICE
+        };
+        assert_eq!(back.request(bytes, &small).unwrap().limits.max_voxels, 1000);
+        let mut bad = spec;
+        bad.format = Some("doc".into());
+        assert!(bad.request(Bytes::new(), &Limits::SERVICE).is_err());
+    }
 }

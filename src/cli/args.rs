@@ -231,6 +231,23 @@ pub struct ServeArgs {
         value_name = "SECONDS"
     )]
     pub job_timeout: f64,
+    /// The job queue: unset for the in-process queue, or redis://HOST:PORT[/DB] for one that
+    /// replicas share (jobs' uploads then go to the store, so replicas must share it too).
+    #[arg(long, env = "VOXD_QUEUE", value_name = "URL")]
+    pub queue: Option<String>,
+    /// With a shared queue: seconds after which a job whose replica stopped renewing its lease
+    /// is taken over by another.
+    #[arg(
+        long,
+        env = "VOXD_LEASE_SECONDS",
+        default_value_t = 30.0,
+        value_name = "SECONDS"
+    )]
+    pub lease_seconds: f64,
+    /// With a shared queue: starts of one job at most (its replica dying each time); then it
+    /// fails.
+    #[arg(long, env = "VOXD_MAX_ATTEMPTS", default_value_t = 3)]
+    pub max_attempts: u32,
 }
 
 impl ServeArgs {
@@ -262,6 +279,10 @@ impl ServeArgs {
             job_timeout: std::time::Duration::try_from_secs_f64(self.job_timeout)
                 .ok()
                 .filter(|d| !d.is_zero()),
+            queue: self.queue.clone().filter(|q| !q.is_empty()),
+            // At least a tenth of a second: renewals come every third of it.
+            lease: secs(self.lease_seconds.max(0.1)),
+            max_attempts: self.max_attempts.max(1),
         }
     }
 }

@@ -230,6 +230,7 @@ impl JobQueue for LocalQueue {
                 created: job.created,
                 timings: Timings::default(),
                 volume_id: None,
+                attempts: None,
                 error: None,
             };
             inner.jobs.insert(
@@ -329,6 +330,8 @@ impl JobQueue for LocalQueue {
                         name: job.record.name.clone(),
                         control: job.control.clone(),
                         timeout: self.job_timeout,
+                        volume_id: None,
+                        guard: None,
                         id,
                     });
                 }
@@ -425,10 +428,19 @@ impl JobQueue for LocalQueue {
         let mut by_state: Vec<(State, String, u64)> =
             by.into_iter().map(|((s, m), n)| (s, m, n)).collect();
         by_state.sort_by(|a, b| (a.0.name(), &a.1).cmp(&(b.0.name(), &b.1)));
+        let now = Instant::now();
+        let oldest_queued_s = inner
+            .queue
+            .iter()
+            .filter_map(|id| inner.jobs.get(id))
+            .map(|j| now.duration_since(j.enqueued).as_secs_f64())
+            .fold(0.0, f64::max);
         QueueStats {
             depth: inner.queue.len(),
             running,
             by_state,
+            oldest_queued_s,
+            ..QueueStats::default()
         }
     }
 }

@@ -1,10 +1,13 @@
-//! The job queue in front of the engine: the [`JobQueue`] trait and its first implementation,
-//! in-process ([`local::LocalQueue`], the default). A front submits a [`NewJob`] (a prepared
-//! voxelization); workers take jobs with [`JobQueue::next`], run them through the application
-//! layer and report with [`JobQueue::finish`]. Every state change is recorded as a
-//! [`JobRecord`] in the store, so a job outlives the process that accepted it as a record.
+//! The job queue in front of the engine: the [`JobQueue`] trait and its two implementations,
+//! in-process ([`local::LocalQueue`], the default) and shared by replicas over Redis Streams
+//! ([`redis::RedisQueue`], `--queue redis://…`). A front submits a [`NewJob`] (a prepared
+//! voxelization, and the same request as data with its upload for a queue whose jobs may run in
+//! another process); workers take jobs with [`JobQueue::next`], run them through the
+//! application layer and report with [`JobQueue::finish`]. Every state change is recorded as a
+//! [`JobRecord`] (in the store, or in Redis), so a job outlives the process that accepted it.
 
 pub mod local;
+pub mod redis;
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -12,7 +15,9 @@ use std::time::Duration;
 use async_trait::async_trait;
 use serde::{Deserialize, Serialize};
 
-use crate::app::{Error, Prepared, Result};
+use bytes::Bytes;
+
+use crate::app::{Error, JobSpec, Prepared, Result};
 use crate::cancel::Control;
 use crate::grid::Grid;
 
@@ -57,6 +62,10 @@ pub struct JobRecord {
     pub timings: Timings,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub volume_id: Option<String>,
+    /// Times a shared queue started the job (more than one when its replica died and another
+    /// took it over); not shown by the in-process queue.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub attempts: Option<u32>,
     /// Why the job failed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error: Option<Error>,
@@ -73,6 +82,11 @@ pub struct Timings {
 pub struct NewJob {
     pub id: String,
     pub work: Prepared,
+    /// The same request as data, and the uploaded bytes it was prepared from: what a queue
+    /// shared by replicas stores, so that any of them can prepare it again. The in-process
+    /// queue runs `work` and ignores both.
+    pub spec: JobSpec,
+    pub upload: Bytes,
     pub name: Option<String>,
     /// RFC 3339.
     pub created: String,
@@ -89,6 +103,20 @@ pub struct Claim {
     pub control: Control,
     /// The job timeout the deadline came from, for the problem of a job that outlives it.
     pub timeout: Option<Duration>,
+    /// The id the job's volume gets: a shared queue derives it from the job's, so that a job
+    /// run twice (its replica was thought dead, another ran it too) writes one volume, not two.
+    /// `None`: a fresh id.
+    pub volume_id: Option<String>,
+    /// Asked just before the volume is stored (`None`: nothing to ask).
+    pub guard: Option<Arc<dyn CommitGuard>>,
+}
+
+/// The last word before a worker stores a job's volume: a shared queue checks that the job is
+/// still this worker's (not canceled from another replica, not taken over by one).
+#[async_trait]
+pub trait CommitGuard: Send + Sync {
+    /// `Err` (the job's result is discarded) when the volume must not be stored.
+    async fn confirm(&self) -> Result<()>;
 }
 
 /// What `/metrics` and `/readyz` report.
@@ -98,6 +126,13 @@ pub struct QueueStats {
     pub running: usize,
     /// Jobs known, by state and method.
     pub by_state: Vec<(State, String, u64)>,
+    /// Seconds the oldest waiting job has waited (0 when none waits).
+    pub oldest_queued_s: f64,
+    /// Waiting jobs by size class, for a queue that keeps classes apart (empty otherwise).
+    pub classes: Vec<(&'static str, usize)>,
+    /// Why the queue cannot be answered for now (a shared queue whose server is unreachable):
+    /// `/readyz` is then 503 and the numbers above are zero.
+    pub unavailable: Option<String>,
 }
 
 #[async_trait]

@@ -50,7 +50,7 @@ impl Metrics {
         let mut s = String::new();
         let _ = writeln!(
             s,
-            "# HELP voxd_jobs Jobs known to this process, by state and method.\n# TYPE voxd_jobs gauge"
+            "# HELP voxd_jobs Jobs known to this process (with a shared queue: to the queue, over all replicas), by state and method.\n# TYPE voxd_jobs gauge"
         );
         for (state, method, n) in &q.by_state {
             let _ = writeln!(
@@ -61,9 +61,33 @@ impl Metrics {
         }
         let _ = writeln!(
             s,
-            "# HELP voxd_queue_depth Jobs waiting.\n# TYPE voxd_queue_depth gauge\nvoxd_queue_depth {}",
+            "# HELP voxd_queue_depth Jobs waiting (in the shared queue: over all replicas).\n# TYPE voxd_queue_depth gauge\nvoxd_queue_depth {}",
             q.depth
         );
+        let _ = writeln!(
+            s,
+            "# HELP voxd_queue_oldest_seconds How long the oldest waiting job has waited (0 when none waits).\n# TYPE voxd_queue_oldest_seconds gauge\nvoxd_queue_oldest_seconds {}",
+            q.oldest_queued_s
+        );
+        let _ = writeln!(
+            s,
+            "# HELP voxd_queue_running Jobs running (in the shared queue: over all replicas).\n# TYPE voxd_queue_running gauge\nvoxd_queue_running {}",
+            q.running
+        );
+        let _ = writeln!(
+            s,
+            "# HELP voxd_queue_available Whether the job queue answers (0: the shared queue's Redis is unreachable).\n# TYPE voxd_queue_available gauge\nvoxd_queue_available {}",
+            u8::from(q.unavailable.is_none())
+        );
+        if !q.classes.is_empty() {
+            let _ = writeln!(
+                s,
+                "# HELP voxd_queue_class_depth Jobs waiting in the shared queue, by size class.\n# TYPE voxd_queue_class_depth gauge"
+            );
+            for (class, n) in &q.classes {
+                let _ = writeln!(s, "voxd_queue_class_depth{{class=\"{class}\"}} {n}");
+            }
+        }
         let m = self.inner.lock().unwrap();
         let _ = writeln!(
             s,

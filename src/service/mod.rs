@@ -19,6 +19,7 @@ use crate::engine::gpu::GpuOptions;
 use crate::engine::{Engine, EngineChoice};
 use crate::queue::JobQueue;
 use crate::queue::local::LocalQueue;
+use crate::queue::redis::{RedisOptions, RedisQueue};
 use crate::store::VolumeStore;
 use crate::store::fs::FsStore;
 
@@ -42,6 +43,12 @@ pub struct Config {
     pub shutdown_timeout: std::time::Duration,
     /// How long one job may run (`--job-timeout`); past it the job is stopped and fails.
     pub job_timeout: Option<std::time::Duration>,
+    /// The job queue: `None` for the in-process one, or a `redis://` URL for one shared by
+    /// replicas (`--queue`).
+    pub queue: Option<String>,
+    /// A shared queue's lease (`--lease-seconds`) and starts per job (`--max-attempts`).
+    pub lease: std::time::Duration,
+    pub max_attempts: u32,
 }
 
 /// The state every handler sees.
@@ -161,12 +168,28 @@ pub async fn open(config: &Config) -> Result<Arc<App>, String> {
             .map_err(|e| e.to_string())?
             .map_err(|e| format!("{}: {e}", config.data_dir.display()))?,
     );
-    let queue: Arc<dyn JobQueue> = Arc::new(
-        LocalQueue::open(config.queue_capacity.max(1), store.clone())
-            .await
-            .map_err(|e| format!("{}: {e}", config.data_dir.display()))?
-            .with_job_timeout(config.job_timeout),
-    );
+    let queue: Arc<dyn JobQueue> = match &config.queue {
+        None => Arc::new(
+            LocalQueue::open(config.queue_capacity.max(1), store.clone())
+                .await
+                .map_err(|e| format!("{}: {e}", config.data_dir.display()))?
+                .with_job_timeout(config.job_timeout),
+        ),
+        Some(url) => Arc::new(
+            RedisQueue::open(
+                url,
+                RedisOptions {
+                    lease: config.lease,
+                    max_attempts: config.max_attempts.max(1),
+                    job_timeout: config.job_timeout,
+                    limits: config.limits,
+                    ..RedisOptions::new(config.queue_capacity.max(1))
+                },
+                store.clone(),
+            )
+            .await?,
+        ),
+    };
     Ok(App::new(
         engine,
         store,

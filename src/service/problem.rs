@@ -13,7 +13,7 @@ use crate::app::{Error, ErrorKind};
 pub const TYPE_BASE: &str = "https://voxd.dev/problems/";
 
 /// Every kind with its status and title.
-pub const KINDS: [(ErrorKind, u16, &str); 23] = [
+pub const KINDS: [(ErrorKind, u16, &str); 24] = [
     (ErrorKind::InvalidMesh, 422, "The mesh cannot be used"),
     (ErrorKind::UnsupportedMediaType, 415, "Unknown mesh format"),
     (
@@ -26,6 +26,11 @@ pub const KINDS: [(ErrorKind, u16, &str); 23] = [
     (ErrorKind::GridTooLarge, 422, "Grid too large"),
     (ErrorKind::InvalidParameter, 400, "Invalid parameter"),
     (ErrorKind::QueueFull, 429, "The job queue is full"),
+    (
+        ErrorKind::QueueUnavailable,
+        503,
+        "The job queue cannot be reached",
+    ),
     (ErrorKind::NotFound, 404, "Not found"),
     (
         ErrorKind::NotCancelable,

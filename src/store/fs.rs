@@ -8,8 +8,10 @@
 //! missing file is [`StoreError::Corrupt`], never silently served), and a put refuses metadata
 //! that does not describe its bytes. The quota counts both files of a volume, data and metadata.
 //!
-//! The catalogue is held in memory (read once at open); every file operation runs on tokio's
-//! blocking pool, never on a runtime worker, and never under the catalogue's lock.
+//! The catalogue is held in memory (read once at open; a volume asked for by id that another
+//! process sharing the directory stored since is read from disk and catalogued then); every
+//! file operation runs on tokio's blocking pool, never on a runtime worker, and never under the
+//! catalogue's lock.
 //!
 //! With the `fault-injection` feature (tests only), `VOXD_FAULT` makes the process abort at a
 //! chosen point inside a write (see [`fault`]), so crash tests can stop it there.
@@ -152,6 +154,49 @@ impl FsStore {
         self.inner.lock().unwrap_or_else(|p| p.into_inner())
     }
 
+    /// The metadata of volume `id`: from the catalogue, or else from its committed files (a
+    /// volume another process sharing this directory stored, as replicas do in tests), which
+    /// then join the catalogue. Listing shows only the catalogue: a directory is not a store
+    /// for replicas (an object store is).
+    async fn lookup(&self, id: &str) -> Result<Option<VolumeMeta>, StoreError> {
+        if let Some(e) = self.lock().index.get(id) {
+            return Ok(Some(e.meta.clone()));
+        }
+        if !safe_id(id) {
+            return Ok(None);
+        }
+        let dir = self.volumes.clone();
+        let id_ = id.to_string();
+        let found = blocking(move || {
+            let json = match std::fs::read(dir.join(format!("{id_}.json"))) {
+                Ok(b) => b,
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+                Err(e) => return Err(e.into()),
+            };
+            let meta: VolumeMeta = serde_json::from_slice(&json).map_err(|e| {
+                StoreError::Corrupt(format!("volume {id_}: unreadable metadata: {e}"))
+            })?;
+            let data = std::fs::metadata(dir.join(format!("{id_}.vxl")))?.len();
+            Ok(Some((meta, data + json.len() as u64)))
+        })
+        .await?;
+        let Some((meta, stored)) = found.filter(|(m, _)| m.id == id) else {
+            return Ok(None);
+        };
+        let mut i = self.lock();
+        if !i.index.contains_key(id) {
+            i.used += stored;
+            i.index.insert(
+                id.to_string(),
+                Entry {
+                    meta: meta.clone(),
+                    stored,
+                },
+            );
+        }
+        Ok(Some(meta))
+    }
+
     fn note_write(&self, ok: bool) {
         let mut i = self.lock();
         i.last_write_failed = !ok;
@@ -250,14 +295,14 @@ impl VolumeStore for FsStore {
     }
 
     async fn get(&self, id: &str) -> Result<Option<VolumeMeta>, StoreError> {
-        Ok(self.lock().index.get(id).map(|e| e.meta.clone()))
+        self.lookup(id).await
     }
 
     /// The bytes, checked against the metadata's length and sha256: a mismatch, a torn file
     /// or a missing one is `Corrupt`. (Ids are never reused, so the file under a listed id
     /// changes only by damage.)
     async fn read(&self, id: &str) -> Result<Option<Bytes>, StoreError> {
-        let Some(meta) = self.lock().index.get(id).map(|e| e.meta.clone()) else {
+        let Some(meta) = self.lookup(id).await? else {
             return Ok(None);
         };
         let p = self.volumes.join(format!("{id}.vxl"));
@@ -289,7 +334,7 @@ impl VolumeStore for FsStore {
     /// Chunks of `{id}.vxl` read on the blocking pool, checked by [`verified`]; a file of
     /// another length than the metadata's is `Corrupt` before anything streams.
     async fn read_stream(&self, id: &str) -> Result<Option<ByteStream>, StoreError> {
-        let Some(meta) = self.lock().index.get(id).map(|e| e.meta.clone()) else {
+        let Some(meta) = self.lookup(id).await? else {
             return Ok(None);
         };
         let p = self.volumes.join(format!("{id}.vxl"));
@@ -351,6 +396,7 @@ impl VolumeStore for FsStore {
     }
 
     async fn delete(&self, id: &str) -> Result<bool, StoreError> {
+        self.lookup(id).await?;
         {
             let mut i = self.lock();
             let Some(old) = i.index.remove(id) else {
@@ -826,6 +872,32 @@ mod tests {
         );
         assert!(store.get("e").await.unwrap().is_none() && store.get("f").await.unwrap().is_none());
         assert!(!dir.join("volumes/e.vxl").exists() && !dir.join("volumes/f.vxl").exists());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Two stores on one directory (two replicas in the tests): a volume one of them stored is
+    /// found, read and deleted through the other, which catalogues it from then on.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_volume_another_process_stored_is_found_on_disk() {
+        let dir = scratch("shared");
+        let a = FsStore::open(&dir, 1 << 20).unwrap();
+        let b = FsStore::open(&dir, 1 << 20).unwrap();
+        let data = vec![5u8; 300];
+        a.put(meta("v1", &data), Bytes::from(data.clone()))
+            .await
+            .unwrap();
+        assert!(b.list(None, 10).await.unwrap().0.is_empty());
+        assert_eq!(b.get("v1").await.unwrap().unwrap().id, "v1");
+        assert_eq!(b.read("v1").await.unwrap().unwrap(), data);
+        assert_eq!(b.list(None, 10).await.unwrap().0.len(), 1);
+        assert_eq!(b.usage().await.unwrap(), a.usage().await.unwrap());
+        assert!(b.get("nope").await.unwrap().is_none());
+        assert!(b.get("../volumes/v1").await.unwrap().is_none());
+        assert!(b.delete("v1").await.unwrap());
+        assert!(
+            a.read("v1").await.is_err(),
+            "gone on disk, still in a's catalogue"
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

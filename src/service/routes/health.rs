@@ -1,5 +1,6 @@
-//! `/healthz` (the process answers), `/readyz` (the store takes writes; engine and queue state),
-//! `/metrics` (Prometheus text) and `/openapi.yaml` (the contract).
+//! `/healthz` (the process answers), `/readyz` (the store takes writes and the job queue
+//! answers; engine and queue state), `/metrics` (Prometheus text) and `/openapi.yaml` (the
+//! contract).
 
 use axum::http::{HeaderValue, header};
 use axum::response::{IntoResponse, Response};
@@ -24,6 +25,11 @@ pub async fn readyz(axum::extract::State(app): AppState) -> Result<Response, Pro
         .retry_after(5)
     })?;
     let q = app.queue.stats().await;
+    if let Some(why) = q.unavailable {
+        return Err(Error::new(ErrorKind::QueueUnavailable, why)
+            .retry_after(5)
+            .into());
+    }
     let usage = app.store.usage().await.map_err(Error::from)?;
     Ok(axum::Json(json!({
         "status": "ready",

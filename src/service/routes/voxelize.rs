@@ -14,7 +14,7 @@ use super::super::problem::Problem;
 use super::{AppState, check_name, created, set_location};
 use crate::app::request::MethodName;
 use crate::app::{
-    self, Error, ErrorKind, GridOptions, MeshSource, MethodSpec, VoxelizeRequest, ops,
+    self, Error, ErrorKind, GridOptions, JobSpec, MeshSource, MethodSpec, VoxelizeRequest, ops,
 };
 use crate::engine::fill::Fill;
 use crate::mesh::Format;
@@ -141,20 +141,24 @@ pub async fn submit(
         fill: q.fill.unwrap_or(Fill::Parity),
         limits,
     };
+    let spec = JobSpec::of(&req);
     let ingest = app.ingest.clone();
     let work = ops::blocking(move || ingest.install(|| app::prepare(&req))).await?;
-    // The upload's bytes leave the in-flight budget once parsed.
-    drop(body);
     let id = app::new_id();
     let record = app
         .queue
         .submit(NewJob {
             id: id.clone(),
             work,
+            spec,
+            upload: body.bytes.clone(),
             name: q.name,
             created: app::rfc3339(std::time::SystemTime::now()),
         })
         .await?;
+    // The upload's bytes leave the in-flight budget once queued (a shared queue has stored
+    // them by then).
+    drop(body);
     let record = if q.wait > 0.0 {
         let r = app
             .queue

@@ -1,0 +1,823 @@
+//! The queue shared by replicas (`--queue redis://…`), against a real `redis-server` on
+//! 127.0.0.1 (tests/common/redis_server.rs; skipped with a notice where it is not installed,
+//! required with `VOXD_REQUIRE_REDIS=1`).
+//!
+//! First the queue's contract through the library (two or three `RedisQueue`s on one Redis
+//! stand for replicas): submit, get, wait, cancel queued and running, the shared capacity,
+//! size classes, statistics, a dead worker's job taken over, the attempts limit, a run that
+//! lost its job storing nothing, Redis going away and coming back. Then the real `voxd serve`
+//! binary, two or three processes on one Redis and one data directory: a job submitted to one
+//! is polled and downloaded through the other, bit for bit the library's result; a replica
+//! killed mid-job (SIGKILL) has its job finished by another; a job whose replicas all die
+//! fails with a problem; Redis killed and restarted (append-only file) loses no accepted job;
+//! cancel and 429 work across replicas. Loopback only, every loop bounded, no timing asserted.
+
+use std::collections::BTreeMap;
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use bytes::Bytes;
+use serde_json::Value;
+
+use crate::common::redis_server::RedisServer;
+use crate::common::{data, http_exchange, tmpdir};
+use voxd::app::{ErrorKind, GridOptions, JobSpec, MeshSource, MethodSpec, VoxelizeRequest};
+use voxd::cancel::Control;
+use voxd::engine::cpu::CpuEngine;
+use voxd::engine::fill::Fill;
+use voxd::engine::{Engine, EngineError, GridMesh, Method};
+use voxd::queue::redis::{RedisOptions, RedisQueue, volume_id_for};
+use voxd::queue::{JobQueue, NewJob, State};
+use voxd::store::VolumeStore;
+use voxd::store::fs::FsStore;
+use voxd::volume::BitVolume;
+
+const TETRA: &[u8] = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+
+fn request(mesh: &[u8], resolution: u32, cubic: bool, fill: Fill) -> VoxelizeRequest {
+    VoxelizeRequest {
+        source: MeshSource::Bytes {
+            bytes: Bytes::copy_from_slice(mesh),
+            format: None,
+        },
+        grid: GridOptions {
+            resolution: Some(resolution),
+            cubic,
+            ..GridOptions::default()
+        }
+        .spec(256)
+        .unwrap(),
+        padding: 0,
+        method: MethodSpec::Bits(Method::Solid),
+        fill,
+        limits: voxd::app::Limits::SERVICE,
+    }
+}
+
+/// A job as the submit route makes it: prepared, and the same request as data.
+fn job(id: &str, resolution: u32, cubic: bool) -> NewJob {
+    let req = request(TETRA, resolution, cubic, Fill::Parity);
+    NewJob {
+        id: id.into(),
+        work: voxd::app::prepare(&req).unwrap(),
+        spec: JobSpec::of(&req),
+        upload: Bytes::from_static(TETRA),
+        name: Some(format!("job {id}")),
+        created: "2026-01-01T00:00:00Z".into(),
+    }
+}
+
+fn store(name: &str) -> Arc<dyn VolumeStore> {
+    Arc::new(FsStore::open(&tmpdir(&format!("redisq-{name}")), 1 << 30).unwrap())
+}
+
+async fn queue(
+    redis: &RedisServer,
+    store: &Arc<dyn VolumeStore>,
+    prefix: &str,
+    set: impl FnOnce(&mut RedisOptions),
+) -> RedisQueue {
+    let mut o = RedisOptions::new(16);
+    o.prefix = prefix.into();
+    set(&mut o);
+    RedisQueue::open(&redis.url(), o, store.clone())
+        .await
+        .unwrap()
+}
+
+/// The CPU engine behind check points of a millisecond each: a job that takes a while and
+/// stops when told.
+struct Slow;
+
+impl Engine for Slow {
+    fn name(&self) -> &'static str {
+        "slow"
+    }
+    fn voxelize_with(
+        &self,
+        mesh: &GridMesh,
+        method: Method,
+        ctl: &Control,
+    ) -> Result<BitVolume, EngineError> {
+        for i in 0..60_000 {
+            ctl.check()?;
+            ctl.set(f64::from(i) / 60_000.0);
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        CpuEngine.voxelize_with(mesh, method, ctl)
+    }
+}
+
+/// Polls `f` every 20 ms until it gives something, for at most `secs`.
+async fn eventually<T>(secs: u64, what: &str, mut f: impl AsyncFnMut() -> Option<T>) -> T {
+    let deadline = Instant::now() + Duration::from_secs(secs);
+    loop {
+        if let Some(t) = f().await {
+            return t;
+        }
+        assert!(Instant::now() < deadline, "not within {secs} s: {what}");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn submit_get_wait_cancel_capacity_and_stats_follow_the_contract() {
+    let Some(redis) = RedisServer::start("contract") else {
+        return;
+    };
+    let store = store("contract");
+    let q = queue(&redis, &store, "c", |o| o.capacity = 2).await;
+    let r = q.submit(job("a", 8, false)).await.unwrap();
+    assert_eq!((r.state, r.position), (State::Queued, Some(1)));
+    assert_eq!(
+        q.submit(job("b", 8, false)).await.unwrap().position,
+        Some(2)
+    );
+    let e = q.submit(job("c", 8, false)).await.unwrap_err();
+    assert_eq!((e.kind, e.retry_after), (ErrorKind::QueueFull, Some(5)));
+    assert!(store.get_upload("c").await.unwrap().is_none());
+    assert_eq!(&store.get_upload("a").await.unwrap().unwrap()[..], TETRA);
+    // Another replica sees the same records.
+    let other = queue(&redis, &store, "c", |o| o.capacity = 2).await;
+    let a = other.get("a").await.unwrap().unwrap();
+    assert_eq!((a.state, a.position), (State::Queued, Some(1)));
+    assert_eq!(a.name.as_deref(), Some("job a"));
+    assert_eq!(a.grid, job("a", 8, false).work.grid);
+    assert!(other.get("nope").await.unwrap().is_none());
+    let s = q.stats().await;
+    assert_eq!((s.depth, s.running, s.unavailable), (2, 0, None));
+    assert_eq!(s.classes, vec![("small", 2), ("medium", 0), ("large", 0)]);
+    assert!(s.by_state.contains(&(State::Queued, "solid".into(), 2)));
+    // Cancel a queued job from the other replica: gone from the queue, its upload removed.
+    let c = other.cancel("b").await.unwrap().unwrap();
+    assert_eq!(c.state, State::Canceled);
+    assert!(store.get_upload("b").await.unwrap().is_none());
+    assert_eq!(
+        q.cancel("b").await.unwrap_err().kind,
+        ErrorKind::NotCancelable
+    );
+    assert!(q.cancel("nope").await.unwrap().is_none());
+    assert_eq!(q.stats().await.depth, 1);
+    // Run it: the claim names the volume after the job, and the record follows.
+    let claim = q.next().await.unwrap();
+    assert_eq!(claim.id, "a");
+    assert_eq!(
+        claim.volume_id.as_deref(),
+        Some(volume_id_for("a").as_str())
+    );
+    let r = other.get("a").await.unwrap().unwrap();
+    assert_eq!(
+        (r.state, r.attempts, r.position),
+        (State::Running, Some(1), None)
+    );
+    assert_eq!(q.stats().await.running, 1);
+    let meta = voxd::app::jobs::run(Arc::new(CpuEngine), &*store, &claim)
+        .await
+        .unwrap();
+    assert_eq!(meta.id, volume_id_for("a"));
+    q.finish("a", Ok(meta.id.clone())).await;
+    let r = other
+        .wait("a", Duration::from_secs(3600))
+        .await
+        .unwrap()
+        .unwrap();
+    assert_eq!((r.state, r.progress), (State::Succeeded, 1.0));
+    assert_eq!(r.volume_id.as_deref(), Some(meta.id.as_str()));
+    assert!(r.timings.running_s.is_some() && r.timings.queued_s.is_some());
+    assert!(store.get_upload("a").await.unwrap().is_none());
+    assert_eq!(
+        other.cancel("a").await.unwrap_err().kind,
+        ErrorKind::NotCancelable
+    );
+    let s = other.stats().await;
+    assert_eq!((s.depth, s.running, s.oldest_queued_s), (0, 0, 0.0));
+    assert!(s.by_state.contains(&(State::Succeeded, "solid".into(), 1)));
+    assert!(s.by_state.contains(&(State::Canceled, "solid".into(), 1)));
+    // Closing a replica fails nothing queued (the others run it) and refuses new jobs there.
+    q.submit(job("d", 8, false)).await.unwrap();
+    assert_eq!(q.close(voxd::app::Error::internal("bye")).await, 0);
+    assert!(q.next().await.is_none());
+    assert_eq!(
+        q.submit(job("e", 8, false)).await.unwrap_err().kind,
+        ErrorKind::ShuttingDown
+    );
+    assert_eq!(other.get("d").await.unwrap().unwrap().state, State::Queued);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn small_jobs_overtake_large_ones_until_those_have_waited_long_enough() {
+    let Some(redis) = RedisServer::start("classes") else {
+        return;
+    };
+    let store = store("classes");
+    let q = queue(&redis, &store, "k", |_| {}).await;
+    // 300³ voxels: over a 256³ job, the medium class.
+    q.submit(job("m1", 300, true)).await.unwrap();
+    q.submit(job("s1", 8, false)).await.unwrap();
+    let s = q.stats().await;
+    assert_eq!(s.classes, vec![("small", 1), ("medium", 1), ("large", 0)]);
+    assert!(s.oldest_queued_s >= 0.0);
+    let first = q.next().await.unwrap();
+    assert_eq!(first.id, "s1", "the small job overtakes");
+    q.finish("s1", Err(voxd::app::Error::internal("not run")))
+        .await;
+    // Every second waited earns a 256³ job's cost: after 2.5 s the medium job (27 M voxels)
+    // goes before a new small one.
+    tokio::time::sleep(Duration::from_millis(2500)).await;
+    q.submit(job("s2", 8, false)).await.unwrap();
+    assert!(q.stats().await.oldest_queued_s >= 2.5);
+    assert_eq!(q.next().await.unwrap().id, "m1", "the aged job goes first");
+    assert_eq!(q.next().await.unwrap().id, "s2");
+    let failed = q.get("s1").await.unwrap().unwrap();
+    assert_eq!(failed.state, State::Failed);
+    assert_eq!(failed.error.unwrap().detail, "not run");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_job_canceled_on_another_replica_stops_where_it_runs_and_stores_nothing() {
+    let Some(redis) = RedisServer::start("cancel-running") else {
+        return;
+    };
+    let store = store("cancel-running");
+    let a = queue(&redis, &store, "r", |_| {}).await;
+    let b = queue(&redis, &store, "r", |_| {}).await;
+    b.submit(job("j", 8, false)).await.unwrap();
+    let claim = a.next().await.unwrap();
+    let ctl = claim.control.clone();
+    let worker = {
+        let store = store.clone();
+        tokio::spawn(async move {
+            let r = voxd::app::jobs::run(Arc::new(Slow), &*store, &claim).await;
+            (claim, r)
+        })
+    };
+    // Its progress reaches the other replica with the lease renewals.
+    eventually(30, "progress shown", async || {
+        (b.get("j").await.unwrap().unwrap().progress > 0.0).then_some(())
+    })
+    .await;
+    let r = b.cancel("j").await.unwrap().unwrap();
+    assert_eq!(r.state, State::Canceled);
+    let (claim, result) = worker.await.unwrap();
+    assert!(ctl.is_canceled() && ctl.progress() < 1.0);
+    let e = result.unwrap_err();
+    assert_eq!(e.detail, "canceled");
+    a.finish(&claim.id, Err(e)).await;
+    let r = a.get("j").await.unwrap().unwrap();
+    assert_eq!(r.state, State::Canceled);
+    assert!(r.progress > 0.0 && r.progress < 1.0, "{}", r.progress);
+    assert!(store.list(None, 10).await.unwrap().0.is_empty());
+    assert!(store.get_upload("j").await.unwrap().is_none());
+    assert_eq!(a.stats().await.running, 0);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_job_past_its_deadline_fails_with_the_timeout_problem() {
+    let Some(redis) = RedisServer::start("deadline") else {
+        return;
+    };
+    let store = store("deadline");
+    let q = queue(&redis, &store, "t", |o| {
+        o.job_timeout = Some(Duration::ZERO)
+    })
+    .await;
+    q.submit(job("j", 8, false)).await.unwrap();
+    let claim = q.next().await.unwrap();
+    assert!(claim.control.deadline().is_some());
+    assert_eq!(claim.timeout, Some(Duration::ZERO));
+    let e = voxd::app::jobs::run(Arc::new(Slow), &*store, &claim)
+        .await
+        .unwrap_err();
+    assert_eq!(e.kind, ErrorKind::Timeout);
+    q.finish("j", Err(e.clone())).await;
+    let r = q.get("j").await.unwrap().unwrap();
+    assert_eq!((r.state, r.error), (State::Failed, Some(e)));
+    assert!(store.list(None, 10).await.unwrap().0.is_empty());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_dead_workers_job_is_taken_over_then_failed_after_its_last_attempt() {
+    let Some(redis) = RedisServer::start("attempts") else {
+        return;
+    };
+    let store = store("attempts");
+    let opts = |o: &mut RedisOptions| {
+        o.lease = Duration::from_secs(1);
+        o.max_attempts = 2;
+    };
+    let a = queue(&redis, &store, "d", opts).await;
+    a.submit(job("j", 8, false)).await.unwrap();
+    let first = a.next().await.unwrap();
+    // The replica dies: nothing renews its lease any more.
+    drop(first);
+    drop(a);
+    let b = queue(&redis, &store, "d", opts).await;
+    let second = tokio::time::timeout(Duration::from_secs(30), b.next())
+        .await
+        .expect("taken over within 30 s")
+        .unwrap();
+    assert_eq!(second.id, "j");
+    let r = b.get("j").await.unwrap().unwrap();
+    assert_eq!((r.state, r.attempts), (State::Running, Some(2)));
+    drop(second);
+    drop(b);
+    // The last attempt's worker died too: the next replica that looks fails the job.
+    let c = Arc::new(queue(&redis, &store, "d", opts).await);
+    let looking = {
+        let c = c.clone();
+        tokio::spawn(async move { c.next().await.map(|x| x.id) })
+    };
+    let r = eventually(30, "the job failed", async || {
+        let r = c.get("j").await.unwrap().unwrap();
+        (r.state == State::Failed).then_some(r)
+    })
+    .await;
+    let e = r.error.unwrap();
+    assert_eq!(e.kind, ErrorKind::EngineFailure);
+    assert!(
+        e.detail.contains("started 2 times (--max-attempts)")
+            && e.detail.contains("--lease-seconds"),
+        "{}",
+        e.detail
+    );
+    assert!(!looking.is_finished(), "nothing else to run");
+    looking.abort();
+    assert!(store.get_upload("j").await.unwrap().is_none());
+    assert_eq!(c.stats().await.running, 0);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_run_that_lost_its_job_stores_nothing_and_the_job_has_one_volume() {
+    let Some(redis) = RedisServer::start("lost") else {
+        return;
+    };
+    let store = store("lost");
+    // `a` renews every second; `b` takes over anything idle for 0.3 s: it takes a's job
+    // although a is alive (as when a replica stalls past its lease).
+    let a = queue(&redis, &store, "l", |_| {}).await;
+    let b = queue(&redis, &store, "l", |o| {
+        o.lease = Duration::from_millis(300)
+    })
+    .await;
+    a.submit(job("j", 16, false)).await.unwrap();
+    let ca = a.next().await.unwrap();
+    let cb = tokio::time::timeout(Duration::from_secs(30), b.next())
+        .await
+        .expect("taken over")
+        .unwrap();
+    assert_eq!((ca.id.as_str(), cb.id.as_str()), ("j", "j"));
+    assert_eq!(ca.volume_id, cb.volume_id);
+    let engine: Arc<dyn Engine> = Arc::new(CpuEngine);
+    let ra = voxd::app::jobs::run(engine.clone(), &*store, &ca).await;
+    assert!(ra.is_err(), "the run that lost its job stored a volume");
+    a.finish("j", ra.map(|m| m.id)).await;
+    let rb = voxd::app::jobs::run(engine, &*store, &cb).await.unwrap();
+    b.finish("j", Ok(rb.id.clone())).await;
+    let r = a.get("j").await.unwrap().unwrap();
+    assert_eq!((r.state, r.attempts), (State::Succeeded, Some(2)));
+    assert_eq!(r.volume_id, Some(rb.id));
+    assert_eq!(store.list(None, 10).await.unwrap().0.len(), 1);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_unreachable_redis_is_queue_unavailable_and_the_queue_reconnects() {
+    let Some(mut redis) = RedisServer::start("restart-lib") else {
+        return;
+    };
+    let store = store("restart-lib");
+    let q = queue(&redis, &store, "u", |_| {}).await;
+    q.submit(job("kept", 8, false)).await.unwrap();
+    redis.kill();
+    for e in [
+        q.submit(job("x", 8, false)).await.unwrap_err(),
+        q.get("kept").await.unwrap_err(),
+    ] {
+        assert_eq!(
+            (e.kind, e.retry_after),
+            (ErrorKind::QueueUnavailable, Some(5))
+        );
+        assert!(e.detail.contains(&redis.url()), "{}", e.detail);
+    }
+    assert!(q.stats().await.unavailable.is_some());
+    // Refused at start while down.
+    let o = RedisOptions::new(4);
+    let e = RedisQueue::open(&redis.url(), o, store.clone())
+        .await
+        .err()
+        .unwrap();
+    assert!(
+        e.contains("cannot reach the job queue at redis://127.0.0.1"),
+        "{e}"
+    );
+    redis.restart();
+    // The accepted job survived (append-only file); the queue reconnected by itself.
+    let r = eventually(60, "reconnected", async || q.get("kept").await.ok()).await;
+    assert_eq!(r.unwrap().state, State::Queued);
+    q.submit(job("after", 8, false)).await.unwrap();
+    assert_eq!(q.stats().await.depth, 2);
+    assert_eq!(q.next().await.unwrap().id, "kept");
+}
+
+// ---------------------------------------------------------------------------------------------
+// The real binary: replicas on one Redis and one data directory.
+
+struct Replica {
+    child: Child,
+    addr: String,
+}
+
+struct Resp {
+    status: u16,
+    headers: BTreeMap<String, String>,
+    body: Vec<u8>,
+}
+
+impl Resp {
+    fn json(&self) -> Value {
+        serde_json::from_slice(&self.body)
+            .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&self.body)))
+    }
+}
+
+impl Replica {
+    fn start(redis: &RedisServer, dir: &Path, extra: &[&str]) -> Replica {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_voxd"))
+            .args(["serve", "--addr", "127.0.0.1:0", "--engine", "cpu"])
+            .args(["--data-dir", dir.to_str().unwrap(), "--queue", &redis.url()])
+            .args(extra)
+            .env("VOXD_LOG", "warn")
+            .env_remove("VOXD_FAULT")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .unwrap();
+        let stdout = child.stdout.take().unwrap();
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let mut line = String::new();
+            let _ = BufReader::new(stdout).read_line(&mut line);
+            let _ = tx.send(line);
+        });
+        let line = rx
+            .recv_timeout(Duration::from_secs(120))
+            .expect("voxd listens within 120 s");
+        let addr = line
+            .trim()
+            .strip_prefix("voxd listening on http://")
+            .unwrap_or_else(|| panic!("voxd did not start: {line:?}"))
+            .to_string();
+        Replica { child, addr }
+    }
+
+    fn req(&self, method: &str, path: &str, body: &[u8]) -> Resp {
+        let h = [("Content-Type", "model/obj")];
+        let headers: &[(&str, &str)] = if body.is_empty() { &[] } else { &h };
+        let (status, headers, body) = http_exchange(&self.addr, method, path, headers, body)
+            .unwrap_or_else(|e| panic!("{method} {path}: {e}"));
+        Resp {
+            status,
+            headers,
+            body,
+        }
+    }
+
+    fn submit(&self, query: &str, mesh: &[u8]) -> String {
+        let r = self.req("POST", &format!("/v1/voxelize?{query}"), mesh);
+        assert_eq!(r.status, 202, "{}", String::from_utf8_lossy(&r.body));
+        r.json()["id"].as_str().unwrap().to_string()
+    }
+
+    fn job(&self, id: &str) -> Value {
+        let r = self.req("GET", &format!("/v1/jobs/{id}"), &[]);
+        assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+        r.json()
+    }
+
+    /// Polls job `id` until `done` holds for it, for at most `secs`.
+    fn until(&self, id: &str, secs: u64, what: &str, done: impl Fn(&Value) -> bool) -> Value {
+        let deadline = Instant::now() + Duration::from_secs(secs);
+        loop {
+            let j = self.job(id);
+            if done(&j) {
+                return j;
+            }
+            assert!(
+                Instant::now() < deadline,
+                "job {id} not {what} within {secs} s: {j}"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    fn kill(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+impl Drop for Replica {
+    fn drop(&mut self) {
+        self.kill();
+    }
+}
+
+fn state(j: &Value) -> &str {
+    j["state"].as_str().unwrap_or("")
+}
+
+/// spot with every 50th face left out: not watertight, so `fill=winding` has real work; at
+/// resolution 512 a job of seconds.
+fn holey_spot() -> Vec<u8> {
+    let spot = std::fs::read_to_string(data("spot.obj")).unwrap();
+    let mut faces = 0;
+    let mut out = String::new();
+    for line in spot.lines() {
+        if line.starts_with("f ") {
+            faces += 1;
+            if faces % 50 == 0 {
+                continue;
+            }
+        }
+        out.push_str(line);
+        out.push('\n');
+    }
+    out.into_bytes()
+}
+
+const SLOW: &str = "resolution=512&fill=winding";
+
+fn replica_dir(name: &str) -> PathBuf {
+    tmpdir(&format!("replicas-{name}"))
+}
+
+fn decode(bytes: &[u8]) -> BitVolume {
+    match voxd::codec::VolumeFormat::sniff(bytes)
+        .unwrap()
+        .decode(bytes)
+        .unwrap()
+    {
+        voxd::volume::Volume::Bits(b) => b,
+        voxd::volume::Volume::Density(_) => panic!("density"),
+    }
+}
+
+#[test]
+fn a_job_submitted_to_one_replica_is_polled_and_downloaded_through_another_bit_for_bit() {
+    let Some(redis) = RedisServer::start("two-replicas") else {
+        return;
+    };
+    let dir = replica_dir("two");
+    let a = Replica::start(&redis, &dir, &[]);
+    let b = Replica::start(&redis, &dir, &[]);
+    let spot = std::fs::read(data("spot.obj")).unwrap();
+    for (i, (to, other)) in [(&a, &b), (&b, &a), (&a, &b), (&b, &a)]
+        .into_iter()
+        .enumerate()
+    {
+        let res = 24 + 8 * i as u32;
+        let id = to.submit(&format!("resolution={res}&name=n{i}"), &spot);
+        let j = other.until(&id, 120, "succeeded", |j| state(j) == "succeeded");
+        let vid = j["volume_id"].as_str().unwrap();
+        assert_eq!(vid, volume_id_for(&id));
+        let (da, db) = (
+            to.req("GET", &format!("/v1/volumes/{vid}/data"), &[]),
+            other.req("GET", &format!("/v1/volumes/{vid}/data"), &[]),
+        );
+        assert_eq!((da.status, db.status), (200, 200));
+        assert_eq!(da.body, db.body);
+        assert_eq!(da.headers.get("etag"), db.headers.get("etag"));
+        let (_, want) =
+            voxd::app::voxelize(&request(&spot, res, false, Fill::Parity), &CpuEngine).unwrap();
+        let voxd::volume::Volume::Bits(want) = want.volume else {
+            panic!("bits")
+        };
+        assert!(
+            decode(&db.body) == want,
+            "resolution {res}: not the library's voxels"
+        );
+        assert_eq!(
+            other.req("GET", &format!("/v1/volumes/{vid}"), &[]).json()["name"],
+            format!("n{i}")
+        );
+    }
+    // `wait` on one replica hears of a job whichever replica runs it.
+    let r = b.req("POST", "/v1/voxelize?resolution=16&wait=60", &spot);
+    assert_eq!(r.status, 201, "{}", String::from_utf8_lossy(&r.body));
+    // The shared queue's gauges, on either replica.
+    let m = String::from_utf8(a.req("GET", "/metrics", &[]).body).unwrap();
+    for line in [
+        "voxd_queue_depth 0",
+        "voxd_queue_running 0",
+        "voxd_queue_oldest_seconds 0",
+        "voxd_queue_available 1",
+        "voxd_queue_class_depth{class=\"small\"} 0",
+        "voxd_jobs{state=\"succeeded\",method=\"solid\"} 5",
+    ] {
+        assert!(m.lines().any(|l| l == line), "{line} not in\n{m}");
+    }
+    assert_eq!(b.req("GET", "/readyz", &[]).status, 200);
+    // A bad mesh is refused at once, on the replica that was sent it.
+    let r = a.req("POST", "/v1/voxelize", b"v 0 0 0\nf 1 2 3\n");
+    assert_eq!(r.status, 422, "{}", String::from_utf8_lossy(&r.body));
+}
+
+#[test]
+fn a_replica_killed_mid_job_has_its_job_finished_by_another() {
+    let Some(redis) = RedisServer::start("kill-replica") else {
+        return;
+    };
+    let dir = replica_dir("kill");
+    let lease = ["--lease-seconds", "2"];
+    let mut a = Replica::start(&redis, &dir, &lease);
+    let mesh = holey_spot();
+    let id = a.submit(SLOW, &mesh);
+    a.until(&id, 120, "running", |j| {
+        state(j) == "running" && j["progress"].as_f64() > Some(0.0)
+    });
+    let b = Replica::start(&redis, &dir, &lease);
+    a.kill();
+    let killed = Instant::now();
+    let j = b.until(&id, 120, "taken over", |j| j["attempts"] == 2);
+    let takeover = killed.elapsed();
+    let j = if state(&j) == "succeeded" {
+        j
+    } else {
+        b.until(&id, 300, "succeeded", |j| state(j) == "succeeded")
+    };
+    println!(
+        "measured: a job of a replica killed with SIGKILL (lease 2 s) was taken over after {:.1} s and finished {:.1} s after the kill",
+        takeover.as_secs_f64(),
+        killed.elapsed().as_secs_f64()
+    );
+    let vid = j["volume_id"].as_str().unwrap();
+    let d = b.req("GET", &format!("/v1/volumes/{vid}/data"), &[]);
+    assert_eq!(d.status, 200);
+    assert_eq!(
+        decode(&d.body).grid().dims,
+        serde_json::from_value::<[u32; 3]>(j["grid"]["dims"].clone()).unwrap()
+    );
+    assert_eq!(
+        b.req("GET", &format!("/v1/volumes/{vid}"), &[]).json()["fill"]["used"],
+        "winding"
+    );
+}
+
+#[test]
+fn a_job_whose_replicas_all_die_fails_with_a_problem_after_its_last_attempt() {
+    let Some(redis) = RedisServer::start("all-die") else {
+        return;
+    };
+    let dir = replica_dir("all-die");
+    let opts = ["--lease-seconds", "2", "--max-attempts", "2"];
+    let mut a = Replica::start(&redis, &dir, &opts);
+    let id = a.submit(SLOW, &holey_spot());
+    a.until(&id, 120, "running", |j| state(j) == "running");
+    let mut b = Replica::start(&redis, &dir, &opts);
+    a.kill();
+    b.until(&id, 120, "taken over", |j| {
+        state(j) == "running" && j["attempts"] == 2
+    });
+    let c = Replica::start(&redis, &dir, &opts);
+    b.kill();
+    let j = c.until(&id, 120, "failed", |j| state(j) == "failed");
+    assert_eq!(j["attempts"], 2);
+    let p = &j["problem"];
+    assert_eq!(p["type"], "https://voxd.dev/problems/engine-failure", "{j}");
+    assert!(
+        p["detail"]
+            .as_str()
+            .unwrap()
+            .contains("started 2 times (--max-attempts)"),
+        "{p}"
+    );
+    let vid = volume_id_for(&id);
+    assert_eq!(c.req("GET", &format!("/v1/volumes/{vid}"), &[]).status, 404);
+    assert!(!dir.join(format!("uploads/{id}")).exists());
+}
+
+#[test]
+fn redis_killed_and_restarted_loses_no_accepted_job_and_replicas_reconnect() {
+    let Some(mut redis) = RedisServer::start("restart") else {
+        return;
+    };
+    let dir = replica_dir("restart");
+    let a = Replica::start(&redis, &dir, &["--lease-seconds", "2"]);
+    let spot = std::fs::read(data("spot.obj")).unwrap();
+    // One job runs (the only worker), one waits behind it.
+    let slow = a.submit(SLOW, &holey_spot());
+    a.until(&slow, 120, "running", |j| state(j) == "running");
+    let queued = a.submit("resolution=32", &spot);
+    assert_eq!(state(&a.job(&queued)), "queued");
+    redis.kill();
+    let r = a.req("GET", &format!("/v1/jobs/{queued}"), &[]);
+    assert_eq!(r.status, 503, "{}", String::from_utf8_lossy(&r.body));
+    assert_eq!(
+        r.json()["type"],
+        "https://voxd.dev/problems/queue-unavailable"
+    );
+    assert!(r.headers.contains_key("retry-after"));
+    assert_eq!(a.req("GET", "/readyz", &[]).status, 503);
+    let r = a.req("POST", "/v1/voxelize?resolution=8", &spot);
+    assert_eq!(r.status, 503, "{}", String::from_utf8_lossy(&r.body));
+    redis.restart();
+    // Both accepted jobs finish; the replica reconnected by itself.
+    a.until(&queued, 300, "succeeded", |j| state(j) == "succeeded");
+    a.until(&slow, 300, "succeeded", |j| state(j) == "succeeded");
+    let after = a.submit("resolution=16", &spot);
+    a.until(&after, 120, "succeeded", |j| state(j) == "succeeded");
+    assert_eq!(a.req("GET", "/readyz", &[]).status, 200);
+}
+
+#[test]
+fn cancel_and_the_shared_capacity_span_replicas() {
+    let Some(redis) = RedisServer::start("cancel-429") else {
+        return;
+    };
+    let dir = replica_dir("cancel");
+    let opts = ["--lease-seconds", "2", "--queue-capacity", "1"];
+    let a = Replica::start(&redis, &dir, &opts);
+    let b = Replica::start(&redis, &dir, &opts);
+    let mesh = holey_spot();
+    let spot = std::fs::read(data("spot.obj")).unwrap();
+    // Both workers busy (one each), then one job waits: the queue is full for both replicas.
+    let s1 = a.submit(SLOW, &mesh);
+    let s2 = b.submit(SLOW, &mesh);
+    for s in [&s1, &s2] {
+        a.until(s, 120, "running", |j| state(j) == "running");
+    }
+    let q1 = a.submit("resolution=16", &spot);
+    // The shared queue's gauges, the same on the replica that did not take it.
+    let m = String::from_utf8(b.req("GET", "/metrics", &[]).body).unwrap();
+    for line in [
+        "voxd_queue_depth 1",
+        "voxd_queue_running 2",
+        "voxd_queue_class_depth{class=\"small\"} 1",
+    ] {
+        assert!(m.lines().any(|l| l == line), "{line} not in\n{m}");
+    }
+    assert!(
+        m.lines()
+            .any(|l| l.starts_with("voxd_queue_oldest_seconds "))
+    );
+    let r = b.req("POST", "/v1/voxelize?resolution=16", &spot);
+    assert_eq!(r.status, 429, "{}", String::from_utf8_lossy(&r.body));
+    assert_eq!(r.headers.get("retry-after").map(String::as_str), Some("5"));
+    assert_eq!(r.json()["type"], "https://voxd.dev/problems/queue-full");
+    // Cancel the waiting one and both running ones through the replica that did not take them.
+    let c = b.req("DELETE", &format!("/v1/jobs/{q1}"), &[]);
+    assert_eq!((c.status, state(&c.json())), (200, "canceled"));
+    assert!(!dir.join(format!("uploads/{q1}")).exists());
+    for (s, via) in [(&s1, &b), (&s2, &a)] {
+        let c = via.req("DELETE", &format!("/v1/jobs/{s}"), &[]);
+        assert_eq!((c.status, state(&c.json())), (200, "canceled"));
+    }
+    let c = a.req("DELETE", &format!("/v1/jobs/{q1}"), &[]);
+    assert_eq!(c.status, 409);
+    // The workers stop (each clears its job's upload when it does) and store nothing.
+    let deadline = Instant::now() + Duration::from_secs(120);
+    while std::fs::read_dir(dir.join("uploads")).unwrap().count() > 0 {
+        assert!(Instant::now() < deadline, "canceled jobs still running");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    for s in [&s1, &s2] {
+        assert_eq!(state(&a.job(s)), "canceled");
+        assert!(
+            !dir.join(format!("volumes/{}.json", volume_id_for(s)))
+                .exists()
+        );
+    }
+    // Free again: a new job runs.
+    let j = b.submit("resolution=16", &spot);
+    a.until(&j, 120, "succeeded", |j| state(j) == "succeeded");
+}
+
+/// An unreachable or malformed `--queue`: `voxd serve` refuses to start, saying why (and never
+/// showing the URL's password). Needs no Redis.
+#[test]
+fn serve_refuses_to_start_without_its_queue() {
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let dir = tmpdir("no-queue");
+    for (url, says) in [
+        (
+            format!("redis://:hunter2@127.0.0.1:{port}"),
+            "cannot reach the job queue at redis://***@127.0.0.1",
+        ),
+        ("http://example".to_string(), "is not a Redis URL"),
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_voxd"))
+            .args(["serve", "--addr", "127.0.0.1:0", "--engine", "cpu"])
+            .args(["--data-dir", dir.to_str().unwrap(), "--queue", &url])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && out.stdout.is_empty(), "{err}");
+        assert!(err.contains(says) && !err.contains("hunter2"), "{err}");
+    }
+}
