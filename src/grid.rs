@@ -60,7 +60,7 @@ pub enum GridError {
     #[error("grid origin must be finite, got {0:?}")]
     BadOrigin([f64; 3]),
     #[error(
-        "a grid with origin {origin:?} and voxel size {voxel_size:e} cannot be represented: its voxel boundaries are not distinct finite numbers; scale the mesh or use a larger voxel size"
+        "a grid with origin {origin:?} and voxel size {voxel_size:e} cannot be represented: its voxel boundaries must be distinct finite numbers, and its volume finite; scale the mesh or change the voxel size"
     )]
     Unrepresentable { origin: [f64; 3], voxel_size: f64 },
     #[error("grid dims must be at least 1 on every axis, got {0:?}")]
@@ -168,6 +168,11 @@ impl Grid {
                 limit: limits.max_voxels,
                 limit_desc: crate::limits::describe_voxels(limits.max_voxels),
             });
+        }
+        // And its volume (voxels × voxel_size³, what a volume's metadata reports) a finite
+        // number: a single voxel of 1e103 has none.
+        if !(voxels as f64 * voxel_size.powi(3)).is_finite() {
+            return Err(GridError::Unrepresentable { origin, voxel_size });
         }
         Ok(Grid {
             origin,
@@ -393,6 +398,11 @@ mod tests {
         ));
         assert!(matches!(
             explicit([1.79e308, 0.0, 0.0], 1e307),
+            Err(GridError::Unrepresentable { .. })
+        ));
+        // One voxel whose volume (size³) overflows.
+        assert!(matches!(
+            explicit([0.0; 3], 1e103),
             Err(GridError::Unrepresentable { .. })
         ));
         assert!(explicit([-3.0, 2.0, 1e3], 0.01).is_ok());

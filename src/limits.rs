@@ -36,8 +36,9 @@ pub struct Limits {
     pub default_list_page: usize,
     /// Resolution used when no grid option is given.
     pub default_resolution: u32,
-    /// Bytes of a volume's name.
-    pub max_name_bytes: usize,
+    /// Characters (Unicode scalar values) of a volume's name: what `maxLength` counts in
+    /// openapi.yaml.
+    pub max_name_chars: usize,
     /// Bytes of a derived volume's provenance (a CSG expression as JSON).
     pub max_provenance_bytes: usize,
     /// Bytes of one page of the volume list (fewer volumes are listed, with a `next` link).
@@ -73,7 +74,7 @@ impl Limits {
         max_list_page: 1000,
         default_list_page: 100,
         default_resolution: 256,
-        max_name_bytes: 256,
+        max_name_chars: 256,
         max_provenance_bytes: 64 << 10,
         max_list_page_bytes: 4 << 20,
     };

@@ -39,6 +39,12 @@ fn axis_rays_through_a_box() {
     let away = ray(&v, [-1.0, 3.5, 3.5], [-1.0, 0.0, 0.0]).unwrap();
     assert_eq!(away.solid_voxels, 0);
     assert!(ray(&v, [0.0; 3], [0.0; 3]).is_none());
+    // Any finite non-zero direction is one: its squared length may overflow or vanish.
+    for s in [1e300, -1e300, f64::MAX, 1e-300, f64::MIN_POSITIVE, 5e-324] {
+        let h = ray(&v, [3.5, 3.5, 20.0], [0.0, 0.0, -s]).unwrap();
+        let want = if s > 0.0 { 4 } else { 0 };
+        assert_eq!(h.solid_voxels, want, "direction {s:e}");
+    }
     // Starting inside the box.
     let h = ray(&v, [3.5, 3.5, 3.5], [1.0, 0.0, 0.0]).unwrap();
     assert_eq!(

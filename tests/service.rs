@@ -1437,8 +1437,8 @@ fn preview_pictures() {
             &[],
             &[],
         ),
-        400,
-        "invalid-parameter",
+        404,
+        "not-found",
     );
     assert_problem(
         &srv.req(

@@ -176,10 +176,19 @@ impl From<MeshError> for Error {
 impl From<GridError> for Error {
     fn from(e: GridError) -> Error {
         let kind = match e {
-            GridError::TooManyVoxels { .. } | GridError::AxisTooLong { .. } => {
-                ErrorKind::GridTooLarge
-            }
-            _ => ErrorKind::InvalidParameter,
+            // Over a limit of the grid: its voxels, an axis, or its extent in voxels from the
+            // world origin (past 2^40 voxel boundaries are not distinct numbers). Each depends on
+            // the mesh or on how the parameters combine, which the API document cannot say.
+            GridError::TooManyVoxels { .. }
+            | GridError::AxisTooLong { .. }
+            | GridError::Unrepresentable { .. } => ErrorKind::GridTooLarge,
+            // A resolution needs a mesh with an extent: the mesh's fault.
+            GridError::NoExtent => ErrorKind::InvalidMesh,
+            // A parameter out of its documented range.
+            GridError::ZeroResolution
+            | GridError::BadVoxelSize(_)
+            | GridError::BadOrigin(_)
+            | GridError::ZeroDims(_) => ErrorKind::InvalidParameter,
         };
         Error::new(kind, e.to_string())
     }

@@ -244,18 +244,27 @@ pub fn preview_png(v: &Volume, req: &PreviewRequest, limits: &Limits) -> Result<
         .filter(|&a| a != req.axis)
         .map(|a| d[a] as u64)
         .product();
+    // Both depend on the stored volume's dims, not on the request's form: a picture too large
+    // for this grid (422), a slice this grid does not have (404).
     if pixels > limits.max_preview_pixels {
-        return Err(Error::invalid(format!(
-            "the picture would have {pixels} pixels, over the limit of {}",
-            limits.max_preview_pixels
-        )));
+        return Err(Error::new(
+            ErrorKind::GridTooLarge,
+            format!(
+                "the picture would have {pixels} pixels, over the limit of {}",
+                limits.max_preview_pixels
+            ),
+        ));
     }
     let pic = match req.view {
         PreviewView::Slice(k) => preview::slice(v, req.axis, k).ok_or_else(|| {
-            Error::invalid(format!(
-                "slice {k} is outside the grid (0..{})",
-                d[req.axis]
-            ))
+            Error::new(
+                ErrorKind::NotFound,
+                format!(
+                    "no slice {k} across {}: the grid has slices 0..{}",
+                    ["x", "y", "z"][req.axis],
+                    d[req.axis]
+                ),
+            )
         })?,
         PreviewView::Projection(m) => preview::projection(v, req.axis, m),
     };

@@ -34,11 +34,18 @@ pub struct RayHit {
 
 /// Walks the ray through the grid. `None` for a zero or non-finite direction.
 pub fn ray(v: &Volume, origin: [f64; 3], direction: [f64; 3]) -> Option<RayHit> {
-    let len = direction.iter().map(|d| d * d).sum::<f64>().sqrt();
-    if !(len.is_finite() && len > 0.0) || origin.iter().any(|o| !o.is_finite()) {
+    // Scaled by its largest component first, so that any finite non-zero direction normalises
+    // (its squared length could overflow, 1e200, or vanish, 1e-200).
+    let m = direction.iter().fold(0.0f64, |m, d| m.max(d.abs()));
+    if !(m.is_finite() && m > 0.0)
+        || direction.iter().any(|d| !d.is_finite())
+        || origin.iter().any(|o| !o.is_finite())
+    {
         return None;
     }
-    let d = direction.map(|x| x / len);
+    let scaled = direction.map(|x| x / m);
+    let len = scaled.iter().map(|d| d * d).sum::<f64>().sqrt();
+    let d = scaled.map(|x| x / len);
     let g = v.grid();
     let s = g.voxel_size;
     // Clip t to the grid box (slab test), t ≥ 0.

@@ -90,12 +90,13 @@ pub fn router(app: Arc<App>) -> Router {
         .with_state(app)
 }
 
-/// Refuses a volume name that is too long or holds control characters.
+/// Refuses a volume name that is too long (in characters, as openapi.yaml's `maxLength`
+/// counts) or holds control characters.
 fn check_name(name: &str, limits: &crate::app::Limits) -> crate::app::Result<()> {
-    if name.len() > limits.max_name_bytes || name.chars().any(char::is_control) {
+    if name.chars().count() > limits.max_name_chars || name.chars().any(char::is_control) {
         return Err(crate::app::Error::invalid(format!(
-            "name must be at most {} bytes without control characters",
-            limits.max_name_bytes
+            "name must be at most {} characters without control characters",
+            limits.max_name_chars
         )));
     }
     Ok(())

@@ -125,8 +125,11 @@ pub async fn submit(
     let format = format_of(&q, &headers)?;
     let gzip = check_content_encoding(&headers, true)?;
     let body = read_body(&app, &headers, body, limits.max_body_bytes).await?;
+    // The body's content is at fault, not the request's form: like a gzip stream that breaks
+    // off, an invalid mesh (422).
     if gzip && !body.bytes.starts_with(&[0x1f, 0x8b]) {
-        return Err(Problem::invalid(
+        return Err(Problem::new(
+            ErrorKind::InvalidMesh,
             "Content-Encoding says gzip, but the body is not gzip data",
         ));
     }
