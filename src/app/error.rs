@@ -28,6 +28,9 @@ pub enum ErrorKind {
     NotFound,
     NotCancelable,
     StorageFull,
+    /// The store cannot be reached or fails (I/O, an S3 endpoint down, a timeout, refused
+    /// credentials); retry later.
+    StorageUnavailable,
     EngineFailure,
     ShuttingDown,
     MisalignedGrids,
@@ -58,6 +61,7 @@ impl crate::names::Named for ErrorKind {
         ErrorKind::NotFound,
         ErrorKind::NotCancelable,
         ErrorKind::StorageFull,
+        ErrorKind::StorageUnavailable,
         ErrorKind::EngineFailure,
         ErrorKind::ShuttingDown,
         ErrorKind::MisalignedGrids,
@@ -90,6 +94,7 @@ impl ErrorKind {
             ErrorKind::NotFound => "not-found",
             ErrorKind::NotCancelable => "not-cancelable",
             ErrorKind::StorageFull => "storage-full",
+            ErrorKind::StorageUnavailable => "storage-unavailable",
             ErrorKind::EngineFailure => "engine-failure",
             ErrorKind::ShuttingDown => "shutting-down",
             ErrorKind::MisalignedGrids => "misaligned-grids",
@@ -208,11 +213,13 @@ impl From<CsgError> for Error {
 
 impl From<StoreError> for Error {
     fn from(e: StoreError) -> Error {
-        let kind = match e {
-            StoreError::Full { .. } => ErrorKind::StorageFull,
-            StoreError::Io(_) | StoreError::Corrupt(_) => ErrorKind::Internal,
-        };
-        Error::new(kind, e.to_string())
+        match e {
+            StoreError::Full { .. } => Error::new(ErrorKind::StorageFull, e.to_string()),
+            StoreError::Io(_) => {
+                Error::new(ErrorKind::StorageUnavailable, e.to_string()).retry_after(5)
+            }
+            StoreError::Corrupt(_) => Error::new(ErrorKind::Internal, e.to_string()),
+        }
     }
 }
 
