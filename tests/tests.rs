@@ -18,6 +18,7 @@ mod oracles;
 mod props;
 mod query;
 mod real_meshes;
+mod s3;
 mod service;
 mod stats;
 

@@ -5,6 +5,7 @@
 //! checked against brute force in `checks`.
 
 mod checks;
+pub mod s3;
 
 use std::io::Write;
 use std::path::PathBuf;
