@@ -896,3 +896,68 @@ fn a_replica_killed_between_data_and_commit_leaves_nothing_listed() {
         assert_eq!(bytes_in_bucket(weed, &prefix).await, 0);
     });
 }
+
+#[test]
+fn a_damaged_volume_never_downloads_whole() {
+    let Some(weed) = s3::shared() else { return };
+    let prefix = s3::prefix("download");
+    let srv = Server::start(&weed.vars(), &prefix, &[]);
+    let spot = std::fs::read(data("spot.obj")).unwrap();
+    let mut ids = vec![];
+    for _ in 0..2 {
+        let v = srv
+            .req(
+                "POST",
+                "/v1/voxelize?resolution=64&wait=60",
+                &[("Content-Type", "model/obj")],
+                &spot,
+            )
+            .ok(201)
+            .json();
+        ids.push(v["id"].as_str().unwrap().to_string());
+    }
+    let good = srv
+        .req("GET", &format!("/v1/volumes/{}/data", ids[0]), &[], &[])
+        .ok(200);
+    assert_eq!(
+        good.headers.get("content-length").map(String::as_str),
+        Some(good.body.len().to_string().as_str())
+    );
+    rt().block_on(async {
+        let client = weed.client();
+        let key = |id: &str| Key::from(format!("{prefix}/volumes/{id}.vxl"));
+        // A byte flipped: the transfer breaks before its end (fewer bytes than announced).
+        let mut bad = good.body.clone();
+        bad[10] ^= 1;
+        client
+            .put(&key(&ids[0]), Bytes::from(bad).into())
+            .await
+            .unwrap();
+        // Cut short: refused before anything is sent.
+        let b = client
+            .get(&key(&ids[1]))
+            .await
+            .unwrap()
+            .bytes()
+            .await
+            .unwrap();
+        client
+            .put(&key(&ids[1]), b.slice(..b.len() / 2).into())
+            .await
+            .unwrap();
+    });
+    let r = http_exchange(
+        &srv.addr,
+        "GET",
+        &format!("/v1/volumes/{}/data", ids[0]),
+        &[],
+        &[],
+    );
+    assert!(
+        r.as_ref().is_err() || r.as_ref().is_ok_and(|r| r.0 != 200),
+        "a damaged volume downloaded whole: {:?}",
+        r.map(|r| (r.0, r.2.len()))
+    );
+    srv.req("GET", &format!("/v1/volumes/{}/data", ids[1]), &[], &[])
+        .problem(500, "internal");
+}

@@ -157,7 +157,20 @@ pub async fn data(
         r.headers_mut().insert(header::ETAG, etag_value);
         return Ok(r);
     }
-    let bytes = ops::download(&*app.store, &id, format).await?;
+    // The stored .vxl streams from the store as it is read (checked as it passes: damage ends
+    // the transfer before its last byte); other formats are converted in memory.
+    let (body, length) = if format == VolumeFormat::Vxl {
+        let chunks = app
+            .store
+            .read_stream(&id)
+            .await
+            .map_err(Error::from)?
+            .ok_or_else(|| Error::not_found("volume", &id))?;
+        (axum::body::Body::from_stream(chunks), Some(meta.bytes))
+    } else {
+        let bytes = ops::download(&*app.store, &id, format).await?;
+        (axum::body::Body::from(bytes), None)
+    };
     let media = match format {
         VolumeFormat::Vxl => VXL_MEDIA_TYPE,
         VolumeFormat::Npy => "application/x-npy",
@@ -168,9 +181,12 @@ pub async fn data(
         |c: char| !c.is_ascii_alphanumeric() && c != '-' && c != '_',
         "_",
     );
-    let mut r = bytes.into_response();
+    let mut r = body.into_response();
     let h = r.headers_mut();
     h.insert(header::CONTENT_TYPE, HeaderValue::from_static(media));
+    if let Some(n) = length {
+        h.insert(header::CONTENT_LENGTH, HeaderValue::from(n));
+    }
     h.insert(header::ETAG, etag_value);
     h.insert(
         header::CACHE_CONTROL,
