@@ -39,18 +39,22 @@
 //! cannot use. Credentials are read by `object_store` from the environment and never logged
 //! nor shown: errors name the bucket, the endpoint and the key, not the credentials.
 
-use std::collections::{BTreeSet, HashMap};
+use std::collections::HashMap;
 use std::sync::{Arc, Mutex, Weak};
 use std::time::{Duration, Instant};
 
 use async_trait::async_trait;
 use bytes::Bytes;
 use futures_util::{StreamExt, TryStreamExt};
-use object_store::aws::{AmazonS3, AmazonS3Builder, AmazonS3ConfigKey};
+use object_store::aws::{AmazonS3, AmazonS3ConfigKey};
 use object_store::path::Path;
-use object_store::{
-    BackoffConfig, ClientConfigKey, ObjectStore, ObjectStoreExt, PutPayload, RetryConfig,
-};
+use object_store::{ClientConfigKey, ObjectStore, ObjectStoreExt, PutPayload};
+
+mod connect;
+mod quota;
+
+pub use connect::{Location, retry_config};
+use connect::{builder, endpoint_of, instance_name};
 
 use super::fs::fault;
 use super::{ByteStream, StoreError, Usage, VolumeMeta, VolumeStore, check, safe_id, verified};
@@ -59,7 +63,7 @@ use super::{ByteStream, StoreError, Usage, VolumeMeta, VolumeStore, check, safe_
 const HEALTH_TTL: Duration = Duration::from_secs(30);
 /// How old a usage sum may be for the first (cheap) quota check of a put and for `usage`.
 pub const USAGE_TTL: Duration = Duration::from_secs(5);
-/// Data objects without metadata younger than this are a put in progress, never swept.
+/// Objects of an uncommitted id younger than this may be a put in progress: never swept.
 pub const ORPHAN_AGE: Duration = Duration::from_secs(3600);
 /// How often leftovers are swept while serving.
 pub const SWEEP_EVERY: Duration = Duration::from_secs(15 * 60);
@@ -67,64 +71,6 @@ pub const SWEEP_EVERY: Duration = Duration::from_secs(15 * 60);
 const READ_CONCURRENCY: usize = 16;
 /// Metadata kept in memory at most (then the cache starts again).
 const CACHE_ENTRIES: usize = 1 << 16;
-
-/// `s3://BUCKET/PREFIX`: a bucket and a prefix (no leading or trailing `/`; may be empty).
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Location {
-    pub bucket: String,
-    pub prefix: String,
-}
-
-impl Location {
-    /// Parses what follows `s3://`.
-    pub fn parse(rest: &str) -> Result<Location, String> {
-        let (bucket, prefix) = rest.split_once('/').unwrap_or((rest, ""));
-        // S3's bucket rules (3–63 of lowercase letters, digits, dots and hyphens), loosely:
-        // S3-compatible servers accept a little more, and the server has the last word.
-        if bucket.is_empty()
-            || bucket.len() > 63
-            || !bucket
-                .bytes()
-                .all(|b| b.is_ascii_alphanumeric() || b"-._".contains(&b))
-        {
-            return Err(format!(
-                "s3://{rest}: {bucket:?} is not a bucket name; expected s3://BUCKET/PREFIX"
-            ));
-        }
-        let prefix = prefix.trim_matches('/');
-        if prefix.split('/').any(|p| p == "." || p == "..")
-            || (!prefix.is_empty() && prefix.split('/').any(str::is_empty))
-        {
-            return Err(format!(
-                "s3://{rest}: the prefix {prefix:?} is not a clean path"
-            ));
-        }
-        Ok(Location {
-            bucket: bucket.to_string(),
-            prefix: prefix.to_string(),
-        })
-    }
-}
-
-impl std::fmt::Display for Location {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "s3://{}/{}", self.bucket, self.prefix)
-    }
-}
-
-/// Bounded retries: an unreachable store fails a request within seconds, not minutes (the
-/// crate's default is 10 retries over up to 3 minutes).
-pub fn retry_config() -> RetryConfig {
-    RetryConfig {
-        backoff: BackoffConfig {
-            init_backoff: Duration::from_millis(100),
-            max_backoff: Duration::from_secs(2),
-            base: 2.0,
-        },
-        max_retries: 3,
-        retry_timeout: Duration::from_secs(15),
-    }
-}
 
 pub struct S3Store {
     shared: Arc<Shared>,
@@ -160,66 +106,6 @@ struct Snapshot {
     at: Instant,
     bytes: u64,
     volumes: u64,
-}
-
-/// The endpoint among `vars`: `AWS_ENDPOINT_URL_S3`, `AWS_ENDPOINT_URL` or `AWS_ENDPOINT`, the
-/// first set wins (`object_store` reads the last two as one key, in whatever order they come).
-fn endpoint_of(vars: &[(String, String)]) -> Option<String> {
-    ["AWS_ENDPOINT_URL_S3", "AWS_ENDPOINT_URL", "AWS_ENDPOINT"]
-        .iter()
-        .find_map(|k| {
-            vars.iter()
-                .find(|(name, v)| name == k && !v.trim().is_empty())
-                .map(|(_, v)| v.trim().to_string())
-        })
-}
-
-/// A client builder configured as `AmazonS3Builder::from_env` would be from `vars` (every
-/// `AWS_*` key the crate knows: AWS_ACCESS_KEY_ID, AWS_SECRET_ACCESS_KEY, AWS_SESSION_TOKEN,
-/// AWS_REGION or AWS_DEFAULT_REGION, AWS_ALLOW_HTTP, …), plus the endpoint rule above,
-/// path-style requests for a custom endpoint, bounded retries and a connect timeout.
-fn builder(loc: &Location, vars: &[(String, String)], endpoint: Option<&str>) -> AmazonS3Builder {
-    let mut b = AmazonS3Builder::new();
-    for (k, v) in vars {
-        if let Some(key) = k
-            .strip_prefix("AWS_")
-            .and_then(|_| k.to_ascii_lowercase().parse::<AmazonS3ConfigKey>().ok())
-        {
-            b = b.with_config(key, v);
-        }
-    }
-    let mut b = b
-        .with_bucket_name(&loc.bucket)
-        .with_retry(retry_config())
-        .with_config(
-            AmazonS3ConfigKey::Client(ClientConfigKey::ConnectTimeout),
-            "5s",
-        );
-    if let Some(e) = endpoint {
-        // A custom endpoint (MinIO, SeaweedFS, Ceph…) is addressed path-style
-        // (ENDPOINT/BUCKET/KEY) unless AWS_VIRTUAL_HOSTED_STYLE_REQUEST says otherwise.
-        b = b.with_endpoint(e);
-        if !vars
-            .iter()
-            .any(|(k, _)| k == "AWS_VIRTUAL_HOSTED_STYLE_REQUEST")
-        {
-            b = b.with_virtual_hosted_style_request(false);
-        }
-    }
-    b
-}
-
-/// A random-enough name for this process's probe object.
-fn instance_name() -> String {
-    use std::hash::{BuildHasher, Hasher};
-    let mut h = std::collections::hash_map::RandomState::new().build_hasher();
-    h.write_u32(std::process::id());
-    h.write_u128(
-        std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| d.as_nanos()),
-    );
-    format!("{:016x}", h.finish())
 }
 
 /// `PREFIX/rest` as an object key.
@@ -478,129 +364,6 @@ impl Shared {
         }
     }
 
-    /// Removes what interrupted puts left: every object of an uncommitted id older than `age`
-    /// (data, a reservation), and the reservations of committed ids. How many objects.
-    async fn sweep(&self, age: Duration) -> Result<usize, StoreError> {
-        let now = std::time::SystemTime::now();
-        let mut committed = BTreeSet::new();
-        let mut others = vec![];
-        let mut stream = self.client.list(Some(&self.key("volumes")));
-        while let Some(o) = stream.next().await {
-            let o = o.map_err(|e| self.err("listing volumes", e))?;
-            let Some((id, is_meta)) = volume_object(&o.location) else {
-                continue;
-            };
-            if is_meta {
-                committed.insert(id.to_string());
-            } else {
-                // Clock skew between here and the server only shifts the age a little: the
-                // margin (an hour) is far larger.
-                let modified = std::time::SystemTime::from(o.last_modified);
-                let old = now.duration_since(modified).unwrap_or(Duration::ZERO);
-                let reservation = reservation_of(&o.location).is_some();
-                others.push((id.to_string(), old, reservation, o.location));
-            }
-        }
-        let mut swept = 0;
-        for (id, old, reservation, location) in others {
-            // The listing goes in key order, `{id}.json` first: a put that committed while it
-            // ran may look uncommitted here, but its objects are young.
-            let leftover = if committed.contains(&id) {
-                reservation
-            } else {
-                old >= age
-            };
-            if !leftover {
-                continue;
-            }
-            tracing::warn!(object = %location, "removing what an interrupted put left");
-            self.delete_object("removing a leftover", &location).await?;
-            swept += 1;
-        }
-        if swept > 0 {
-            self.lock().usage = None;
-        }
-        Ok(swept)
-    }
-
-    /// The quota's first check, and this process's reservation: refused when the recent sum,
-    /// this process's other puts in flight and this one do not fit. Cheap (no request while
-    /// the sum is recent); the check that holds across replicas is [`Shared::admit`].
-    async fn reserve(&self, need: u64) -> Result<(), StoreError> {
-        let snap = self.recent_usage().await?;
-        let mut s = self.lock();
-        let used = snap.bytes + s.reserved;
-        if used + need > self.limit {
-            return Err(StoreError::Full {
-                need,
-                used,
-                limit: self.limit,
-            });
-        }
-        s.reserved += need;
-        Ok(())
-    }
-
-    /// What `volumes/` holds for ids other than `id`: (everything: each id counted at the
-    /// larger of its objects' sizes and its reservation; the objects alone).
-    async fn tally(&self, id: &str) -> Result<(u64, u64), StoreError> {
-        let mut per_id: HashMap<String, (u64, u64)> = HashMap::new();
-        let mut stream = self.client.list(Some(&self.key("volumes")));
-        while let Some(o) = stream.next().await {
-            let o = o.map_err(|e| self.err("listing volumes", e))?;
-            let Some((other, _)) = volume_object(&o.location) else {
-                continue;
-            };
-            if other == id {
-                continue;
-            }
-            let e = per_id.entry(other.to_string()).or_default();
-            e.0 += o.size;
-            e.1 = e.1.max(reservation_of(&o.location).unwrap_or(0));
-        }
-        let objects = per_id.values().map(|e| e.0).sum();
-        let all = per_id.values().map(|e| e.0.max(e.1)).sum();
-        Ok((all, objects))
-    }
-
-    /// The quota check that holds across replicas. A reservation object
-    /// `volumes/{id}.reserve-{need}` (empty; its name says how much) is written, then
-    /// `volumes/` is listed: everything there, with other puts' reservations, plus `need` must
-    /// fit. S3 is strongly consistent, so of two puts checking at once the later to finish
-    /// writing its reservation sees the other's: they cannot both pass when together they do
-    /// not fit. They may both be refused: when what is committed leaves room, that is
-    /// contention, and the put tries again after a random pause (a few times, then gives up
-    /// with `Full`). The reservation stays until the volume is committed.
-    async fn admit(&self, id: &str, need: u64) -> Result<Path, StoreError> {
-        let marker = self.key(&format!("volumes/{id}.reserve-{need}"));
-        let doing = format!("reserving room for volume {id}");
-        let mut attempt = 0;
-        loop {
-            self.put_object(&doing, &marker, Bytes::new()).await?;
-            let tally = self.tally(id).await;
-            let (all, objects) = match tally {
-                Ok(t) => t,
-                Err(e) => {
-                    let _ = self.delete_object(&doing, &marker).await;
-                    return Err(e);
-                }
-            };
-            if all + need <= self.limit {
-                return Ok(marker);
-            }
-            self.delete_object(&doing, &marker).await?;
-            if objects + need > self.limit || attempt == ADMIT_ATTEMPTS {
-                return Err(StoreError::Full {
-                    need,
-                    used: all,
-                    limit: self.limit,
-                });
-            }
-            attempt += 1;
-            tokio::time::sleep(jitter(attempt)).await;
-        }
-    }
-
     /// The put after its first check: admission, the data, the commit.
     async fn put_reserved(
         &self,
@@ -650,28 +413,6 @@ impl Shared {
         s.metas.insert(id.clone(), Arc::new(meta.clone()));
         Ok(())
     }
-}
-
-/// How many times a put refused by contention (not by what is stored) tries again.
-const ADMIT_ATTEMPTS: u32 = 6;
-
-/// A random pause before admission attempt `n` (from 1): up to 25 ms · 2ⁿ.
-fn jitter(n: u32) -> Duration {
-    use std::hash::{BuildHasher, Hasher};
-    let mut h = std::collections::hash_map::RandomState::new().build_hasher();
-    h.write_u32(n);
-    let cap = 25u64 << n.min(8);
-    Duration::from_millis(h.finish() % cap.max(1))
-}
-
-/// The bytes a reservation object (`{id}.reserve-{need}`) stands for.
-fn reservation_of(location: &Path) -> Option<u64> {
-    location
-        .filename()?
-        .rsplit_once(".reserve-")?
-        .1
-        .parse()
-        .ok()
 }
 
 /// Runs CPU work (hashing a volume) off the async runtime.
