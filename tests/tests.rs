@@ -20,6 +20,8 @@ mod props;
 mod query;
 mod real_meshes;
 mod redis_queue;
+mod replicas;
+mod s3;
 mod service;
 mod stats;
 

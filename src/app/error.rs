@@ -30,6 +30,9 @@ pub enum ErrorKind {
     NotFound,
     NotCancelable,
     StorageFull,
+    /// The store cannot be reached or fails (I/O, an S3 endpoint down, a timeout, refused
+    /// credentials); retry later.
+    StorageUnavailable,
     EngineFailure,
     ShuttingDown,
     MisalignedGrids,
@@ -66,6 +69,7 @@ impl crate::names::Named for ErrorKind {
         ErrorKind::NotFound,
         ErrorKind::NotCancelable,
         ErrorKind::StorageFull,
+        ErrorKind::StorageUnavailable,
         ErrorKind::EngineFailure,
         ErrorKind::ShuttingDown,
         ErrorKind::MisalignedGrids,
@@ -101,6 +105,7 @@ impl ErrorKind {
             ErrorKind::NotFound => "not-found",
             ErrorKind::NotCancelable => "not-cancelable",
             ErrorKind::StorageFull => "storage-full",
+            ErrorKind::StorageUnavailable => "storage-unavailable",
             ErrorKind::EngineFailure => "engine-failure",
             ErrorKind::ShuttingDown => "shutting-down",
             ErrorKind::MisalignedGrids => "misaligned-grids",
@@ -230,11 +235,13 @@ impl From<CsgError> for Error {
 
 impl From<StoreError> for Error {
     fn from(e: StoreError) -> Error {
-        let kind = match e {
-            StoreError::Full { .. } => ErrorKind::StorageFull,
-            StoreError::Io(_) | StoreError::Corrupt(_) => ErrorKind::Internal,
-        };
-        Error::new(kind, e.to_string())
+        match e {
+            StoreError::Full { .. } => Error::new(ErrorKind::StorageFull, e.to_string()),
+            StoreError::Io(_) => {
+                Error::new(ErrorKind::StorageUnavailable, e.to_string()).retry_after(5)
+            }
+            StoreError::Corrupt(_) => Error::new(ErrorKind::Internal, e.to_string()),
+        }
     }
 }
 

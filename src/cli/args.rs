@@ -13,6 +13,7 @@ use voxd::engine::gpu::SolidStrategy;
 use voxd::engine::{EngineChoice, Method};
 use voxd::mesh::Format;
 use voxd::names::Named;
+use voxd::store::StoreSpec;
 use voxd::volume::csg::CsgOp;
 use voxd::volume::morph::{Kernel, MorphOp};
 
@@ -182,6 +183,10 @@ pub struct ServeArgs {
     /// Where volumes and job records are stored.
     #[arg(long, env = "VOXD_DATA_DIR", default_value = "./voxd-data")]
     pub data_dir: PathBuf,
+    /// Where volumes and job records are stored instead: s3://BUCKET/PREFIX (credentials and
+    /// endpoint from AWS_* variables), file:///PATH or a directory. Default: --data-dir.
+    #[arg(long, env = "VOXD_STORE", value_name = "URL", value_parser = StoreSpec::parse)]
+    pub store: Option<StoreSpec>,
     /// auto, gpu or cpu.
     #[arg(long, env = "VOXD_ENGINE", default_value = "auto", value_parser = named::<EngineChoice>())]
     pub engine: EngineChoice,
@@ -255,6 +260,7 @@ impl ServeArgs {
         voxd::service::Config {
             addr: self.addr,
             data_dir: self.data_dir.clone(),
+            store: self.store.clone(),
             engine: self.engine,
             adapter: self.adapter.clone(),
             queue_capacity: self.queue_capacity.max(1),

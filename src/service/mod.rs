@@ -20,8 +20,9 @@ use crate::engine::{Engine, EngineChoice};
 use crate::queue::JobQueue;
 use crate::queue::local::LocalQueue;
 use crate::queue::redis::{RedisOptions, RedisQueue};
-use crate::store::VolumeStore;
 use crate::store::fs::FsStore;
+use crate::store::s3::S3Store;
+use crate::store::{StoreSpec, VolumeStore};
 
 pub use routes::{ROUTES, router};
 
@@ -30,6 +31,8 @@ pub use routes::{ROUTES, router};
 pub struct Config {
     pub addr: SocketAddr,
     pub data_dir: PathBuf,
+    /// Where volumes and job records live (`--store`); `None`: the directory `data_dir`.
+    pub store: Option<StoreSpec>,
     pub engine: EngineChoice,
     pub adapter: Option<String>,
     /// Jobs waiting at most; more get 429.
@@ -161,18 +164,21 @@ pub async fn open(config: &Config) -> Result<Arc<App>, String> {
     .map_err(|e| e.to_string())?
     .into();
     tracing::info!(engine = %engine.describe(), "engine ready");
-    let (dir, quota) = (config.data_dir.clone(), config.max_store_bytes);
-    let store: Arc<dyn VolumeStore> = Arc::new(
-        tokio::task::spawn_blocking(move || FsStore::open(&dir, quota))
-            .await
-            .map_err(|e| e.to_string())?
-            .map_err(|e| format!("{}: {e}", config.data_dir.display()))?,
-    );
+    let store = open_store(config).await?;
+    if config.queue.is_none() && matches!(config.store, Some(StoreSpec::S3(_))) {
+        // The in-process queue keeps its jobs' meshes in memory and takes any record it finds
+        // unfinished at start for one of its own interrupted jobs.
+        tracing::warn!(
+            "the in-process queue over a shared S3 store: jobs are seen by this process only, \
+             and several replicas on one bucket must not use it (a replica starting marks the \
+             others' unfinished jobs failed); replicas need a shared queue (--queue redis://…)"
+        );
+    }
     let queue: Arc<dyn JobQueue> = match &config.queue {
         None => Arc::new(
             LocalQueue::open(config.queue_capacity.max(1), store.clone())
                 .await
-                .map_err(|e| format!("{}: {e}", config.data_dir.display()))?
+                .map_err(|e| format!("{}: {e}", store.describe()))?
                 .with_job_timeout(config.job_timeout),
         ),
         Some(url) => Arc::new(
@@ -196,6 +202,30 @@ pub async fn open(config: &Config) -> Result<Arc<App>, String> {
         queue,
         config.limits,
         config.connections,
+    ))
+}
+
+/// Opens the store `config` names: an S3 bucket, or a directory (`--store`, else `--data-dir`).
+pub async fn open_store(config: &Config) -> Result<Arc<dyn VolumeStore>, String> {
+    let quota = config.max_store_bytes;
+    let dir = match &config.store {
+        Some(StoreSpec::S3(loc)) => {
+            let store = S3Store::open(loc, quota).await.map_err(|e| match e {
+                // The error names the bucket, the endpoint and what failed.
+                crate::store::StoreError::Io(e) => e.to_string(),
+                e => format!("{loc}: {e}"),
+            })?;
+            return Ok(Arc::new(store));
+        }
+        Some(StoreSpec::Dir(dir)) => dir.clone(),
+        None => config.data_dir.clone(),
+    };
+    let shown = dir.display().to_string();
+    Ok(Arc::new(
+        tokio::task::spawn_blocking(move || FsStore::open(&dir, quota))
+            .await
+            .map_err(|e| e.to_string())?
+            .map_err(|e| format!("{shown}: {e}"))?,
     ))
 }
 

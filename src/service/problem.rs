@@ -13,7 +13,7 @@ use crate::app::{Error, ErrorKind};
 pub const TYPE_BASE: &str = "https://voxd.dev/problems/";
 
 /// Every kind with its status and title.
-pub const KINDS: [(ErrorKind, u16, &str); 24] = [
+pub const KINDS: [(ErrorKind, u16, &str); 25] = [
     (ErrorKind::InvalidMesh, 422, "The mesh cannot be used"),
     (ErrorKind::UnsupportedMediaType, 415, "Unknown mesh format"),
     (
@@ -38,6 +38,11 @@ pub const KINDS: [(ErrorKind, u16, &str); 24] = [
         "The job has already finished",
     ),
     (ErrorKind::StorageFull, 507, "Storage quota exhausted"),
+    (
+        ErrorKind::StorageUnavailable,
+        503,
+        "The store is unavailable",
+    ),
     (ErrorKind::EngineFailure, 500, "Voxelization failed"),
     (ErrorKind::ShuttingDown, 503, "The server is shutting down"),
     (

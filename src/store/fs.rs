@@ -24,7 +24,9 @@ use std::time::{Duration, Instant};
 use async_trait::async_trait;
 use bytes::Bytes;
 
-use super::{ByteStream, StoreError, Usage, VolumeMeta, VolumeStore, atomic, verified};
+use super::{
+    ByteStream, StoreError, Usage, VolumeMeta, VolumeStore, atomic, check, safe_id, verified,
+};
 
 /// Bytes per chunk of a streamed read.
 const CHUNK: usize = 256 << 10;
@@ -204,40 +206,6 @@ impl FsStore {
             i.last_ok_write = Some(Instant::now());
         }
     }
-}
-
-/// A volume id as a file name: ids are made by voxd (hex), but a request may name anything.
-fn safe_id(id: &str) -> bool {
-    !id.is_empty() && id.len() <= 128 && id.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'-')
-}
-
-/// Do `bytes` match what `meta` says of them (length, sha256)?
-fn check(id: &str, bytes: &[u8], meta: &VolumeMeta) -> Result<(), StoreError> {
-    if bytes.len() as u64 != meta.bytes {
-        return Err(StoreError::Corrupt(format!(
-            "volume {id}: the data is {} bytes but its metadata says {} (a torn or damaged file)",
-            bytes.len(),
-            meta.bytes
-        )));
-    }
-    let sha = sha256_hex(bytes);
-    if sha != meta.sha256 {
-        return Err(StoreError::Corrupt(format!(
-            "volume {id}: the data's sha256 is {sha} but its metadata says {:?} (damaged)",
-            meta.sha256
-        )));
-    }
-    Ok(())
-}
-
-fn sha256_hex(b: &[u8]) -> String {
-    use sha2::Digest;
-    use std::fmt::Write;
-    let mut s = String::with_capacity(64);
-    for x in sha2::Sha256::digest(b) {
-        let _ = write!(s, "{x:02x}");
-    }
-    s
 }
 
 #[async_trait]
@@ -527,10 +495,14 @@ impl VolumeStore for FsStore {
 /// store's writes. `SPEC` is `abort-SITE` or `abort-SITE:N` (the N-th time this process reaches
 /// that point, from 1; default 1), with `SITE` one of
 ///
-/// - `mid-data`: inside a put's `.vxl` write, half the bytes in the temporary file, not renamed;
+/// - `mid-data`: inside a put's `.vxl` write, half the bytes in the temporary file, not renamed
+///   (the S3 store: a data object of half the bytes);
 /// - `after-data` (alias `before-commit`): a put's `.vxl` is durable, its metadata not written;
 /// - `after-commit`: both files durable, the catalogue and the caller not told;
-/// - `mid-job-record`: inside a job record's write, half of it in the temporary file.
+/// - `mid-job-record`: inside a job record's write, half of it in the temporary file (the S3
+///   store: before the PUT, which is atomic).
+///
+/// The S3 store (`super::s3`) stops at the same points.
 ///
 /// Without the feature every hook is an empty inline function and `VOXD_FAULT` is ignored.
 pub mod fault {
@@ -552,7 +524,7 @@ pub mod fault {
         if armed::hit(site) {
             w.write_all(&bytes[..bytes.len() / 2])?;
             w.flush()?;
-            armed::abort(site);
+            abort(site);
         }
         let _ = site;
         w.write_all(bytes)
@@ -563,9 +535,27 @@ pub mod fault {
     pub fn point(site: Site) {
         #[cfg(feature = "fault-injection")]
         if armed::hit(site) {
-            armed::abort(site);
+            abort(site);
         }
         let _ = site;
+    }
+
+    /// Does the fault at `site` fire at this visit? For writes that tear themselves (an S3
+    /// put sends half its bytes), which then call [`abort`].
+    #[inline]
+    pub fn fires(site: Site) -> bool {
+        #[cfg(feature = "fault-injection")]
+        if armed::hit(site) {
+            return true;
+        }
+        let _ = site;
+        false
+    }
+
+    /// Aborts the process, saying where (after [`fires`]).
+    pub fn abort(site: Site) -> ! {
+        eprintln!("voxd: fault injection: aborting at {site:?}");
+        std::process::abort()
     }
 
     /// Parses a `VOXD_FAULT` value: the site and the hit that fires (from 1).
@@ -608,18 +598,13 @@ pub mod fault {
                 _ => false,
             }
         }
-
-        pub fn abort(site: Site) -> ! {
-            eprintln!("voxd: fault injection: aborting at {site:?}");
-            std::process::abort()
-        }
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::store::SourceInfo;
+    use crate::store::{SourceInfo, sha256_hex};
 
     /// Metadata that describes `data` truthfully.
     fn meta(id: &str, data: &[u8]) -> VolumeMeta {

@@ -1,5 +1,6 @@
-//! Where volumes and job records are kept: the [`VolumeStore`] trait and its first
-//! implementation, a directory ([`fs::FsStore`], the default: no extra service on one machine).
+//! Where volumes and job records are kept: the [`VolumeStore`] trait and its two
+//! implementations, a directory ([`fs::FsStore`], the default: no extra service on one machine)
+//! and an S3 bucket ([`s3::S3Store`], shared by replicas). [`StoreSpec`] is what `--store` names.
 //!
 //! A store holds, per volume, its `.vxl` bytes and its [`VolumeMeta`]; the metadata is the commit
 //! point (written last), so an interrupted put leaves nothing listed. It also keeps job records
@@ -8,7 +9,9 @@
 
 pub mod atomic;
 pub mod fs;
+pub mod s3;
 
+use std::path::PathBuf;
 use std::pin::Pin;
 use std::task::{Context, Poll};
 
@@ -121,6 +124,82 @@ pub trait VolumeStore: Send + Sync {
     async fn delete_upload(&self, id: &str) -> Result<(), StoreError>;
     /// Where the store is, for logs.
     fn describe(&self) -> String;
+}
+
+/// Where the volumes live, as `--store` (or `VOXD_STORE`) names it: `s3://BUCKET/PREFIX`, or a
+/// directory (`file:///path` or a plain path).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum StoreSpec {
+    Dir(PathBuf),
+    S3(s3::Location),
+}
+
+impl StoreSpec {
+    pub fn parse(s: &str) -> Result<StoreSpec, String> {
+        if let Some(rest) = s.strip_prefix("s3://") {
+            return s3::Location::parse(rest).map(StoreSpec::S3);
+        }
+        if let Some(path) = s.strip_prefix("file://") {
+            if !path.starts_with('/') {
+                return Err(format!(
+                    "{s:?}: a file:// store needs an absolute path (file:///var/lib/voxd)"
+                ));
+            }
+            return Ok(StoreSpec::Dir(PathBuf::from(path)));
+        }
+        if let Some((scheme, _)) = s.split_once("://") {
+            return Err(format!(
+                "{s:?}: unknown store scheme {scheme:?}; expected s3://BUCKET/PREFIX, file:///PATH or a directory"
+            ));
+        }
+        if s.is_empty() {
+            return Err("the store is empty; expected s3://BUCKET/PREFIX or a directory".into());
+        }
+        Ok(StoreSpec::Dir(PathBuf::from(s)))
+    }
+}
+
+impl std::fmt::Display for StoreSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            StoreSpec::Dir(p) => write!(f, "{}", p.display()),
+            StoreSpec::S3(l) => write!(f, "{l}"),
+        }
+    }
+}
+
+/// A volume id as a file name or object key: ids are made by voxd (hex), but a request may name
+/// anything.
+pub(crate) fn safe_id(id: &str) -> bool {
+    !id.is_empty() && id.len() <= 128 && id.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'-')
+}
+
+/// Do `bytes` match what `meta` says of them (length, sha256)?
+pub(crate) fn check(id: &str, bytes: &[u8], meta: &VolumeMeta) -> Result<(), StoreError> {
+    if bytes.len() as u64 != meta.bytes {
+        return Err(StoreError::Corrupt(format!(
+            "volume {id}: the data is {} bytes but its metadata says {} (a torn or damaged file)",
+            bytes.len(),
+            meta.bytes
+        )));
+    }
+    let sha = sha256_hex(bytes);
+    if sha != meta.sha256 {
+        return Err(StoreError::Corrupt(format!(
+            "volume {id}: the data's sha256 is {sha} but its metadata says {:?} (damaged)",
+            meta.sha256
+        )));
+    }
+    Ok(())
+}
+
+pub(crate) fn sha256_hex(b: &[u8]) -> String {
+    use std::fmt::Write;
+    let mut s = String::with_capacity(64);
+    for x in sha2::Sha256::digest(b) {
+        let _ = write!(s, "{x:02x}");
+    }
+    s
 }
 
 /// Chunks of a stored volume's bytes.

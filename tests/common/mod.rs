@@ -5,7 +5,9 @@
 //! checked against brute force in `checks`.
 
 mod checks;
+pub mod nginx;
 pub mod redis_server;
+pub mod s3;
 
 use std::io::Write;
 use std::path::PathBuf;

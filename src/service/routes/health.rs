@@ -19,7 +19,7 @@ pub async fn healthz() -> Response {
 pub async fn readyz(axum::extract::State(app): AppState) -> Result<Response, Problem> {
     app.store.health().await.map_err(|e| {
         Error::new(
-            ErrorKind::Internal,
+            ErrorKind::StorageUnavailable,
             format!("the store is not writable: {e}"),
         )
         .retry_after(5)

@@ -1,0 +1,99 @@
+//! A real nginx (Debian's package) as the load balancer in front of replicas, as the deployment
+//! has it: round robin over the given upstreams on a free 127.0.0.1 port, its configuration,
+//! logs and temporary files in a scratch directory, stopped on drop. A failed upstream is
+//! skipped for idempotent requests (`proxy_next_upstream`). Absent binary: `None` with a notice,
+//! unless `VOXD_REQUIRE_NGINX=1` (scripts/test.sh sets it once it has installed nginx).
+
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+pub struct Nginx {
+    child: Child,
+    pub addr: String,
+    pub dir: PathBuf,
+}
+
+fn binary() -> Option<&'static str> {
+    ["nginx", "/usr/sbin/nginx"].into_iter().find(|b| {
+        Command::new(b)
+            .arg("-v")
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success())
+    })
+}
+
+impl Nginx {
+    /// nginx balancing over `upstreams` (`host:port` each); `None` (with a notice) when nginx
+    /// is not installed, a failure when `VOXD_REQUIRE_NGINX=1`.
+    pub fn start(name: &str, upstreams: &[&str]) -> Option<Nginx> {
+        let Some(bin) = binary() else {
+            assert!(
+                std::env::var("VOXD_REQUIRE_NGINX").as_deref() != Ok("1"),
+                "VOXD_REQUIRE_NGINX=1 but nginx is not installed (apt-get install nginx-light)"
+            );
+            eprintln!("NOTICE: nginx is not installed; skipping the load-balancer test {name}");
+            return None;
+        };
+        let dir = std::env::temp_dir().join(format!("voxd-nginx-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let port = std::net::TcpListener::bind("127.0.0.1:0")
+            .unwrap()
+            .local_addr()
+            .unwrap()
+            .port();
+        let servers: String = upstreams
+            .iter()
+            .map(|u| format!("    server {u} max_fails=1 fail_timeout=10s;\n"))
+            .collect();
+        let d = dir.display();
+        let conf = format!(
+            "worker_processes 1;\npid {d}/nginx.pid;\nerror_log {d}/error.log warn;\n\
+             events {{ worker_connections 256; }}\n\
+             http {{\n  access_log off;\n  client_body_temp_path {d}/body;\n  proxy_temp_path {d}/proxy;\n\
+             \x20 fastcgi_temp_path {d}/fcgi;\n  uwsgi_temp_path {d}/uwsgi;\n  scgi_temp_path {d}/scgi;\n\
+             \x20 client_max_body_size 256m;\n  upstream voxd {{\n{servers}  }}\n\
+             \x20 server {{\n    listen 127.0.0.1:{port};\n    location / {{\n\
+             \x20     proxy_pass http://voxd;\n      proxy_http_version 1.1;\n\
+             \x20     proxy_set_header Connection \"\";\n      proxy_set_header X-Forwarded-For $remote_addr;\n\
+             \x20     proxy_next_upstream error timeout http_502 http_503;\n\
+             \x20     proxy_connect_timeout 2s;\n      proxy_read_timeout 300s;\n    }}\n  }}\n}}\n"
+        );
+        std::fs::write(dir.join("nginx.conf"), conf).unwrap();
+        let mut child = Command::new(bin)
+            .args(["-p", &dir.to_string_lossy(), "-c"])
+            .arg(dir.join("nginx.conf"))
+            .args(["-g", "daemon off;"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .unwrap();
+        let addr = format!("127.0.0.1:{port}");
+        let deadline = Instant::now() + Duration::from_secs(30);
+        while std::net::TcpStream::connect(&addr).is_err() {
+            if let Some(s) = child.try_wait().unwrap() {
+                panic!(
+                    "nginx exited ({s}): {}",
+                    std::fs::read_to_string(dir.join("error.log")).unwrap_or_default()
+                );
+            }
+            assert!(
+                Instant::now() < deadline,
+                "nginx did not listen within 30 s"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        Some(Nginx { child, addr, dir })
+    }
+}
+
+impl Drop for Nginx {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
