@@ -184,3 +184,41 @@ fn heads_over_the_limits_get_problem_documents() {
     assert_eq!(s, 200);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// An upload refused before its body is read says `Connection: close` (the server cannot
+/// reuse the connection, and a client must not send its next request into it); one that is
+/// served keeps the connection.
+#[test]
+fn refused_uploads_say_the_connection_closes() {
+    let dir = scratch("close");
+    let srv = Server::start(&dir, &[]);
+    let mesh = box_obj([0.0; 3], [1.0; 3]);
+    for path in [
+        "/v1/voxelize?resolution=abc",
+        "/v1/voxelize?format=xyz",
+        "/v1/voxelize?nonsense=1",
+    ] {
+        // A keep-alive request (http_exchange asks for close itself, which hyper would echo).
+        let mut c = TcpStream::connect(&srv.addr).unwrap();
+        write!(
+            c,
+            "POST {path} HTTP/1.1\r\nHost: x\r\nContent-Type: model/obj\r\nContent-Length: {}\r\n\r\n",
+            mesh.len()
+        )
+        .unwrap();
+        c.write_all(&mesh).unwrap();
+        let got =
+            read_until_closed(&mut c, Duration::from_secs(30)).expect("closed after the refusal");
+        let head = String::from_utf8_lossy(&got).to_ascii_lowercase();
+        assert!(head.starts_with("http/1.1 4"), "{path}: {head}");
+        assert!(head.contains("\r\nconnection: close\r\n"), "{path}: {head}");
+    }
+    // Keep-alive after a success: two requests on one connection.
+    let mut s = TcpStream::connect(&srv.addr).unwrap();
+    s.write_all(b"GET /healthz HTTP/1.1\r\nHost: x\r\n\r\nGET /healthz HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
+        .unwrap();
+    let got = String::from_utf8_lossy(&read_until_closed(&mut s, Duration::from_secs(30)).unwrap())
+        .to_string();
+    assert_eq!(got.matches("HTTP/1.1 200").count(), 2, "{got}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

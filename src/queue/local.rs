@@ -54,7 +54,13 @@ struct Inner {
     closed: bool,
 }
 
-type Write = (String, Bytes, oneshot::Sender<()>);
+/// A record to write (`None`: to remove), and who waits for it.
+type Write = (String, Option<Bytes>, oneshot::Sender<()>);
+
+/// Finished jobs remembered at most (their records in memory and in the store); past it the
+/// oldest are forgotten, in batches of a tenth, so a long-running server's job records stay
+/// bounded (a soak of 10 minutes left 15,746 of them).
+pub const KEEP_FINISHED: usize = 10_000;
 
 pub struct LocalQueue {
     inner: Mutex<Inner>,
@@ -63,6 +69,8 @@ pub struct LocalQueue {
     /// How long a job may run (its control's deadline from when it starts).
     job_timeout: Option<Duration>,
     writes: mpsc::UnboundedSender<Write>,
+    /// Finished jobs remembered at most ([`KEEP_FINISHED`]).
+    keep_finished: usize,
 }
 
 impl LocalQueue {
@@ -116,16 +124,24 @@ impl LocalQueue {
             capacity,
             job_timeout: None,
             writes,
+            keep_finished: KEEP_FINISHED,
         };
         let acks: Vec<_> = interrupted.iter().map(|r| q.record(r)).collect();
         for a in acks {
             let _ = a.await;
         }
+        q.prune(q.keep_finished);
         Ok(q)
     }
 
     /// Jobs may run for `timeout` at most (none: as long as they take): past it a job stops at
     /// its engine's next check point and fails.
+    /// Remembers at most `keep` finished jobs (default [`KEEP_FINISHED`]).
+    pub fn with_keep_finished(mut self, keep: usize) -> LocalQueue {
+        self.keep_finished = keep;
+        self
+    }
+
     pub fn with_job_timeout(mut self, timeout: Option<Duration>) -> LocalQueue {
         self.job_timeout = timeout;
         self
@@ -140,8 +156,34 @@ impl LocalQueue {
     fn record(&self, r: &JobRecord) -> oneshot::Receiver<()> {
         let (tx, rx) = oneshot::channel();
         let bytes = Bytes::from(serde_json::to_vec(r).expect("job record serialises"));
-        let _ = self.writes.send((r.id.clone(), bytes, tx));
+        let _ = self.writes.send((r.id.clone(), Some(bytes), tx));
         rx
+    }
+
+    /// Forgets the oldest finished jobs once more than `keep` (+ a tenth) are known, down to
+    /// `keep`: their records leave memory and the store.
+    fn prune(&self, keep: usize) {
+        let mut inner = self.lock();
+        let finished = inner
+            .jobs
+            .values()
+            .filter(|j| j.record.state.is_final())
+            .count();
+        if finished <= keep + keep / 10 {
+            return;
+        }
+        let mut old: Vec<(String, String)> = inner
+            .jobs
+            .values()
+            .filter(|j| j.record.state.is_final())
+            .map(|j| (j.record.created.clone(), j.record.id.clone()))
+            .collect();
+        old.sort();
+        for (_, id) in old.into_iter().take(finished - keep) {
+            inner.jobs.remove(&id);
+            let (tx, _) = oneshot::channel();
+            let _ = self.writes.send((id, None, tx));
+        }
     }
 }
 
@@ -164,7 +206,11 @@ fn parse_record(bytes: &[u8]) -> Option<JobRecord> {
 /// The one writer of job records: in order, each acknowledged once durable.
 async fn write_records(store: Arc<dyn VolumeStore>, mut rx: mpsc::UnboundedReceiver<Write>) {
     while let Some((id, bytes, ack)) = rx.recv().await {
-        if let Err(e) = store.put_job_record(&id, bytes).await {
+        let r = match bytes {
+            Some(b) => store.put_job_record(&id, b).await,
+            None => store.delete_job_record(&id).await,
+        };
+        if let Err(e) = r {
             tracing::error!(job = %id, "cannot write the job record: {e}");
         }
         let _ = ack.send(());
@@ -386,6 +432,8 @@ impl JobQueue for LocalQueue {
                 job.done.send_replace(job.record.state);
             }
         }
+        drop(inner);
+        self.prune(self.keep_finished);
     }
 
     async fn close(&self, why: Error) -> usize {
@@ -451,6 +499,53 @@ mod tests {
 
     fn tiny_job(id: &str) -> NewJob {
         crate::app::testing::tiny_job(id, 4)
+    }
+
+    /// Finished jobs are remembered up to the limit (plus a tenth), then the oldest are
+    /// forgotten, in memory and in the store; the newest stay.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn old_finished_jobs_are_forgotten() {
+        let dir = std::env::temp_dir().join(format!("voxd-localq-keep-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let store: Arc<dyn VolumeStore> =
+            Arc::new(crate::store::fs::FsStore::open(&dir, 1 << 20).unwrap());
+        let q = LocalQueue::open(4, store.clone())
+            .await
+            .unwrap()
+            .with_keep_finished(10);
+        for n in 0..30 {
+            let mut job = tiny_job(&format!("j{n:02}"));
+            job.created = format!("2026-12-01T00:00:{n:02}Z");
+            q.submit(job).await.unwrap();
+            let c = q.next().await.unwrap();
+            q.finish(&c.id, Ok(format!("v{n}"))).await;
+        }
+        // Pruned down to 10 whenever more than 11 were known.
+        let known: Vec<usize> = (0..30)
+            .filter(|n| {
+                futures_util::FutureExt::now_or_never(q.get(&format!("j{n:02}")))
+                    .unwrap()
+                    .unwrap()
+                    .is_some()
+            })
+            .collect();
+        assert!(known.len() <= 11 && known.len() >= 10, "{known:?}");
+        assert_eq!(*known.last().unwrap(), 29);
+        assert!(
+            known.windows(2).all(|w| w[1] == w[0] + 1),
+            "the newest stay: {known:?}"
+        );
+        // The store forgets them too (after the writer has caught up).
+        let mut files = usize::MAX;
+        for _ in 0..200 {
+            files = std::fs::read_dir(dir.join("jobs")).unwrap().count();
+            if files == known.len() {
+                break;
+            }
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+        assert_eq!(files, known.len());
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     /// A job that finished before anyone waited is seen as finished at once (on a paused

@@ -430,6 +430,18 @@ impl VolumeStore for FsStore {
         r
     }
 
+    async fn delete_job_record(&self, id: &str) -> Result<(), StoreError> {
+        if !safe_id(id) {
+            return Ok(());
+        }
+        let p = self.jobs.join(format!("{id}.json"));
+        blocking(move || match std::fs::remove_file(&p) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e.into()),
+            _ => Ok(()),
+        })
+        .await
+    }
+
     async fn job_records(&self) -> Result<Vec<Bytes>, StoreError> {
         let dir = self.jobs.clone();
         blocking(move || {

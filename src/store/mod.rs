@@ -113,6 +113,8 @@ pub trait VolumeStore: Send + Sync {
     async fn health(&self) -> Result<(), StoreError>;
     /// Writes (replaces) the record of job `id`, durably.
     async fn put_job_record(&self, id: &str, record: Bytes) -> Result<(), StoreError>;
+    /// Removes job `id`'s record (none is not an error): old finished jobs are forgotten.
+    async fn delete_job_record(&self, id: &str) -> Result<(), StoreError>;
     /// Every job record, in no particular order.
     async fn job_records(&self) -> Result<Vec<Bytes>, StoreError>;
     /// Keeps the uploaded mesh of a queued job (`id` is the job's), so that whichever process

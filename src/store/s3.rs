@@ -605,6 +605,18 @@ impl VolumeStore for S3Store {
         .await
     }
 
+    async fn delete_job_record(&self, id: &str) -> Result<(), StoreError> {
+        let s = &self.shared;
+        if !safe_id(id) {
+            return Ok(());
+        }
+        s.delete_object(
+            &format!("removing job {id}'s record"),
+            &s.key(&format!("jobs/{id}.json")),
+        )
+        .await
+    }
+
     async fn job_records(&self) -> Result<Vec<Bytes>, StoreError> {
         let s = &self.shared;
         let keys: Vec<Path> = s

@@ -154,6 +154,14 @@ async fn request_context(State(app): AppState, req: Request, next: Next) -> Resp
         .unwrap_or_else(crate::app::new_id);
     let path = req.uri().path().to_string();
     let span = tracing::info_span!("request", id = %rid, method = %req.method(), path = %path);
+    // A request with a body: refused, its body may be left unread, after which hyper cannot
+    // reuse the connection and closes it. Say so (`Connection: close`), so that a client does
+    // not send its next request into a closed connection.
+    let has_body = req.headers().contains_key(header::TRANSFER_ENCODING)
+        || req
+            .headers()
+            .get(header::CONTENT_LENGTH)
+            .is_some_and(|v| v.as_bytes() != b"0");
     let mut res = match check_head(&req, &app.http) {
         Some(p) => p.into_response(),
         None => next.run(req).instrument(span).await,
@@ -180,6 +188,10 @@ async fn request_context(State(app): AppState, req: Request, next: Next) -> Resp
     }
     if let Ok(v) = HeaderValue::from_str(&rid) {
         res.headers_mut().insert("x-request-id", v);
+    }
+    if has_body && (res.status().is_client_error() || res.status().is_server_error()) {
+        res.headers_mut()
+            .insert(header::CONNECTION, HeaderValue::from_static("close"));
     }
     res
 }
