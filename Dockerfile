@@ -1,0 +1,77 @@
+# syntax=docker/dockerfile:1
+# voxd: the HTTP voxelization service in a container.
+#
+#   docker build -t voxd .
+#   docker run --rm -p 8080:8080 voxd                       # CPU engine or lavapipe (Vulkan on the CPU)
+#   docker run --rm -p 8080:8080 --runtime=nvidia --gpus all \
+#       -e NVIDIA_DRIVER_CAPABILITIES=graphics,compute,utility -e VOXD_ENGINE=gpu voxd
+#
+# Configuration comes only from VOXD_* and AWS_* variables (README, "Command line" and
+# "Replicas"). The NVIDIA container toolkit mounts the host's Vulkan ICD (nvidia_icd.json) and
+# driver at run time; none is baked in here.
+
+############################## build ##############################
+FROM rust:1.95-bookworm AS build
+WORKDIR /src
+
+# Dependencies in their own layer: the manifest and lock file with stub targets, built once and
+# reused for as long as Cargo.toml and Cargo.lock do not change.
+COPY Cargo.toml Cargo.lock ./
+RUN mkdir -p src tests \
+ && echo 'fn main() {}' > src/main.rs \
+ && : > src/lib.rs \
+ && : > tests/tests.rs \
+ && cargo build --release --locked --bin voxd \
+ && rm -rf src target/release/voxd target/release/deps/voxd-* target/release/deps/libvoxd-* \
+           target/release/.fingerprint/voxd-*
+
+# The real source (the shaders and Lua scripts are compiled in with include_str!). The empty
+# tests/tests.rs stays: Cargo.toml names it as a target, and tests/ is not in the context.
+COPY src ./src
+COPY shaders ./shaders
+RUN cargo build --release --locked --bin voxd \
+ && install -D -m 0755 target/release/voxd /out/voxd
+
+############################## runtime ##############################
+FROM debian:bookworm-slim
+
+# mesa-vulkan-drivers: lavapipe (Vulkan on the CPU) where no GPU is passed in; libvulkan1: the
+# Vulkan loader; libegl1 + libxext6: what the NVIDIA driver's Vulkan ICD, mounted by the NVIDIA
+# container toolkit, links against; tini: PID 1 that forwards SIGTERM to voxd (graceful
+# shutdown) and reaps children; curl: only for the HEALTHCHECK (voxd has no health
+# subcommand); ca-certificates: TLS to S3.
+# Versions are not pinned: bookworm's security updates replace them, and a pinned version
+# disappears from the mirror as soon as one lands, which breaks the build; the base image tag
+# fixes the release.
+# hadolint ignore=DL3008
+RUN apt-get update \
+ && apt-get install -y --no-install-recommends \
+        mesa-vulkan-drivers libvulkan1 libegl1 libxext6 ca-certificates tini curl \
+ && rm -rf /var/lib/apt/lists/*
+
+# A fixed, unprivileged uid/gid, so that volumes and Kubernetes' runAsUser can name it.
+RUN groupadd --system --gid 10001 voxd \
+ && useradd --system --uid 10001 --gid voxd --home-dir /data --no-create-home --shell /usr/sbin/nologin voxd \
+ && mkdir -p /data \
+ && chown voxd:voxd /data
+
+COPY --from=build /out/voxd /usr/local/bin/voxd
+
+# The default 127.0.0.1 is unreachable from outside the container. /data holds volumes and job
+# records unless VOXD_STORE=s3://… puts them in a bucket.
+ENV VOXD_ADDR=0.0.0.0:8080 \
+    VOXD_DATA_DIR=/data \
+    VOXD_LOG=info
+
+USER 10001:10001
+VOLUME ["/data"]
+WORKDIR /data
+EXPOSE 8080
+
+# /healthz touches neither the store nor the queue (liveness only). It assumes port 8080; change
+# it with VOXD_ADDR and this check needs --health-cmd too.
+HEALTHCHECK --interval=15s --timeout=5s --start-period=60s --retries=3 \
+    CMD ["curl", "-fsS", "--max-time", "4", "-o", "/dev/null", "http://127.0.0.1:8080/healthz"]
+
+ENTRYPOINT ["/usr/bin/tini", "--", "voxd"]
+CMD ["serve"]
