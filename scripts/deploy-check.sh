@@ -1,0 +1,96 @@
+#!/usr/bin/env bash
+# Checks the deployment files without Docker or a cluster: hadolint on the Dockerfile,
+# docker-compose config and the compose spec's schema on deploy/docker-compose.yml, the
+# rendered kustomizations against Kubernetes' schemas (kubernetes-validate --strict), the KEDA
+# ScaledObject against KEDA's CRD schema, and yamllint. The Python tools are pinned
+# (scripts/deploy-requirements.txt) in a venv under ~/.cache made once and reused.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+VENV=${VOXD_DEPLOY_VENV:-${XDG_CACHE_HOME:-$HOME/.cache}/voxd/deploy-venv}
+REQS=scripts/deploy-requirements.txt
+PIN=$(sha256sum "$REQS" | cut -d' ' -f1)
+if [[ ! -x $VENV/bin/yamllint || "$(cat "$VENV/.pins" 2>/dev/null)" != "$PIN" ]]; then
+  echo "installing the pinned deployment checkers ($REQS) into $VENV"
+  if ! python3 -c 'import ensurepip, venv' 2>/dev/null && [[ $(id -u) == 0 ]] && command -v apt-get >/dev/null; then
+    (apt-get update -qq || true) >/dev/null 2>&1
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-venv >/dev/null
+  fi
+  rm -rf "$VENV"
+  python3 -m venv "$VENV"
+  "$VENV/bin/pip" install -q --disable-pip-version-check -r "$REQS"
+  echo "$PIN" >"$VENV/.pins"
+fi
+B=$VENV/bin
+TMP=$(mktemp -d)
+trap 'rm -rf "$TMP"' EXIT
+
+echo "== hadolint Dockerfile"
+"$B/hadolint" Dockerfile
+
+echo "== docker-compose config (Debian's docker-compose)"
+if ! command -v docker-compose >/dev/null && [[ $(id -u) == 0 ]] && command -v apt-get >/dev/null; then
+  echo "installing docker-compose"
+  (apt-get update -qq || true) >/dev/null 2>&1
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq docker-compose >/dev/null || true
+fi
+if command -v docker-compose >/dev/null; then
+  docker-compose -f deploy/docker-compose.yml config -q
+  docker-compose -f deploy/docker-compose.yml --profile gpu config -q
+else
+  echo "NOTICE: no docker-compose (not root, or apt failed); skipping docker-compose config"
+fi
+
+echo "== check-jsonschema (compose spec)"
+"$B/check-jsonschema" --builtin-schema vendor.compose-spec deploy/docker-compose.yml
+
+echo "== kustomizations against Kubernetes' schemas"
+# kubectl has kustomize built in; a standalone kustomize does too. Neither comes from a registry
+# these machines reach (kustomize is a Go program, not on PyPI, npm or crates.io, and Debian
+# has no package), so without them each base manifest is validated as it stands: the base's
+# kustomization.yaml is a plain resource list plus common labels and an image tag, so the
+# rendered base differs only in those. The overlays (keda, gpu) need a renderer.
+render=()
+if command -v kustomize >/dev/null; then render=(kustomize build)
+elif command -v kubectl >/dev/null && kubectl kustomize --help >/dev/null 2>&1; then render=(kubectl kustomize)
+fi
+# Kubernetes' schemas have no CRDs: the ScaledObject is checked below, the rest here.
+split_k8s() { # FILE -> FILE.k8s (no ScaledObject) and FILE.keda
+  "$B/python" - "$1" <<'PY'
+import sys, yaml
+src = sys.argv[1]
+docs = [d for d in yaml.safe_load_all(open(src)) if d]
+with open(src + ".k8s", "w") as k8s, open(src + ".keda", "w") as keda:
+    yaml.safe_dump_all([d for d in docs if d.get("kind") != "ScaledObject"], k8s)
+    yaml.safe_dump_all([d for d in docs if d.get("kind") == "ScaledObject"], keda)
+PY
+}
+keda_files=(deploy/k8s/keda/scaledobject.yaml)
+if ((${#render[@]})); then
+  for dir in deploy/k8s deploy/k8s/keda deploy/k8s/overlays/gpu; do
+    out=$TMP/$(echo "$dir" | tr / _).yaml
+    "${render[@]}" "$dir" >"$out"
+    split_k8s "$out"
+    echo "-- $dir ($(grep -c '^kind:' "$out") resources)"
+    "$B/kubernetes-validate" --strict --quiet "$out.k8s"
+    keda_files+=("$out.keda")
+  done
+  grep -q 'nvidia.com/gpu: 1' "$TMP/deploy_k8s_overlays_gpu.yaml" || { echo "gpu overlay: no nvidia.com/gpu limit"; exit 1; }
+  if grep -q '^kind: HorizontalPodAutoscaler' "$TMP/deploy_k8s_keda.yaml"; then
+    echo "keda overlay: the CPU HPA is still there next to the ScaledObject"; exit 1
+  fi
+else
+  echo "NOTICE: no kubectl or kustomize; validating deploy/k8s/base/*.yaml one by one, overlays not rendered"
+  for f in deploy/k8s/base/*.yaml; do
+    [[ $(basename "$f") == kustomization.yaml ]] && continue
+    "$B/kubernetes-validate" --strict --quiet "$f"
+  done
+fi
+
+echo "== KEDA ScaledObject against KEDA's CRD schema"
+"$B/python" scripts/deploy-keda-check.py "${keda_files[@]}"
+
+echo "== yamllint"
+"$B/yamllint" --strict .yamllint deploy
+
+echo "deploy-check: all clean"
