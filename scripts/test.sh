@@ -67,3 +67,4 @@ cargo clippy --locked --all-targets --quiet -- -D warnings
 cargo test --locked --features fault-injection -- --show-output
 ./scripts/fuzz.sh 15    # every fuzz target of fuzz/ for 15 s (installs cargo-fuzz if missing)
 ./scripts/contract.sh   # openapi.yaml valid, and schemathesis against the running service
+./scripts/deploy-check.sh  # Dockerfile, compose file and Kubernetes manifests: hadolint, compose config, schemas
