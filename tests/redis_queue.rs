@@ -12,7 +12,6 @@
 //! fails with a problem; Redis killed and restarted (append-only file) loses no accepted job;
 //! cancel and 429 work across replicas. Loopback only, every loop bounded, no timing asserted.
 
-use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -22,6 +21,7 @@ use std::time::{Duration, Instant};
 use bytes::Bytes;
 use serde_json::Value;
 
+use crate::common::Resp;
 use crate::common::redis_server::RedisServer;
 use crate::common::{data, http_exchange, tmpdir};
 use voxd::app::{ErrorKind, GridOptions, JobSpec, MeshSource, MethodSpec, VoxelizeRequest};
@@ -427,19 +427,6 @@ async fn an_unreachable_redis_is_queue_unavailable_and_the_queue_reconnects() {
 struct Replica {
     child: Child,
     addr: String,
-}
-
-struct Resp {
-    status: u16,
-    headers: BTreeMap<String, String>,
-    body: Vec<u8>,
-}
-
-impl Resp {
-    fn json(&self) -> Value {
-        serde_json::from_slice(&self.body)
-            .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&self.body)))
-    }
 }
 
 impl Replica {

@@ -19,6 +19,7 @@ use voxd::engine::Method;
 use voxd::engine::cpu::CpuEngine;
 use voxd::engine::fill::Fill;
 
+use crate::common::Resp;
 use crate::common::nginx::Nginx;
 use crate::common::redis_server::RedisServer;
 use crate::common::{data, http_exchange, s3};
@@ -81,19 +82,6 @@ impl Replica {
 impl Drop for Replica {
     fn drop(&mut self) {
         self.kill();
-    }
-}
-
-struct Resp {
-    status: u16,
-    headers: std::collections::BTreeMap<String, String>,
-    body: Vec<u8>,
-}
-
-impl Resp {
-    fn json(&self) -> Value {
-        serde_json::from_slice(&self.body)
-            .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&self.body)))
     }
 }
 

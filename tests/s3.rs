@@ -22,7 +22,7 @@ use voxd::store::s3::{Location, S3Store};
 use voxd::store::{ByteStream, SourceInfo, StoreError, VolumeMeta, VolumeStore};
 
 use crate::common::s3::{self as s3, BUCKET, Weed};
-use crate::common::{data, http_exchange, voxelize_file};
+use crate::common::{Resp, data, http_exchange, voxelize_file};
 
 fn sha256_hex(b: &[u8]) -> String {
     use sha2::Digest;
@@ -576,47 +576,6 @@ impl Drop for Server {
     fn drop(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
-    }
-}
-
-struct Resp {
-    status: u16,
-    headers: std::collections::BTreeMap<String, String>,
-    body: Vec<u8>,
-}
-
-impl Resp {
-    fn json(&self) -> Value {
-        serde_json::from_slice(&self.body)
-            .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&self.body)))
-    }
-    fn ok(self, status: u16) -> Resp {
-        assert_eq!(
-            self.status,
-            status,
-            "{}",
-            String::from_utf8_lossy(&self.body)
-        );
-        self
-    }
-    fn problem(&self, status: u16, slug: &str) -> Value {
-        assert_eq!(
-            self.status,
-            status,
-            "{}",
-            String::from_utf8_lossy(&self.body)
-        );
-        assert_eq!(
-            self.headers.get("content-type").map(String::as_str),
-            Some("application/problem+json")
-        );
-        let p = self.json();
-        assert_eq!(
-            p["type"],
-            format!("https://voxd.dev/problems/{slug}"),
-            "{p}"
-        );
-        p
     }
 }
 

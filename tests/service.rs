@@ -82,23 +82,6 @@ impl Drop for Server {
     }
 }
 
-#[derive(Debug)]
-struct Resp {
-    status: u16,
-    headers: std::collections::BTreeMap<String, String>,
-    body: Vec<u8>,
-}
-
-impl Resp {
-    fn json(&self) -> Value {
-        serde_json::from_slice(&self.body)
-            .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&self.body)))
-    }
-    fn header(&self, h: &str) -> Option<&str> {
-        self.headers.get(h).map(String::as_str)
-    }
-}
-
 fn request(addr: &str, method: &str, path: &str, headers: &[(&str, &str)], body: &[u8]) -> Resp {
     let (status, headers, body) = http_exchange(addr, method, path, headers, body)
         .unwrap_or_else(|e| panic!("{method} {path}: {e}"));

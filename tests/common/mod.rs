@@ -731,3 +731,52 @@ pub fn http_exchange(
     }
     Ok((status, headers, body))
 }
+
+/// A response, as [`http_exchange`] reads it.
+#[derive(Debug)]
+pub struct Resp {
+    pub status: u16,
+    pub headers: std::collections::BTreeMap<String, String>,
+    pub body: Vec<u8>,
+}
+
+impl Resp {
+    /// The body as JSON (a panic showing the body when it is not).
+    pub fn json(&self) -> serde_json::Value {
+        serde_json::from_slice(&self.body)
+            .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&self.body)))
+    }
+    pub fn header(&self, h: &str) -> Option<&str> {
+        self.headers.get(h).map(String::as_str)
+    }
+    /// Itself, once its status is `status`.
+    pub fn ok(self, status: u16) -> Resp {
+        assert_eq!(
+            self.status,
+            status,
+            "{}",
+            String::from_utf8_lossy(&self.body)
+        );
+        self
+    }
+    /// The problem document, once it is one of `slug` with `status`.
+    pub fn problem(&self, status: u16, slug: &str) -> serde_json::Value {
+        assert_eq!(
+            self.status,
+            status,
+            "{}",
+            String::from_utf8_lossy(&self.body)
+        );
+        assert_eq!(
+            self.header("content-type"),
+            Some("application/problem+json")
+        );
+        let p = self.json();
+        assert_eq!(
+            p["type"],
+            format!("https://voxd.dev/problems/{slug}"),
+            "{p}"
+        );
+        p
+    }
+}
