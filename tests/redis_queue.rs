@@ -12,7 +12,6 @@
 //! fails with a problem; Redis killed and restarted (append-only file) loses no accepted job;
 //! cancel and 429 work across replicas. Loopback only, every loop bounded, no timing asserted.
 
-use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::Arc;
@@ -21,8 +20,8 @@ use std::time::{Duration, Instant};
 use bytes::Bytes;
 use serde_json::Value;
 
-use crate::common::Resp;
 use crate::common::redis_server::RedisServer;
+use crate::common::{Resp, spawn_serve};
 use crate::common::{data, http_exchange, tmpdir};
 use voxd::app::{ErrorKind, GridOptions, JobSpec, MeshSource, MethodSpec, VoxelizeRequest};
 use voxd::cancel::Control;
@@ -431,31 +430,15 @@ struct Replica {
 
 impl Replica {
     fn start(redis: &RedisServer, dir: &Path, extra: &[&str]) -> Replica {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_voxd"))
-            .args(["serve", "--addr", "127.0.0.1:0", "--engine", "cpu"])
-            .args(["--data-dir", dir.to_str().unwrap(), "--queue", &redis.url()])
-            .args(extra)
-            .env("VOXD_LOG", "warn")
-            .env_remove("VOXD_FAULT")
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .unwrap();
-        let stdout = child.stdout.take().unwrap();
-        let (tx, rx) = std::sync::mpsc::channel();
-        std::thread::spawn(move || {
-            let mut line = String::new();
-            let _ = BufReader::new(stdout).read_line(&mut line);
-            let _ = tx.send(line);
-        });
-        let line = rx
-            .recv_timeout(Duration::from_secs(120))
-            .expect("voxd listens within 120 s");
-        let addr = line
-            .trim()
-            .strip_prefix("voxd listening on http://")
-            .unwrap_or_else(|| panic!("voxd did not start: {line:?}"))
-            .to_string();
+        let (child, addr) = spawn_serve(
+            Command::new(env!("CARGO_BIN_EXE_voxd"))
+                .args(["serve", "--addr", "127.0.0.1:0", "--engine", "cpu"])
+                .args(["--data-dir", dir.to_str().unwrap(), "--queue", &redis.url()])
+                .args(extra)
+                .env("VOXD_LOG", "warn")
+                .env_remove("VOXD_FAULT")
+                .stderr(Stdio::inherit()),
+        );
         Replica { child, addr }
     }
 

@@ -8,7 +8,6 @@
 //! or nginx is absent (scripts/test.sh installs them and requires them). Loopback only; every
 //! wait is bounded.
 
-use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -19,9 +18,9 @@ use voxd::engine::Method;
 use voxd::engine::cpu::CpuEngine;
 use voxd::engine::fill::Fill;
 
-use crate::common::Resp;
 use crate::common::nginx::Nginx;
 use crate::common::redis_server::RedisServer;
+use crate::common::{Resp, spawn_serve};
 use crate::common::{data, http_exchange, s3};
 
 struct Replica {
@@ -42,34 +41,18 @@ impl Replica {
         extra: &[&str],
     ) -> Replica {
         let dir = std::env::temp_dir().join(format!("voxd-replica-{}", std::process::id()));
-        let mut child = Command::new(env!("CARGO_BIN_EXE_voxd"))
-            .args(["serve", "--addr", addr, "--engine", "cpu"])
-            .args(["--store", store, "--queue", &redis.url()])
-            .arg("--data-dir")
-            .arg(&dir)
-            .args(extra)
-            .envs(weed.vars())
-            .env("VOXD_LOG", "warn")
-            .env_remove("VOXD_FAULT")
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .unwrap();
-        let stdout = child.stdout.take().unwrap();
-        let (tx, rx) = std::sync::mpsc::channel();
-        std::thread::spawn(move || {
-            let mut line = String::new();
-            let _ = BufReader::new(stdout).read_line(&mut line);
-            let _ = tx.send(line);
-        });
-        let line = rx
-            .recv_timeout(Duration::from_secs(120))
-            .expect("voxd listens within 120 s");
-        let addr = line
-            .trim()
-            .strip_prefix("voxd listening on http://")
-            .unwrap_or_else(|| panic!("voxd did not start: {line:?}"))
-            .to_string();
+        let (child, addr) = spawn_serve(
+            Command::new(env!("CARGO_BIN_EXE_voxd"))
+                .args(["serve", "--addr", addr, "--engine", "cpu"])
+                .args(["--store", store, "--queue", &redis.url()])
+                .arg("--data-dir")
+                .arg(&dir)
+                .args(extra)
+                .envs(weed.vars())
+                .env("VOXD_LOG", "warn")
+                .env_remove("VOXD_FAULT")
+                .stderr(Stdio::inherit()),
+        );
         Replica { child, addr }
     }
 

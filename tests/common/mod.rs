@@ -780,3 +780,29 @@ impl Resp {
         p
     }
 }
+
+/// Spawns `cmd` (a `voxd serve`; its stdout is piped here) and waits, 120 s at most, for its
+/// `voxd listening on` line: the child and the address it listens on.
+pub fn spawn_serve(cmd: &mut std::process::Command) -> (std::process::Child, String) {
+    use std::io::BufRead;
+    let mut child = cmd
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .expect("voxd starts");
+    let stdout = child.stdout.take().unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let mut line = String::new();
+        let _ = std::io::BufReader::new(stdout).read_line(&mut line);
+        let _ = tx.send(line);
+    });
+    let line = rx
+        .recv_timeout(std::time::Duration::from_secs(120))
+        .expect("voxd listens within 120 s");
+    let addr = line
+        .trim()
+        .strip_prefix("voxd listening on http://")
+        .unwrap_or_else(|| panic!("voxd did not start: {line:?}"))
+        .to_string();
+    (child, addr)
+}
