@@ -25,16 +25,8 @@ pub use request::{
 };
 pub use voxelize::{Loaded, Prepared, Voxelized, prepare, voxelize};
 
-/// sha256 of `b` in lowercase hex.
-pub fn sha256_hex(b: &[u8]) -> String {
-    use sha2::Digest;
-    use std::fmt::Write;
-    let mut s = String::with_capacity(64);
-    for x in sha2::Sha256::digest(b) {
-        let _ = write!(s, "{x:02x}");
-    }
-    s
-}
+/// sha256 of `b` in lowercase hex (the store's, which checks volumes with it).
+pub use crate::store::sha256_hex;
 
 /// A fresh id (jobs, volumes, requests): 16 hex digits, unique in this process and unlikely to
 /// repeat across processes (a hash of the process id, a counter and the time).

@@ -195,10 +195,16 @@ pub(crate) fn check(id: &str, bytes: &[u8], meta: &VolumeMeta) -> Result<(), Sto
     Ok(())
 }
 
-pub(crate) fn sha256_hex(b: &[u8]) -> String {
+/// sha256 of `b` in lowercase hex (volumes' checksums, upload hashes, ids derived from names).
+pub fn sha256_hex(b: &[u8]) -> String {
+    hex(&sha2::Sha256::digest(b))
+}
+
+/// Lowercase hex of `bytes`.
+fn hex(bytes: &[u8]) -> String {
     use std::fmt::Write;
-    let mut s = String::with_capacity(64);
-    for x in sha2::Sha256::digest(b) {
+    let mut s = String::with_capacity(2 * bytes.len());
+    for x in bytes {
         let _ = write!(s, "{x:02x}");
     }
     s
@@ -247,8 +253,7 @@ impl Verified {
 
     /// Is the finished hash the one the metadata gives?
     fn sha_matches(&mut self) -> Result<(), String> {
-        let got = std::mem::take(&mut self.hasher).finalize();
-        let hex: String = got.iter().map(|b| format!("{b:02x}")).collect();
+        let hex = hex(&std::mem::take(&mut self.hasher).finalize());
         if hex == self.want_sha {
             Ok(())
         } else {
@@ -318,10 +323,7 @@ mod tests {
     use futures_util::StreamExt;
 
     fn meta_of(data: &[u8]) -> VolumeMeta {
-        let sha: String = sha2::Sha256::digest(data)
-            .iter()
-            .map(|b| format!("{b:02x}"))
-            .collect();
+        let sha = sha256_hex(data);
         serde_json::from_value(serde_json::json!({
             "id": "v", "name": null, "kind": "bits", "method": "solid",
             "grid": {"origin": [0.0, 0.0, 0.0], "voxel_size": 1.0, "dims": [1, 1, 1]},
