@@ -265,20 +265,7 @@ impl JobQueue for LocalQueue {
                 .retry_after(5));
             }
             let (done, _) = watch::channel(State::Queued);
-            let record = JobRecord {
-                id: job.id.clone(),
-                state: State::Queued,
-                position: None,
-                progress: 0.0,
-                method: job.work.method.name().into(),
-                grid: job.work.grid,
-                name: job.name.clone(),
-                created: job.created,
-                timings: Timings::default(),
-                volume_id: None,
-                attempts: None,
-                error: None,
-            };
+            let record = job.queued_record();
             inner.jobs.insert(
                 job.id.clone(),
                 Job {

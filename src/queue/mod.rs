@@ -92,6 +92,26 @@ pub struct NewJob {
     pub created: String,
 }
 
+impl NewJob {
+    /// The record of this job as it enters a queue.
+    pub fn queued_record(&self) -> JobRecord {
+        JobRecord {
+            id: self.id.clone(),
+            state: State::Queued,
+            position: None,
+            progress: 0.0,
+            method: self.work.method.name().into(),
+            grid: self.work.grid,
+            name: self.name.clone(),
+            created: self.created.clone(),
+            timings: Timings::default(),
+            volume_id: None,
+            attempts: None,
+            error: None,
+        }
+    }
+}
+
 /// A job a worker took.
 pub struct Claim {
     pub id: String,

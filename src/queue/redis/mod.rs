@@ -657,20 +657,7 @@ impl JobQueue for RedisQueue {
         if waiting >= q.opts.capacity {
             return Err(full(waiting));
         }
-        let record = JobRecord {
-            id: job.id.clone(),
-            state: State::Queued,
-            position: None,
-            progress: 0.0,
-            method: job.work.method.name().into(),
-            grid: job.work.grid,
-            name: job.name.clone(),
-            created: job.created.clone(),
-            timings: Timings::default(),
-            volume_id: None,
-            attempts: None,
-            error: None,
-        };
+        let record = job.queued_record();
         q.store
             .put_upload(&job.id, job.upload.clone())
             .await
