@@ -571,11 +571,15 @@ const DOWNLOAD_CHUNK: usize = 256 << 10;
 /// pass, [`crate::store::verified`]); any other format decodes the volume once (what its codec
 /// needs) and encodes it a piece at a time on the blocking pool, at most a few chunks ahead of
 /// the client: a client that stops reading stops the encoder, and one that goes away ends it.
-pub async fn download(store: &dyn VolumeStore, id: &str, format: VolumeFormat) -> Result<Download> {
-    let meta = store
-        .get(id)
-        .await?
-        .ok_or_else(|| Error::not_found("volume", id))?;
+///
+/// `meta` is the volume's catalogue entry, which the caller has already read (for its ETag and
+/// checks): it is not read again.
+pub async fn download(
+    store: &dyn VolumeStore,
+    meta: &VolumeMeta,
+    format: VolumeFormat,
+) -> Result<Download> {
+    let id = meta.id.as_str();
     if format == VolumeFormat::Vxl {
         let body = store
             .read_stream(id)

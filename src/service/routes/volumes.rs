@@ -180,7 +180,7 @@ pub async fn data(
         VolumeFormat::Vxl => None,
         _ => Some(app.hold_memory(decoded_bytes(&meta), "downloads").await?),
     };
-    let download = ops::download(&*app.store, &id, format).await?;
+    let download = ops::download(&*app.store, &meta, format).await?;
     let media = match format {
         VolumeFormat::Vxl => VXL_MEDIA_TYPE,
         VolumeFormat::Npy => "application/x-npy",
