@@ -23,6 +23,8 @@ fn main() -> ExitCode {
                 .unwrap_or_else(|_| "warn".into()),
         )
         .with_writer(std::io::stderr)
+        // Colours only on a terminal: logs to a file, a pipe or a container runtime stay plain.
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
     let result = match Cli::parse().command {
         Command::Voxelize(a) => commands::voxelize(&a),
@@ -40,6 +42,9 @@ fn main() -> ExitCode {
         } => commands::morph(op, &input, &output, radius, kernel, grow),
         Command::Csg { op, inputs, output } => commands::csg(op, &inputs, &output),
         Command::Bench(a) => cli::bench::run(&a),
+        Command::Keygen { name } => voxd::service::auth::generate(&name).map(|(key, line)| {
+            println!("{key}\n{line}");
+        }),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -65,6 +65,7 @@ fn job(id: &str, resolution: u32, cubic: bool) -> NewJob {
         spec: JobSpec::of(&req),
         upload: Bytes::from_static(TETRA),
         name: Some(format!("job {id}")),
+        owner: None,
         created: "2026-01-01T00:00:00Z".into(),
     }
 }
@@ -204,6 +205,76 @@ async fn submit_get_wait_cancel_capacity_and_stats_follow_the_contract() {
         ErrorKind::ShuttingDown
     );
     assert_eq!(other.get("d").await.unwrap().unwrap().state, State::Queued);
+}
+
+/// An API key's limit of jobs queued or running is one count over every replica: jobs of
+/// the key submitted to either count, the one past the limit is refused (`too-many-jobs`, its
+/// upload not kept) on both, another key is not held back, and a job that finished, ran or was
+/// canceled frees its place.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_keys_job_limit_spans_replicas() {
+    let Some(redis) = RedisServer::start("owner") else {
+        return;
+    };
+    let store = store("owner");
+    let a = queue(&redis, &store, "o", |_| {}).await;
+    let b = queue(&redis, &store, "o", |_| {}).await;
+    let owned = |id: &str, name: &str, max_jobs: usize| NewJob {
+        owner: Some(voxd::queue::Owner {
+            name: name.into(),
+            max_jobs,
+        }),
+        ..job(id, 8, false)
+    };
+    assert_eq!(
+        a.submit(owned("k1", "team", 2))
+            .await
+            .unwrap()
+            .key_name
+            .as_deref(),
+        Some("team")
+    );
+    b.submit(owned("k2", "team", 2)).await.unwrap();
+    for q in [&a, &b] {
+        let e = q.submit(owned("k3", "team", 2)).await.unwrap_err();
+        assert_eq!((e.kind, e.retry_after), (ErrorKind::TooManyJobs, Some(5)));
+        assert!(
+            e.detail.contains("team") && e.detail.contains("at most 2"),
+            "{e}"
+        );
+    }
+    assert!(store.get_upload("k3").await.unwrap().is_none());
+    // Another key, and a key without a limit, are not held back.
+    b.submit(owned("x1", "other", 1)).await.unwrap();
+    b.submit(owned("x2", "unlimited", 0)).await.unwrap();
+    b.submit(owned("x3", "unlimited", 0)).await.unwrap();
+    // The record shows the key's name from any replica.
+    assert_eq!(
+        b.get("k1").await.unwrap().unwrap().key_name.as_deref(),
+        Some("team")
+    );
+    // A canceled job frees its place (on the other replica)...
+    b.cancel("k1").await.unwrap();
+    a.submit(owned("k4", "team", 2)).await.unwrap();
+    assert_eq!(
+        b.submit(owned("k5", "team", 2)).await.unwrap_err().kind,
+        ErrorKind::TooManyJobs
+    );
+    // ...and so does one that ran to its end: run every queued job.
+    for _ in 0..5 {
+        let claim = a.next().await.unwrap();
+        let meta = voxd::app::jobs::run(Arc::new(CpuEngine), &*store, &claim)
+            .await
+            .unwrap();
+        a.finish(&claim.id, Ok(meta.id)).await;
+    }
+    assert_eq!(a.stats().await.depth, 0);
+    b.submit(owned("k6", "team", 2)).await.unwrap();
+    a.submit(owned("k7", "team", 2)).await.unwrap();
+    assert_eq!(
+        a.submit(owned("k8", "team", 2)).await.unwrap_err().kind,
+        ErrorKind::TooManyJobs
+    );
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

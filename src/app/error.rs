@@ -51,6 +51,12 @@ pub enum ErrorKind {
     /// The request's head (request line and headers) is larger, or has more headers, than
     /// allowed.
     HeadersTooLarge,
+    /// No API key, or not a valid one, where the service requires one (`--api-keys-file`).
+    Unauthorized,
+    /// The API key's request rate is exceeded; retry after `Retry-After`.
+    RateLimited,
+    /// The API key already has its most jobs queued or running.
+    TooManyJobs,
     Internal,
 }
 
@@ -81,6 +87,9 @@ impl crate::names::Named for ErrorKind {
         ErrorKind::PreconditionFailed,
         ErrorKind::UriTooLong,
         ErrorKind::HeadersTooLarge,
+        ErrorKind::Unauthorized,
+        ErrorKind::RateLimited,
+        ErrorKind::TooManyJobs,
         ErrorKind::Internal,
     ];
     fn name(self) -> &'static str {
@@ -117,6 +126,9 @@ impl ErrorKind {
             ErrorKind::PreconditionFailed => "precondition-failed",
             ErrorKind::UriTooLong => "uri-too-long",
             ErrorKind::HeadersTooLarge => "headers-too-large",
+            ErrorKind::Unauthorized => "unauthorized",
+            ErrorKind::RateLimited => "rate-limited",
+            ErrorKind::TooManyJobs => "too-many-jobs",
             ErrorKind::Internal => "internal",
         }
     }

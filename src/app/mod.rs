@@ -128,6 +128,7 @@ pub(crate) mod testing {
             spec: super::JobSpec::of(&req),
             upload: Bytes::from_static(TETRA_OBJ),
             name: None,
+            owner: None,
             created: String::new(),
         }
     }

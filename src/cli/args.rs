@@ -13,6 +13,7 @@ use voxd::engine::gpu::SolidStrategy;
 use voxd::engine::{EngineChoice, Method};
 use voxd::mesh::Format;
 use voxd::names::Named;
+use voxd::service::auth::KeyLimits;
 use voxd::store::StoreSpec;
 use voxd::volume::csg::CsgOp;
 use voxd::volume::morph::{Kernel, MorphOp};
@@ -95,6 +96,12 @@ pub enum Command {
     Serve(ServeArgs),
     /// Time the CPU and GPU engines per method and resolution on a mesh (a markdown table).
     Bench(BenchArgs),
+    /// Make an API key for NAME: prints the key (first line; give it to the caller, it is not
+    /// kept) and the line for --api-keys-file (second line; only the key's SHA-256).
+    Keygen {
+        /// The key's name, as logs, job records and metrics show it (A-Z a-z 0-9 . _ -).
+        name: String,
+    },
 }
 
 #[derive(Args)]
@@ -253,6 +260,23 @@ pub struct ServeArgs {
     /// fails.
     #[arg(long, env = "VOXD_MAX_ATTEMPTS", default_value_t = 3)]
     pub max_attempts: u32,
+    /// API keys, one `NAME:SHA256-HEX[:rate=R,burst=B,jobs=J]` per line (`voxd keygen NAME`
+    /// prints one): every /v1 route then needs `Authorization: Bearer KEY`.
+    #[arg(long, env = "VOXD_API_KEYS_FILE", value_name = "FILE")]
+    pub api_keys_file: Option<PathBuf>,
+    /// With keys: /metrics needs a key too (/healthz and /readyz stay open).
+    #[arg(long, env = "VOXD_PROTECT_METRICS")]
+    pub protect_metrics: bool,
+    /// With keys: requests per second per key on this replica, unless its line says (0: no limit).
+    #[arg(long, env = "VOXD_KEY_RATE", default_value_t = KeyLimits::DEFAULT.rate)]
+    pub key_rate: u32,
+    /// With keys: requests a key may make at once above its rate, unless its line says.
+    #[arg(long, env = "VOXD_KEY_BURST", default_value_t = KeyLimits::DEFAULT.burst)]
+    pub key_burst: u32,
+    /// With keys: jobs a key may have queued or running at once, over all replicas, unless its
+    /// line says (0: no limit).
+    #[arg(long, env = "VOXD_KEY_MAX_JOBS", default_value_t = KeyLimits::DEFAULT.max_jobs)]
+    pub key_max_jobs: usize,
 }
 
 impl ServeArgs {
@@ -289,6 +313,13 @@ impl ServeArgs {
             // At least a tenth of a second: renewals come every third of it.
             lease: secs(self.lease_seconds.max(0.1)),
             max_attempts: self.max_attempts.max(1),
+            api_keys_file: self.api_keys_file.clone(),
+            key_limits: KeyLimits {
+                rate: self.key_rate,
+                burst: self.key_burst,
+                max_jobs: self.key_max_jobs,
+            },
+            protect_metrics: self.protect_metrics,
         }
     }
 }

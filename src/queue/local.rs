@@ -264,6 +264,19 @@ impl JobQueue for LocalQueue {
                 )
                 .retry_after(5));
             }
+            if let Some(owner) = job.owner.as_ref().filter(|o| o.max_jobs > 0) {
+                let active = inner
+                    .jobs
+                    .values()
+                    .filter(|j| {
+                        !j.record.state.is_final()
+                            && j.record.key_name.as_deref() == Some(owner.name.as_str())
+                    })
+                    .count();
+                if active >= owner.max_jobs {
+                    return Err(owner.too_many(active));
+                }
+            }
             let (done, _) = watch::channel(State::Queued);
             let record = job.queued_record();
             inner.jobs.insert(

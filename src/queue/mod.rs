@@ -58,6 +58,9 @@ pub struct JobRecord {
     pub method: String,
     pub grid: Grid,
     pub name: Option<String>,
+    /// The name of the API key that submitted the job (never the key).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub key_name: Option<String>,
     pub created: String,
     pub timings: Timings,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -88,8 +91,34 @@ pub struct NewJob {
     pub spec: JobSpec,
     pub upload: Bytes,
     pub name: Option<String>,
+    /// The API key that submitted it, and how many jobs that key may have queued or running
+    /// at once (`None`: the service needs no keys).
+    pub owner: Option<Owner>,
     /// RFC 3339.
     pub created: String,
+}
+
+/// Whose job it is (an API key's name) and that key's limit of jobs queued or running at once
+/// (0: none). A queue refuses a job past the limit with `too-many-jobs`, counted over every
+/// replica that shares the queue.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Owner {
+    pub name: String,
+    pub max_jobs: usize,
+}
+
+impl Owner {
+    /// The refusal of a job past the key's limit.
+    pub fn too_many(&self, active: usize) -> Error {
+        Error::new(
+            crate::app::ErrorKind::TooManyJobs,
+            format!(
+                "key {} has {active} jobs queued or running, and may have at most {}; retry once one has finished",
+                self.name, self.max_jobs
+            ),
+        )
+        .retry_after(5)
+    }
 }
 
 impl NewJob {
@@ -103,6 +132,7 @@ impl NewJob {
             method: self.work.method.name().into(),
             grid: self.work.grid,
             name: self.name.clone(),
+            key_name: self.owner.as_ref().map(|o| o.name.clone()),
             created: self.created.clone(),
             timings: Timings::default(),
             volume_id: None,

@@ -4,6 +4,7 @@
 //! store (`Arc<dyn VolumeStore>`) and the queue (`Arc<dyn JobQueue>`) are the state. The API
 //! contract is `openapi.yaml`, and a test keeps the route table and that file in step.
 
+pub mod auth;
 mod extract;
 mod metrics;
 pub mod problem;
@@ -52,6 +53,13 @@ pub struct Config {
     /// A shared queue's lease (`--lease-seconds`) and starts per job (`--max-attempts`).
     pub lease: std::time::Duration,
     pub max_attempts: u32,
+    /// API keys (`--api-keys-file`): `None` leaves the routes open.
+    pub api_keys_file: Option<PathBuf>,
+    /// Each key's limits unless its line says otherwise (`--key-rate`, `--key-burst`,
+    /// `--key-max-jobs`).
+    pub key_limits: auth::KeyLimits,
+    /// `/metrics` needs a key too (`--protect-metrics`; only with keys).
+    pub protect_metrics: bool,
 }
 
 /// The state every handler sees.
@@ -61,6 +69,8 @@ pub struct App {
     pub queue: Arc<dyn JobQueue>,
     pub limits: Limits,
     pub http: server::ConnectionLimits,
+    /// Who may call the `/v1` routes (`None`: anyone).
+    pub keys: Option<Arc<auth::ApiKeys>>,
     /// Kibibytes of request bodies in memory, over all requests (`http.max_inflight_bytes`).
     inflight: Arc<tokio::sync::Semaphore>,
     /// Parsing and validating uploads runs here, not on the engine's threads, so a running job
@@ -77,6 +87,18 @@ impl App {
         queue: Arc<dyn JobQueue>,
         limits: Limits,
         http: server::ConnectionLimits,
+    ) -> Arc<App> {
+        App::with_keys(engine, store, queue, limits, http, None)
+    }
+
+    /// The state with API keys (`None`: open routes).
+    pub fn with_keys(
+        engine: Arc<dyn Engine>,
+        store: Arc<dyn VolumeStore>,
+        queue: Arc<dyn JobQueue>,
+        limits: Limits,
+        http: server::ConnectionLimits,
+        keys: Option<Arc<auth::ApiKeys>>,
     ) -> Arc<App> {
         let kib =
             (http.max_inflight_bytes >> 10).clamp(1, tokio::sync::Semaphore::MAX_PERMITS as u64);
@@ -95,6 +117,7 @@ impl App {
             queue,
             limits,
             http,
+            keys,
             inflight: Arc::new(tokio::sync::Semaphore::new(kib as usize)),
             ingest: Arc::new(ingest),
         })
@@ -149,6 +172,26 @@ impl app::jobs::JobObserver for App {
 
 /// Opens the engine, the store and the queue of `config`.
 pub async fn open(config: &Config) -> Result<Arc<App>, String> {
+    // The keys first: a bad keys file stops the start before anything is opened.
+    let keys = match &config.api_keys_file {
+        None => {
+            if config.protect_metrics {
+                return Err("--protect-metrics needs --api-keys-file".into());
+            }
+            None
+        }
+        Some(path) => {
+            let mut keys = auth::ApiKeys::load(path, config.key_limits)
+                .map_err(|e| format!("API keys: {e}"))?;
+            keys.protect_metrics = config.protect_metrics;
+            tracing::info!(
+                keys = keys.len(),
+                protect_metrics = config.protect_metrics,
+                "API keys required on /v1"
+            );
+            Some(Arc::new(keys))
+        }
+    };
     let (choice, adapter) = (config.engine, config.adapter.clone());
     let engine: Arc<dyn Engine> = tokio::task::spawn_blocking(move || {
         crate::engine::open(
@@ -196,12 +239,13 @@ pub async fn open(config: &Config) -> Result<Arc<App>, String> {
             .await?,
         ),
     };
-    Ok(App::new(
+    Ok(App::with_keys(
         engine,
         store,
         queue,
         config.limits,
         config.connections,
+        keys,
     ))
 }
 

@@ -13,7 +13,7 @@ use crate::app::{Error, ErrorKind};
 pub const TYPE_BASE: &str = "https://voxd.dev/problems/";
 
 /// Every kind with its status and title.
-pub const KINDS: [(ErrorKind, u16, &str); 25] = [
+pub const KINDS: [(ErrorKind, u16, &str); 28] = [
     (ErrorKind::InvalidMesh, 422, "The mesh cannot be used"),
     (ErrorKind::UnsupportedMediaType, 415, "Unknown mesh format"),
     (
@@ -65,6 +65,17 @@ pub const KINDS: [(ErrorKind, u16, &str); 25] = [
         ErrorKind::HeadersTooLarge,
         431,
         "Request header fields too large",
+    ),
+    (ErrorKind::Unauthorized, 401, "Authentication required"),
+    (
+        ErrorKind::RateLimited,
+        429,
+        "Too many requests for this API key",
+    ),
+    (
+        ErrorKind::TooManyJobs,
+        429,
+        "Too many jobs for this API key",
     ),
     (ErrorKind::Internal, 500, "Internal error"),
 ];

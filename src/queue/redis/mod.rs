@@ -682,6 +682,7 @@ impl JobQueue for RedisQueue {
                 method,
                 &serde_json::to_string(&record).expect("a record serialises"),
                 &serde_json::to_string(&job.spec).expect("a spec serialises"),
+                job.owner.as_ref(),
             )
             .await;
         let position = match submitted {
@@ -693,6 +694,10 @@ impl JobQueue for RedisQueue {
                 let _ = q.store.delete_upload(&job.id).await;
                 return Err(match other {
                     Ok(Submitted::Full(n)) => full(n),
+                    Ok(Submitted::OwnerBusy(n)) => job.owner.as_ref().map_or_else(
+                        || Error::internal("an owner limit without an owner"),
+                        |o| o.too_many(n),
+                    ),
                     Err(e) => q.unavailable(&e),
                     _ => Error::internal(format!("job id {} is taken", job.id)),
                 });

@@ -39,6 +39,8 @@ pub enum Submitted {
     Queued(usize),
     /// Refused: this many jobs wait already.
     Full(usize),
+    /// Refused: the job's owner has this many jobs queued or running, its limit.
+    OwnerBusy(usize),
     Exists,
 }
 
@@ -188,6 +190,7 @@ impl Redis {
         method: &str,
         record: &str,
         spec: &str,
+        owner: Option<&crate::queue::Owner>,
     ) -> RedisResult<Submitted> {
         let (what, n): (String, usize) = self
             .scripts
@@ -200,11 +203,14 @@ impl Redis {
             .arg(method)
             .arg(record)
             .arg(spec)
+            .arg(owner.map_or("", |o| o.name.as_str()))
+            .arg(owner.map_or(0, |o| o.max_jobs))
             .invoke_async(&mut self.conn.clone())
             .await?;
         Ok(match what.as_str() {
             "ok" => Submitted::Queued(n),
             "full" => Submitted::Full(n),
+            "owner" => Submitted::OwnerBusy(n),
             _ => Submitted::Exists,
         })
     }

@@ -43,7 +43,11 @@ pub async fn readyz(axum::extract::State(app): AppState) -> Result<Response, Pro
 
 pub async fn metrics(axum::extract::State(app): AppState) -> Response {
     let q = app.queue.stats().await;
-    let mut r = app.metrics.render(&q).into_response();
+    let mut text = app.metrics.render(&q);
+    if let Some(keys) = &app.keys {
+        keys.render_metrics(&mut text);
+    }
+    let mut r = text.into_response();
     r.headers_mut().insert(
         header::CONTENT_TYPE,
         HeaderValue::from_static("text/plain; version=0.0.4"),

@@ -144,7 +144,12 @@ fn check_head(req: &Request, http: &super::server::ConnectionLimits) -> Option<P
     None
 }
 
-async fn request_context(State(app): AppState, req: Request, next: Next) -> Response {
+/// Paths probed often (health checks, scrapes): not in the access log.
+fn is_probe(path: &str) -> bool {
+    matches!(path, "/healthz" | "/readyz" | "/metrics")
+}
+
+async fn request_context(State(app): AppState, mut req: Request, next: Next) -> Response {
     let rid = req
         .headers()
         .get("x-request-id")
@@ -153,7 +158,15 @@ async fn request_context(State(app): AppState, req: Request, next: Next) -> Resp
         .map(str::to_string)
         .unwrap_or_else(crate::app::new_id);
     let path = req.uri().path().to_string();
-    let span = tracing::info_span!("request", id = %rid, method = %req.method(), path = %path);
+    // `key`: the API key's name (never the key), once the request is authenticated.
+    let span = tracing::info_span!(
+        "request",
+        id = %rid,
+        method = %req.method(),
+        path = %path,
+        key = tracing::field::Empty
+    );
+    let started = std::time::Instant::now();
     // A request with a body: refused, its body may be left unread, after which hyper cannot
     // reuse the connection and closes it. Say so (`Connection: close`), so that a client does
     // not send its next request into a closed connection.
@@ -162,10 +175,39 @@ async fn request_context(State(app): AppState, req: Request, next: Next) -> Resp
             .headers()
             .get(header::CONTENT_LENGTH)
             .is_some_and(|v| v.as_bytes() != b"0");
-    let mut res = match check_head(&req, &app.http) {
-        Some(p) => p.into_response(),
-        None => next.run(req).instrument(span).await,
+    let refused = check_head(&req, &app.http)
+        .map(IntoResponse::into_response)
+        .or_else(|| {
+            let keys = app.keys.as_ref().filter(|k| k.guards(&path))?;
+            match keys.authenticate(req.headers()) {
+                Ok(caller) => {
+                    span.record("key", tracing::field::display(&caller.name));
+                    req.extensions_mut().insert(caller);
+                    None
+                }
+                Err(refusal) => {
+                    let mut r = Problem::from(refusal.error).into_response();
+                    if let Some(c) = refusal.challenge {
+                        r.headers_mut().insert(header::WWW_AUTHENTICATE, c);
+                    }
+                    Some(r)
+                }
+            }
+        });
+    let mut res = match refused {
+        Some(r) => r,
+        None => next.run(req).instrument(span.clone()).await,
     };
+    if !is_probe(&path) {
+        span.in_scope(|| {
+            tracing::info!(
+                target: "voxd::access",
+                status = res.status().as_u16(),
+                ms = started.elapsed().as_millis() as u64,
+                "request"
+            )
+        });
+    }
     let is_problem = res
         .headers()
         .get(header::CONTENT_TYPE)

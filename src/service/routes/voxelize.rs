@@ -93,9 +93,14 @@ fn format_of(q: &VoxelizeQuery, headers: &HeaderMap) -> app::Result<Option<Forma
 pub async fn submit(
     axum::extract::State(app): AppState,
     Query(q): Query<VoxelizeQuery>,
+    caller: Option<axum::Extension<crate::service::auth::Caller>>,
     headers: HeaderMap,
     body: Body,
 ) -> Result<Response, Problem> {
+    let owner = caller.map(|axum::Extension(c)| crate::queue::Owner {
+        name: c.name.to_string(),
+        max_jobs: c.max_jobs,
+    });
     let method = match q.method {
         None => MethodSpec::Bits(crate::engine::Method::Solid),
         Some(m) => MethodSpec::new(crate::names::Named::name(m), q.density_factor)?,
@@ -156,6 +161,7 @@ pub async fn submit(
             spec,
             upload: body.bytes.clone(),
             name: q.name,
+            owner,
             created: app::rfc3339(std::time::SystemTime::now()),
         })
         .await?;
