@@ -2,7 +2,8 @@
 # Checks the deployment files without Docker or a cluster: hadolint on the Dockerfile,
 # docker-compose config and the compose spec's schema on deploy/docker-compose.yml, the
 # rendered kustomizations against Kubernetes' schemas (kubernetes-validate --strict), the KEDA
-# ScaledObject against KEDA's CRD schema, and yamllint. The Python tools are pinned
+# ScaledObject against KEDA's CRD schema, yamllint, nginx -t and promtool check config on
+# deploy/nginx.conf and deploy/prometheus.yml (where installed), and shellcheck. The Python tools are pinned
 # (scripts/deploy-requirements.txt) in a venv under ~/.cache made once and reused.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -92,5 +93,37 @@ echo "== KEDA ScaledObject against KEDA's CRD schema"
 
 echo "== yamllint"
 "$B/yamllint" --strict .yamllint deploy
+
+# deploy/local.sh (the compose topology natively, scripts/deploy-e2e.sh) renders nginx.conf and
+# prometheus.yml for 127.0.0.1: nginx -t on its nginx.conf (compose's resolves only inside
+# compose's network), promtool on prometheus.yml as compose mounts it and as rendered.
+echo "== nginx -t and promtool check config (deploy/nginx.conf, deploy/prometheus.yml)"
+VOXD_PYTHON=$B/python deploy/local.sh render "$TMP/local" >/dev/null
+if command -v nginx >/dev/null || [[ -x /usr/sbin/nginx ]]; then
+  nginx=$(command -v nginx || echo /usr/sbin/nginx)
+  "$nginx" -t -q -p "$TMP/local/nginx/" -c "$TMP/local/nginx.conf" -g 'daemon off;' >"$TMP/nginx-t.log" 2>&1 \
+    || { cat "$TMP/nginx-t.log"; echo "nginx -t refused deploy/nginx.conf (as deploy/local.sh renders it)"; exit 1; }
+  echo "-- nginx -t: ok"
+else
+  echo "NOTICE: no nginx; skipping nginx -t"
+fi
+if command -v promtool >/dev/null; then
+  promtool check config deploy/prometheus.yml
+  promtool check config "$TMP/local/prometheus.yml"
+else
+  echo "NOTICE: no promtool (apt-get install prometheus); skipping promtool check config"
+fi
+
+echo "== shellcheck (deploy/local.sh, scripts/deploy-e2e.sh, this script)"
+if ! command -v shellcheck >/dev/null && [[ $(id -u) == 0 ]] && command -v apt-get >/dev/null; then
+  echo "installing shellcheck"
+  (apt-get update -qq || true) >/dev/null 2>&1
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq shellcheck >/dev/null || true
+fi
+if command -v shellcheck >/dev/null; then
+  shellcheck deploy/local.sh scripts/deploy-e2e.sh scripts/deploy-check.sh
+else
+  echo "NOTICE: no shellcheck (not root, or apt failed); skipping shellcheck"
+fi
 
 echo "deploy-check: all clean"

@@ -52,6 +52,24 @@ if [[ -x $S3_VENV/bin/weed ]] && "$S3_VENV/bin/weed" version >/dev/null 2>&1; th
 else
   echo "NOTICE: no SeaweedFS (weed); the S3 store's tests will skip"
 fi
+# The native deployment test (scripts/deploy-e2e.sh: deploy/local.sh starts the compose topology
+# on 127.0.0.1) runs the replicas under tini, reads the compose file with PyYAML and starts
+# Debian's Prometheus (the binary only: the packaged service stays off). With tini, PyYAML,
+# SeaweedFS, Redis and nginx it is required (VOXD_REQUIRE_DEPLOY=1); Prometheus is optional.
+has_yaml() { for py in python3 /usr/bin/python3; do "$py" -c 'import yaml' 2>/dev/null && return 0; done; return 1; }
+if { ! command -v prometheus >/dev/null || ! command -v tini >/dev/null || ! has_yaml; } \
+    && [[ $(id -u) == 0 ]] && command -v apt-get >/dev/null; then
+  echo "installing prometheus tini python3-yaml for the deployment test"
+  (apt-get update -qq || true) >/dev/null 2>&1
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends prometheus tini python3-yaml >/dev/null || true
+  (systemctl disable --now prometheus || service prometheus stop || true) >/dev/null 2>&1
+fi
+command -v prometheus >/dev/null || echo "NOTICE: no prometheus; the deployment test scrapes the replicas itself"
+if command -v tini >/dev/null && has_yaml && command -v redis-server >/dev/null && [[ ${VOXD_REQUIRE_NGINX:-} == 1 && ${VOXD_REQUIRE_S3:-} == 1 ]]; then
+  export VOXD_REQUIRE_DEPLOY=1
+else
+  echo "NOTICE: no tini, PyYAML, Redis, nginx or SeaweedFS; the deployment test will skip"
+fi
 
 # The GPU tests run on lavapipe where no GPU exists; once a driver is there they are required.
 "$(dirname "$0")/setup-vulkan.sh"
@@ -68,3 +86,4 @@ cargo test --locked --features fault-injection -- --show-output
 ./scripts/fuzz.sh 15    # every fuzz target of fuzz/ for 15 s (installs cargo-fuzz if missing)
 ./scripts/contract.sh   # openapi.yaml valid, and schemathesis against the running service
 ./scripts/deploy-check.sh  # Dockerfile, compose file and Kubernetes manifests: hadolint, compose config, schemas
+./scripts/deploy-e2e.sh    # deploy/local.sh up: upload via nginx, download via the other replica, metrics, down
