@@ -433,8 +433,8 @@ open(dst, "w").write(text)
 PY
 }
 
-render_configs() { # OUT NGINX_PREFIX VOXD1_PORT VOXD2_PORT PROM_PORT: nginx.conf, prometheus.yml
-  local out=$1 n=$2 v1=$3 v2=$4 prom=$5 US=$'\x1f'
+render_configs() { # OUT NGINX_PREFIX VOXD1_PORT VOXD2_PORT PROM_PORT GPU_PORT: nginx.conf, prometheus.yml
+  local out=$1 n=$2 v1=$3 v2=$4 prom=$5 gpu=$6 US=$'\x1f'
   render nginx "$NGINX_CONF_SRC" "$out/nginx.conf" \
     "server voxd-1:$CONTAINER_PORT $US""server 127.0.0.1:$v1 " \
     "server voxd-2:$CONTAINER_PORT $US""server 127.0.0.1:$v2 " \
@@ -449,6 +449,10 @@ render_configs() { # OUT NGINX_PREFIX VOXD1_PORT VOXD2_PORT PROM_PORT: nginx.con
     "- voxd-1:$CONTAINER_PORT$US- 127.0.0.1:$v1"
     "- voxd-2:$CONTAINER_PORT$US- 127.0.0.1:$v2"
     "- localhost:9090$US- 127.0.0.1:$prom"
+    # The gpu profile's replica is not started here: a free loopback port that nothing listens
+    # on keeps its target down (up == 0, as under compose without the profile) without a DNS
+    # lookup of `voxd-gpu`.
+    "- voxd-gpu:$CONTAINER_PORT$US- 127.0.0.1:$gpu"
   )
   [[ -z ${SCRAPE_INTERVAL:-} ]] || psubs+=("scrape_interval: 15s${US}scrape_interval: $SCRAPE_INTERVAL")
   render prometheus "$PROM_CONF_SRC" "$out/prometheus.yml" "${psubs[@]}"
@@ -470,7 +474,7 @@ render_only() {
   local BUCKET IMAGE_USER VOXD_DATA_1 VOXD_DATA_2 AWS_KEY AWS_SECRET AWS_REGION_ VOXD_QUEUE_URL \
     NGINX_CONF_SRC NGINX_CONTAINER_PORT CONTAINER_PORT PROM_CONF_SRC
   eval "$cfg"
-  render_configs "$out" "$out/nginx" 18004 18005 18006
+  render_configs "$out" "$out/nginx" 18004 18005 18006 18007
   echo "$out/nginx.conf"
   echo "$out/prometheus.yml"
 }
@@ -517,9 +521,9 @@ up() {
   : >"$DIR/pids"
 
   local -a P
-  mapfile -t P < <(free_ports 14)
+  mapfile -t P < <(free_ports 15)
   # weed: master, master grpc, volume, volume grpc, filer, filer grpc, s3, s3 grpc, admin, admin grpc
-  local s3=${P[6]} filer=${P[4]} redis=${P[10]} v1=${P[11]} v2=${P[12]} prom=${P[13]}
+  local s3=${P[6]} filer=${P[4]} redis=${P[10]} v1=${P[11]} v2=${P[12]} prom=${P[13]} gpu=${P[14]}
   local cfg
   cfg=$(read_config "$s3" "$filer" "$redis" "$v1" "$v2") || die "could not read $COMPOSE and Dockerfile"
   local -a WEED_ARGS WEED_DIRS REDIS_ARGS REDIS_DIRS IMAGE_ENTRYPOINT IMAGE_CMD VOXD_ENV_1 VOXD_ENV_2 PROM_ARGS PROM_DIRS
@@ -582,7 +586,7 @@ up() {
   # ---- nginx with deploy/nginx.conf
   local n=$DIR/nginx
   mkdir -p "$n"
-  render_configs "$DIR/conf" "$n" "$v1" "$v2" "$prom"
+  render_configs "$DIR/conf" "$n" "$v1" "$v2" "$prom" "$gpu"
   "$NGINX" -t -q -p "$n/" -c "$DIR/conf/nginx.conf" -g 'daemon off;' >"$DIR/logs/nginx-t.log" 2>&1 \
     || { FAILED_LOG=$DIR/logs/nginx-t.log; die "nginx -t refused the rendered $DIR/conf/nginx.conf"; }
   # As in the image: the access log on stdout, the error log on stderr (Docker keeps both).
