@@ -2,7 +2,7 @@
 # voxd: the HTTP voxelization service in a container.
 #
 #   docker build -t voxd .
-#   docker run --rm -p 8080:8080 voxd                       # CPU engine or lavapipe (Vulkan on the CPU)
+#   docker run --rm -p 8080:8080 voxd                       # CPU engine (lavapipe with -e VOXD_ENGINE=gpu)
 #   docker run --rm -p 8080:8080 --runtime=nvidia --gpus all \
 #       -e NVIDIA_DRIVER_CAPABILITIES=graphics,compute,utility -e VOXD_ENGINE=gpu voxd
 #

@@ -143,6 +143,39 @@ fn gpu_and_cpu_engines_write_the_same_file() {
         "no-such-adapter",
     ]);
     assert!(o.status.success() && String::from_utf8_lossy(&o.stdout).contains("engine cpu"));
+    // On a machine whose only adapters are software ones (lavapipe: CI and this project's
+    // machines), auto runs the CPU engine, and lavapipe only when asked for by name; a hardware
+    // adapter, where one exists, is auto's choice.
+    let gpu_line = String::from_utf8_lossy(&og.stdout).to_string();
+    let software = gpu_line.contains("llvmpipe") || gpu_line.contains("lavapipe");
+    let o = voxd(&["voxelize", s(&mesh), "-o", s(&g), "--engine", "auto"]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{o:?}");
+    if software {
+        assert!(
+            out.contains("engine cpu"),
+            "auto picked a software adapter: {out}"
+        );
+        let o = voxd(&[
+            "voxelize",
+            s(&mesh),
+            "-o",
+            s(&g),
+            "--engine",
+            "auto",
+            "--adapter",
+            "llvmpipe",
+        ]);
+        assert!(
+            String::from_utf8_lossy(&o.stdout).contains("engine gpu (llvmpipe"),
+            "{o:?}"
+        );
+    } else {
+        assert!(
+            out.contains("engine gpu ("),
+            "auto passed over a hardware adapter: {out}"
+        );
+    }
 }
 
 #[test]

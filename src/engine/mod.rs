@@ -91,7 +91,9 @@ pub trait Engine: Send + Sync {
 /// Which engine to use.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum EngineChoice {
-    /// The GPU engine when an adapter exists, else the CPU engine (with a warning).
+    /// The GPU engine on a hardware adapter when one exists, else the CPU engine. A software
+    /// adapter (lavapipe) is used only when asked for (`gpu`, or an adapter named): on every
+    /// measurement so far it is slower than the CPU engine on the same cores.
     Auto,
     Gpu,
     Cpu,
@@ -112,19 +114,31 @@ impl crate::names::Named for EngineChoice {
 
 crate::impl_named!(Method, EngineChoice);
 
-/// Opens the chosen engine. `Auto` never fails: without a usable adapter it falls back to the
-/// CPU engine and logs why.
+/// Opens the chosen engine. `Auto` never fails: without a hardware adapter (or the one
+/// named) it uses the CPU engine and logs why: at `info` when only a software adapter exists
+/// (the expected case on a machine without a GPU), as a warning otherwise.
 pub fn open(choice: EngineChoice, gpu: gpu::GpuOptions) -> Result<Box<dyn Engine>, EngineError> {
     match choice {
         EngineChoice::Cpu => Ok(Box::new(cpu::CpuEngine)),
         EngineChoice::Gpu => Ok(Box::new(gpu::GpuEngine::new(gpu)?)),
-        EngineChoice::Auto => match gpu::GpuEngine::new(gpu) {
-            Ok(e) => Ok(Box::new(e)),
-            Err(e) => {
-                tracing::warn!("{e}; using the CPU engine");
-                Ok(Box::new(cpu::CpuEngine))
+        EngineChoice::Auto => {
+            let options = gpu::GpuOptions {
+                // A named adapter is an explicit request, software or not.
+                hardware_only: gpu.adapter.is_none(),
+                ..gpu
+            };
+            match gpu::GpuEngine::new(options) {
+                Ok(e) => Ok(Box::new(e)),
+                Err(EngineError::NoDevice(why)) if why.starts_with(gpu::device::NO_HARDWARE) => {
+                    tracing::info!("{why}; using the CPU engine (--engine gpu uses them)");
+                    Ok(Box::new(cpu::CpuEngine))
+                }
+                Err(e) => {
+                    tracing::warn!("{e}; using the CPU engine");
+                    Ok(Box::new(cpu::CpuEngine))
+                }
             }
-        },
+        }
     }
 }
 

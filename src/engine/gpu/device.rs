@@ -38,6 +38,9 @@ pub(super) struct GpuDevice {
     lost: Arc<AtomicBool>,
 }
 
+/// How the refusal of a software-only machine begins, when only hardware adapters were asked for.
+pub(crate) const NO_HARDWARE: &str = "no hardware GPU adapter";
+
 fn rank(t: wgpu::DeviceType) -> u8 {
     match t {
         wgpu::DeviceType::DiscreteGpu => 0,
@@ -49,7 +52,9 @@ fn rank(t: wgpu::DeviceType) -> u8 {
 }
 
 impl GpuDevice {
-    pub fn open(wanted: Option<&str>) -> Result<GpuDevice, EngineError> {
+    /// The best adapter with 64-bit shader integers, or the one named like `wanted`;
+    /// `hardware_only`: never a software (CPU) adapter such as lavapipe.
+    pub fn open(wanted: Option<&str>, hardware_only: bool) -> Result<GpuDevice, EngineError> {
         let instance =
             wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
         let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
@@ -61,9 +66,20 @@ impl GpuDevice {
                 wanted.is_none_or(|w| a.get_info().name.to_lowercase().contains(&w.to_lowercase()))
             })
             .collect();
+        let software: Vec<String> = usable
+            .iter()
+            .filter(|a| a.get_info().device_type == wgpu::DeviceType::Cpu)
+            .map(|a| a.get_info().name)
+            .collect();
+        if hardware_only {
+            usable.retain(|a| a.get_info().device_type != wgpu::DeviceType::Cpu);
+        }
         usable.sort_by_key(|a| rank(a.get_info().device_type));
         let Some(adapter) = usable.into_iter().next() else {
             let why = match wanted {
+                _ if hardware_only && !software.is_empty() => format!(
+                    "{NO_HARDWARE}, only software ones ({software:?}), which are slower than the CPU engine"
+                ),
                 Some(w) => format!("no adapter named like {w:?} with 64-bit shader integers (adapters: {names:?})"),
                 None if names.is_empty() => "no GPU adapter found (install a Vulkan driver, e.g. Debian's mesa-vulkan-drivers for lavapipe)".into(),
                 None => format!("no adapter supports 64-bit shader integers (adapters: {names:?})"),

@@ -8,7 +8,7 @@
 //! (solid) or voxels (surface) per invocation, so no invocation comes near lavapipe's silent
 //! 65,535-iteration loop cap (`docs/lavapipe-notes.md`).
 
-mod device;
+pub(crate) mod device;
 mod work;
 
 use std::sync::Mutex;
@@ -33,6 +33,9 @@ pub struct GpuOptions {
     pub max_chunk_bytes: Option<u64>,
     /// How solid turns crossings into parity.
     pub solid_strategy: SolidStrategy,
+    /// Only a hardware adapter (discrete, integrated or virtual GPU): a software one such as
+    /// lavapipe counts as none. What `--engine auto` asks for when no adapter is named.
+    pub hardware_only: bool,
 }
 
 /// Two ways to turn crossings into parity on the GPU; both give the same bits.
@@ -89,7 +92,7 @@ impl GpuEngine {
     /// Opens the best adapter that supports 64-bit integers in shaders (discrete, then
     /// integrated, then virtual, then CPU such as lavapipe), or the one `options.adapter` names.
     pub fn new(options: GpuOptions) -> Result<GpuEngine, EngineError> {
-        let device = GpuDevice::open(options.adapter.as_deref())?;
+        let device = GpuDevice::open(options.adapter.as_deref(), options.hardware_only)?;
         Ok(GpuEngine {
             options,
             device: Mutex::new(device),
@@ -125,7 +128,7 @@ impl GpuEngine {
         let mut guard = self.device.lock().unwrap_or_else(|e| e.into_inner());
         if guard.is_lost() {
             tracing::warn!("GPU device was lost; opening it again");
-            *guard = GpuDevice::open(self.options.adapter.as_deref())?;
+            *guard = GpuDevice::open(self.options.adapter.as_deref(), self.options.hardware_only)?;
         }
         let dev = &*guard;
         let scope = dev.device.push_error_scope(wgpu::ErrorFilter::Validation);
