@@ -68,20 +68,32 @@ impl MeshDiagnostics {
                 m[0] == m[1] || m[1] == m[2] || m[0] == m[2] || cross == [0.0; 3]
             })
             .count();
-        let mut edges: Vec<u64> = mesh
-            .triangles
-            .par_iter()
-            .flat_map_iter(|tri| {
+        // Three undirected edges per triangle, as (low id, high id) in one u64, written in
+        // place (one allocation of the exact size, no per-thread pieces to concatenate). An
+        // edge whose ends merged into one vertex is no edge: u64::MAX, which no real edge can
+        // be (its low id is below its high one), sorted last and dropped.
+        const NONE: u64 = u64::MAX;
+        let mut edges = vec![0u64; mesh.triangles.len() * 3];
+        edges
+            .par_chunks_mut(3)
+            .zip(mesh.triangles.par_iter())
+            .for_each(|(out, tri)| {
                 let m = merged(tri);
-                [(m[0], m[1]), (m[1], m[2]), (m[2], m[0])]
-                    .into_iter()
-                    .filter(|(p, q)| p != q)
-                    .map(|(p, q)| ((p.min(q) as u64) << 32) | p.max(q) as u64)
-            })
-            .collect();
+                for (o, (p, q)) in out
+                    .iter_mut()
+                    .zip([(m[0], m[1]), (m[1], m[2]), (m[2], m[0])])
+                {
+                    *o = if p == q {
+                        NONE
+                    } else {
+                        ((p.min(q) as u64) << 32) | p.max(q) as u64
+                    };
+                }
+            });
         edges.par_sort_unstable();
+        let real = edges.partition_point(|&e| e != NONE);
         let (mut boundary, mut non_manifold) = (0, 0);
-        for run in edges.chunk_by(|a, b| a == b) {
+        for run in edges[..real].chunk_by(|a, b| a == b) {
             match run.len() {
                 1 => boundary += 1,
                 2 => {}
