@@ -164,63 +164,48 @@ fn serve_with_api_keys_guards_v1_and_logs_key_names_only() {
     }
 }
 
+/// `voxd serve` on a free port with `args`, which must refuse to start: its stderr.
+fn refused(dir: &std::path::Path, args: &[&std::ffi::OsStr]) -> String {
+    let out = voxd()
+        .args([
+            "serve",
+            "--addr",
+            "127.0.0.1:0",
+            "--engine",
+            "cpu",
+            "--data-dir",
+        ])
+        .arg(dir.join("data"))
+        .args(args)
+        .stdin(Stdio::null())
+        .output()
+        .unwrap();
+    assert!(!out.status.success(), "voxd serve {args:?} started");
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
 #[test]
 fn serve_refuses_to_start_on_a_bad_keys_file() {
     let dir = tmpdir("auth-bad");
     let (_, line) = keygen("ok");
     let digest = line.split(':').nth(1).unwrap().to_string();
+    let keys = dir.join("keys");
     for (text, says) in [
         (format!("{line}\nbroken\n"), "line 2"),
         ("# nothing\n".to_string(), "no keys"),
         (format!("{line}\n{line}\n"), "line 2"),
     ] {
-        let keys = dir.join("keys");
         std::fs::write(&keys, &text).unwrap();
-        let out = voxd()
-            .args(["serve", "--addr", "127.0.0.1:0", "--engine", "cpu"])
-            .arg("--data-dir")
-            .arg(dir.join("data"))
-            .arg("--api-keys-file")
-            .arg(&keys)
-            .stdin(Stdio::null())
-            .output()
-            .unwrap();
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success(), "{text:?} started");
-        assert!(err.contains(says) && err.contains("API keys"), "{err}");
+        let err = refused(&dir, &["--api-keys-file".as_ref(), keys.as_os_str()]);
+        assert!(
+            err.contains(says) && err.contains("API keys"),
+            "{text:?}: {err}"
+        );
         assert!(!err.contains(&digest), "{err}");
     }
-    let out = voxd()
-        .args([
-            "serve",
-            "--addr",
-            "127.0.0.1:0",
-            "--engine",
-            "cpu",
-            "--protect-metrics",
-        ])
-        .arg("--data-dir")
-        .arg(dir.join("data"))
-        .stdin(Stdio::null())
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--api-keys-file"));
-    let out = voxd()
-        .args([
-            "serve",
-            "--addr",
-            "127.0.0.1:0",
-            "--engine",
-            "cpu",
-            "--api-keys-file",
-        ])
-        .arg(dir.join("missing"))
-        .arg("--data-dir")
-        .arg(dir.join("data"))
-        .stdin(Stdio::null())
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("missing"));
+    let err = refused(&dir, &["--protect-metrics".as_ref()]);
+    assert!(err.contains("--api-keys-file"), "{err}");
+    let missing = dir.join("missing");
+    let err = refused(&dir, &["--api-keys-file".as_ref(), missing.as_os_str()]);
+    assert!(err.contains("missing"), "{err}");
 }

@@ -80,18 +80,8 @@ pub struct App {
 }
 
 impl App {
-    /// The state over parts already opened (tests build it over their own).
-    pub fn new(
-        engine: Arc<dyn Engine>,
-        store: Arc<dyn VolumeStore>,
-        queue: Arc<dyn JobQueue>,
-        limits: Limits,
-        http: server::ConnectionLimits,
-    ) -> Arc<App> {
-        App::with_keys(engine, store, queue, limits, http, None)
-    }
-
-    /// The state with API keys (`None`: open routes).
+    /// The state over parts already opened (tests build it over their own), with API keys
+    /// (`None`: open routes).
     pub fn with_keys(
         engine: Arc<dyn Engine>,
         store: Arc<dyn VolumeStore>,

@@ -45,7 +45,7 @@ async fn harness_with(name: &str, tune: impl FnOnce(Limits) -> Limits) -> Harnes
     }
     .with_body_bytes(1 << 16);
     let limits = tune(limits);
-    let app = App::new(engine, store, queue, limits, Default::default());
+    let app = App::with_keys(engine, store, queue, limits, Default::default(), None);
     tokio::spawn(crate::app::jobs::work(
         app.queue.clone(),
         app.store.clone(),
