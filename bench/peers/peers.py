@@ -265,10 +265,11 @@ def cmd_worker(a):
     imp = time.perf_counter() - mod_t0
     before = rss_kb()
     g, setup, t, extra = WORKERS[a.tool](V, F, origin, s, dims)
+    after = rss_kb()  # VmHWM: this process's own peak (a fork's pre-exec RSS does not count here)
     save_bits(a.out, g)
     print(json.dumps({"tool": a.tool, "voxelize_s": t, "setup_s": setup, "npz_load_s": load,
                       "import_s": imp, "set": int(g.sum()), "rss_before_kb": before.get("VmRSS"),
-                      **extra}))
+                      "hwm_kb": after.get("VmHWM"), **extra}))
 
 
 # ---------------------------------------------------------------- running children
@@ -280,30 +281,45 @@ def mem_available_kb():
     return 0
 
 
+def tree_rss_kb(pid):
+    """Largest VmRSS among pid and its descendants, KiB."""
+    best, todo = 0, [pid]
+    while todo:
+        q = todo.pop()
+        try:
+            for line in open(f"/proc/{q}/status"):
+                if line.startswith("VmRSS:"):
+                    best = max(best, int(line.split()[1]))
+                    break
+            for t in os.listdir(f"/proc/{q}/task"):
+                todo += [int(c) for c in open(f"/proc/{q}/task/{t}/children").read().split()]
+        except OSError:
+            pass
+    return best
+
+
 def run_child(cmd, timeout, mem_limit_kb, log):
-    """Run cmd in a fresh process group; wall clock, peak RSS (ru_maxrss of the waited child),
-    and a watchdog that kills it past timeout seconds or past mem_limit_kb of RSS."""
+    """Run cmd in a fresh process group; wall clock, peak RSS, and a watchdog that kills it past
+    timeout seconds or past mem_limit_kb of RSS. The peak comes from /usr/bin/time (%M) around
+    the command: the ru_maxrss this process would see counts the RSS of the forked copy of this
+    (large) driver before exec, so small tools would all show the driver's size."""
     out_f = tempfile.TemporaryFile()
     err_f = tempfile.TemporaryFile()
+    tfile = tempfile.NamedTemporaryFile(prefix="peers-time-", delete=False)
+    tfile.close()
+    wrapped = (["/usr/bin/time", "-f", "%M", "-o", tfile.name, *map(str, cmd)]
+               if os.path.exists("/usr/bin/time") else list(map(str, cmd)))
     killed = {"why": None}
     t0 = time.perf_counter()
-    p = subprocess.Popen(cmd, stdout=out_f, stderr=err_f, start_new_session=True)
+    p = subprocess.Popen(wrapped, stdout=out_f, stderr=err_f, start_new_session=True)
     done = threading.Event()
 
     def watch():
-        status = f"/proc/{p.pid}/status"
         while not done.wait(0.1):
             if time.perf_counter() - t0 > timeout:
                 killed["why"] = "timeout"
-            else:
-                try:
-                    for line in open(status):
-                        if line.startswith("VmRSS:"):
-                            if int(line.split()[1]) > mem_limit_kb:
-                                killed["why"] = "memory"
-                            break
-                except OSError:
-                    pass
+            elif tree_rss_kb(p.pid) > mem_limit_kb:
+                killed["why"] = "memory"
             if killed["why"]:
                 try:
                     os.killpg(p.pid, signal.SIGKILL)
@@ -322,10 +338,17 @@ def run_child(cmd, timeout, mem_limit_kb, log):
     err_f.seek(0)
     out = out_f.read().decode(errors="replace")
     err = err_f.read().decode(errors="replace")
-    log.write(f"$ {' '.join(map(str, cmd))}\n# rc {p.returncode} wall {wall:.3f} s maxrss {ru.ru_maxrss} KiB"
+    peak = ru.ru_maxrss
+    try:
+        txt = Path(tfile.name).read_text().split()
+        if txt and txt[-1].isdigit():
+            peak = int(txt[-1])
+    finally:
+        os.unlink(tfile.name)
+    log.write(f"$ {' '.join(map(str, cmd))}\n# rc {p.returncode} wall {wall:.3f} s peak rss {peak} KiB"
               f"{' killed: ' + killed['why'] if killed['why'] else ''}\n{out}{err[-4000:]}\n")
     log.flush()
-    return {"rc": p.returncode, "wall_s": wall, "maxrss_kb": ru.ru_maxrss, "killed": killed["why"],
+    return {"rc": p.returncode, "wall_s": wall, "maxrss_kb": peak, "killed": killed["why"],
             "stdout": out, "stderr": err}
 
 
@@ -498,6 +521,8 @@ def cell(args, mesh, path, npz, res, work, log):
             else:
                 info = json.loads(r["stdout"].strip().splitlines()[-1])
                 rec.update(info)
+                if info.get("hwm_kb"):
+                    rec["maxrss_kb"] = info["hwm_kb"]  # the worker's own VmHWM
                 rec["time_s"] = info["voxelize_s"]  # peers: the voxelize step only
             runs[t].append(rec)
             if rnd == 0 and r["wall_s"] > args.slow and args.runs > 1:
@@ -611,8 +636,9 @@ def cmd_run(a):
                 doc["cells"].append({"mesh": m, "resolution": r, "error": f"not run: past --deadline {a.deadline} UTC"})
                 continue
             t0 = time.time()
-            with open(LOCK, "w") as lk:
-                fcntl.flock(lk, fcntl.LOCK_EX)
+            with open(LOCK, "a") as lk:
+                if not a.no_lock:
+                    fcntl.flock(lk, fcntl.LOCK_EX)
                 waited = time.time() - t0
                 c = cell(a, m, paths[m][0], paths[m][1], r, work, log)
             c["lock_wait_s"] = waited
@@ -705,7 +731,7 @@ def report(doc):
     L.append(f"Times: median of {doc['runs']} runs after a warm-up, tools interleaved (every tool once per round, "
              f"rotating order), each in a fresh process. voxd = the whole `voxd voxelize` command (read, "
              f"diagnose, voxelize, write .vxl; solid with `--fill {doc['voxd_fill']}`); peers = their voxelize step "
-             f"only, mesh already in memory. Peak memory = the process's peak RSS (ru_maxrss). "
+             f"only, mesh already in memory. Peak memory = the process's peak RSS (VmHWM / GNU time %M). "
              f"Ratio = fastest solid peer that passed the cross-check / voxd solid. "
              f"Timeout {doc['timeout_s']:.0f} s per run.")
     L.append("")
@@ -758,9 +784,16 @@ def report(doc):
         if "error" in c:
             continue
         row = []
+        again = doc.get("memory", {}).get(f"{c['mesh']}@{c['resolution']}", {})
         for t in ["voxd", "voxd-surface", "trimesh", "vtk", "igl", "open3d"]:
             e = c["tools"].get(t)
-            row.append(fmt_mem(e["maxrss_kb"]) if e and "maxrss_kb" in e else fmt_t(c, t))
+            if t in again:
+                row.append(fmt_mem(again[t]))
+            elif e and "median_s" in e:
+                hw = [x.get("hwm_kb") for x in e["runs"] if x.get("hwm_kb")]
+                row.append(fmt_mem(max(hw)) if hw else fmt_mem(e["maxrss_kb"]))
+            else:
+                row.append(fmt_t(c, t))
         L.append(f"| {c['mesh']} | {c['resolution']}³ | " + " | ".join(row) + " |")
     L.append("")
     L.append("### Cross-check (voxels whose centre is more than 1.5 voxels from the surface)")
@@ -849,6 +882,50 @@ def cmd_plot(a):
     fig.savefig(a.out, dpi=110)
 
 
+def cmd_memory(a):
+    """Peak RSS again, one run per tool per cell, for a results.json whose timing run recorded
+    ru_maxrss floored by the driver's own size (runs before /usr/bin/time wrapped each child).
+    Writes doc["memory"]["MESH@RES"][tool] = KiB back into the file; the report prefers it."""
+    doc = json.loads(Path(a.results).read_text())
+    tools = [t for t in a.tools.split(",") if t]
+    cache = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "voxd" / "peers-meshes"
+    voxd = a.voxd or doc["voxd"]["path"]
+    log = open(Path(a.results).with_name("memory-log.txt"), "a")
+    mem = doc.setdefault("memory", {})
+    with tempfile.TemporaryDirectory() as td, open(LOCK, "a") as lk:
+        if not a.no_lock:
+            fcntl.flock(lk, fcntl.LOCK_EX)
+        mem["_uptime_start"] = uptime()
+        for c in doc["cells"]:
+            if "grid" not in c:
+                continue
+            m, res = c["mesh"], c["resolution"]
+            path = Path(a.meshes_dir) / MESHES[m]
+            npz, _ = prepare_mesh(m, path, cache, log)
+            d = Path(td)
+            (d / "grid.json").write_text(json.dumps(c["grid"]))
+            row = mem.setdefault(f"{m}@{res}", {})
+            for t in tools:
+                if t.startswith("voxd"):
+                    cmd = [voxd, "voxelize", str(path), "-o", str(d / "x.vxl"), "--engine", "cpu",
+                           "--resolution", str(res), "--cubic"]
+                    cmd += ["--method", "surface"] if t == "voxd-surface" else ["--method", "solid", "--fill", doc.get("voxd_fill", "auto")]
+                elif t in c["tools"] and "median_s" in c["tools"][t]:
+                    cmd = [sys.executable, __file__, "worker", t, str(npz), str(d / "grid.json"), str(d / "x.npz")]
+                else:
+                    continue
+                r = run_child(cmd, a.timeout, 2**40, log)
+                if r["rc"] == 0:
+                    kb = r["maxrss_kb"]
+                    if not t.startswith("voxd"):
+                        kb = json.loads(r["stdout"].strip().splitlines()[-1]).get("hwm_kb") or kb
+                    row[t] = kb
+                print(f"{m} {res}³ {t}: {fmt_mem(row[t]) if t in row else 'failed'}", flush=True)
+            Path(a.results).write_text(json.dumps(doc, indent=1))
+        mem["_uptime_end"] = uptime()
+    Path(a.results).write_text(json.dumps(doc, indent=1))
+
+
 def cmd_report(a):
     doc = json.loads(Path(a.results).read_text())
     sys.stdout.write(report(doc))
@@ -879,6 +956,7 @@ def main():
                    help="a tool whose warm-up takes longer than this many seconds gets one timed run, not --runs")
     r.add_argument("--deadline", help="HH:MM UTC: cells not started by then are skipped")
     r.add_argument("--out", help="output folder (default /tmp/voxd-peers-TIMESTAMP)")
+    r.add_argument("--no-lock", action="store_true", help=f"do not take {LOCK} (smoke tests only)")
     r.add_argument("--keep", action="store_true", help="keep the volumes of every cell")
     r.set_defaults(fn=cmd_run)
     p = sub.add_parser("prepare")
@@ -895,6 +973,14 @@ def main():
     pl.add_argument("results")
     pl.add_argument("out")
     pl.set_defaults(fn=cmd_plot)
+    mp = sub.add_parser("memory", help="re-measure peak RSS for a results.json (one run per tool)")
+    mp.add_argument("results")
+    mp.add_argument("--meshes-dir", required=True)
+    mp.add_argument("--voxd")
+    mp.add_argument("--tools", default="voxd,voxd-surface,vtk,open3d,igl,trimesh")
+    mp.add_argument("--timeout", type=float, default=300)
+    mp.add_argument("--no-lock", action="store_true")
+    mp.set_defaults(fn=cmd_memory)
     rp = sub.add_parser("report")
     rp.add_argument("results")
     rp.set_defaults(fn=cmd_report)
