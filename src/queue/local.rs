@@ -204,16 +204,45 @@ fn parse_record(bytes: &[u8]) -> Option<JobRecord> {
 }
 
 /// The one writer of job records: in order, each acknowledged once durable.
+/// Records waiting to be written at most per group commit.
+const GROUP_MAX: usize = 256;
+
+/// The record writer: a group commit. Whatever has queued up while the last batch was being
+/// written goes in the next one, each job's newest record only (a job that was queued, started
+/// and finished meanwhile is written once, in its last state), and every change in a batch is
+/// acknowledged once the whole batch is durable. Order per job is kept: a batch holds the
+/// newest change of each of its jobs, and batches are written one after the other.
 async fn write_records(store: Arc<dyn VolumeStore>, mut rx: mpsc::UnboundedReceiver<Write>) {
-    while let Some((id, bytes, ack)) = rx.recv().await {
-        let r = match bytes {
-            Some(b) => store.put_job_record(&id, b).await,
-            None => store.delete_job_record(&id).await,
-        };
-        if let Err(e) = r {
-            tracing::error!(job = %id, "cannot write the job record: {e}");
+    while let Some(first) = rx.recv().await {
+        let mut pending = vec![first];
+        while pending.len() < GROUP_MAX {
+            match rx.try_recv() {
+                Ok(w) => pending.push(w),
+                Err(_) => break,
+            }
         }
-        let _ = ack.send(());
+        // The newest change per job, in the order of the jobs' last changes.
+        let mut newest: HashMap<String, usize> = HashMap::new();
+        for (i, (id, _, _)) in pending.iter().enumerate() {
+            newest.insert(id.clone(), i);
+        }
+        let mut acks = Vec::with_capacity(pending.len());
+        let mut batch = Vec::with_capacity(newest.len());
+        for (i, (id, bytes, ack)) in pending.into_iter().enumerate() {
+            if newest.get(&id) == Some(&i) {
+                batch.push((id, bytes));
+            }
+            acks.push(ack);
+        }
+        let ids: Vec<String> = batch.iter().map(|(id, _)| id.clone()).collect();
+        for (id, r) in ids.iter().zip(store.put_job_records(batch).await) {
+            if let Err(e) = r {
+                tracing::error!(job = %id, "cannot write the job record: {e}");
+            }
+        }
+        for ack in acks {
+            let _ = ack.send(());
+        }
     }
 }
 
@@ -499,6 +528,62 @@ mod tests {
 
     fn tiny_job(id: &str) -> NewJob {
         crate::app::testing::tiny_job(id, 4)
+    }
+
+    /// The group commit: changes queued up together are written as one batch, each job's
+    /// newest change only, in order per job (a removal after a write removes; a write after a
+    /// removal writes), and every change is acknowledged only once its batch is on disk.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn records_are_group_committed_newest_per_job() {
+        let dir = std::env::temp_dir().join(format!("voxd-localq-group-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let store: Arc<dyn VolumeStore> =
+            Arc::new(crate::store::fs::FsStore::open(&dir, 1 << 20).unwrap());
+        let (tx, rx) = mpsc::unbounded_channel();
+        let mut acks = Vec::new();
+        // 10 jobs × 30 versions, queued before the writer starts: one batch of 256, then the
+        // rest. Job 3 ends removed, job 4 removed and then written again.
+        for v in 0..30 {
+            for j in 0..10 {
+                let (ack, done) = oneshot::channel();
+                let bytes = match (j, v) {
+                    (3, 29) | (4, 28) => None,
+                    _ => Some(Bytes::from(format!("{{\"job\":{j},\"v\":{v}}}"))),
+                };
+                tx.send((format!("{j:016x}"), bytes, ack)).unwrap();
+                acks.push(done);
+            }
+        }
+        tokio::spawn(write_records(store.clone(), rx));
+        for a in acks {
+            a.await.unwrap();
+        }
+        let mut got: Vec<String> = store
+            .job_records()
+            .await
+            .unwrap()
+            .iter()
+            .map(|b| String::from_utf8(b.to_vec()).unwrap())
+            .collect();
+        got.sort();
+        let want: Vec<String> = (0..10)
+            .filter(|&j| j != 3)
+            .map(|j| format!("{{\"job\":{j},\"v\":29}}"))
+            .collect();
+        assert_eq!(got, want);
+        // No temporary file is left behind.
+        let left = std::fs::read_dir(dir.join("jobs"))
+            .unwrap()
+            .filter(|e| {
+                !e.as_ref()
+                    .unwrap()
+                    .file_name()
+                    .to_string_lossy()
+                    .ends_with(".json")
+            })
+            .count();
+        assert_eq!(left, 0);
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     /// Finished jobs are remembered up to the limit (plus a tenth), then the oldest are

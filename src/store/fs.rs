@@ -430,6 +430,50 @@ impl VolumeStore for FsStore {
         r
     }
 
+    /// A group commit: every record written (each file synced) and every removal made, then
+    /// the directory synced once for all of them.
+    async fn put_job_records(
+        &self,
+        batch: Vec<(String, Option<Bytes>)>,
+    ) -> Vec<Result<(), StoreError>> {
+        let dir = self.jobs.clone();
+        let n = batch.len();
+        let r = blocking(move || {
+            let mut each: Vec<Result<(), StoreError>> = Vec::with_capacity(batch.len());
+            for (id, bytes) in batch {
+                let p = dir.join(format!("{id}.json"));
+                each.push(match bytes {
+                    _ if !safe_id(&id) => match bytes {
+                        Some(_) => Err(StoreError::Corrupt(format!("bad job id {id:?}"))),
+                        None => Ok(()),
+                    },
+                    Some(record) => atomic::replace_with(&p, |w| {
+                        fault::write(fault::Site::MidJobRecord, w, &record)
+                    })
+                    .map_err(StoreError::from),
+                    None => match std::fs::remove_file(&p) {
+                        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e.into()),
+                        _ => Ok(()),
+                    },
+                });
+            }
+            // Nothing of the batch is durable before this: a failure fails every record.
+            match atomic::sync_dir(&dir) {
+                Ok(()) => Ok(each),
+                Err(e) => Err(StoreError::from(e)),
+            }
+        })
+        .await;
+        let r = match r {
+            Ok(each) => each,
+            Err(e) => (0..n)
+                .map(|_| Err(StoreError::Io(std::io::Error::other(e.to_string()))))
+                .collect(),
+        };
+        self.note_write(r.iter().all(Result::is_ok));
+        r
+    }
+
     async fn delete_job_record(&self, id: &str) -> Result<(), StoreError> {
         if !safe_id(id) {
             return Ok(());

@@ -115,6 +115,22 @@ pub trait VolumeStore: Send + Sync {
     async fn put_job_record(&self, id: &str, record: Bytes) -> Result<(), StoreError>;
     /// Removes job `id`'s record (none is not an error): old finished jobs are forgotten.
     async fn delete_job_record(&self, id: &str) -> Result<(), StoreError>;
+    /// Writes (`Some`) or removes (`None`) several job records (distinct ids), all durable when
+    /// this returns: a group commit. A store may do better than one after the other (the
+    /// directory store syncs the directory once for the whole batch). The result per record.
+    async fn put_job_records(
+        &self,
+        batch: Vec<(String, Option<Bytes>)>,
+    ) -> Vec<Result<(), StoreError>> {
+        let mut out = Vec::with_capacity(batch.len());
+        for (id, bytes) in batch {
+            out.push(match bytes {
+                Some(b) => self.put_job_record(&id, b).await,
+                None => self.delete_job_record(&id).await,
+            });
+        }
+        out
+    }
     /// Every job record, in no particular order.
     async fn job_records(&self) -> Result<Vec<Bytes>, StoreError>;
     /// Keeps the uploaded mesh of a queued job (`id` is the job's), so that whichever process
