@@ -25,7 +25,7 @@ use async_trait::async_trait;
 use bytes::Bytes;
 use tokio::sync::{Notify, mpsc, oneshot, watch};
 
-use super::{Claim, JobQueue, JobRecord, NewJob, QueueStats, State, Timings};
+use super::{Claim, JobQueue, JobRecord, NewJob, Owner, QueueStats, State, Timings};
 use crate::app::{Error, ErrorKind, Prepared, Result};
 use crate::cancel::Control;
 use crate::store::VolumeStore;
@@ -247,6 +247,38 @@ async fn write_records(store: Arc<dyn VolumeStore>, mut rx: mpsc::UnboundedRecei
 }
 
 impl Inner {
+    /// Whether a job of `owner` may be queued now: not closed, room in the queue, the owner
+    /// under its limit of jobs queued or running.
+    fn admits(&self, capacity: usize, owner: Option<&Owner>) -> Result<()> {
+        if self.closed {
+            return Err(Error::new(
+                ErrorKind::ShuttingDown,
+                "the server is shutting down; retry on another replica",
+            ));
+        }
+        if self.queue.len() >= capacity {
+            return Err(Error::new(
+                ErrorKind::QueueFull,
+                format!("{capacity} jobs are already waiting; retry later"),
+            )
+            .retry_after(5));
+        }
+        if let Some(owner) = owner.filter(|o| o.max_jobs > 0) {
+            let active = self
+                .jobs
+                .values()
+                .filter(|j| {
+                    !j.record.state.is_final()
+                        && j.record.key_name.as_deref() == Some(owner.name.as_str())
+                })
+                .count();
+            if active >= owner.max_jobs {
+                return Err(owner.too_many(active));
+            }
+        }
+        Ok(())
+    }
+
     fn view(&self, id: &str) -> Option<JobRecord> {
         let j = self.jobs.get(id)?;
         if j.loaded {
@@ -277,35 +309,14 @@ impl Inner {
 
 #[async_trait]
 impl JobQueue for LocalQueue {
+    async fn admission(&self, owner: Option<&Owner>) -> Result<()> {
+        self.lock().admits(self.capacity, owner)
+    }
+
     async fn submit(&self, job: NewJob) -> Result<JobRecord> {
         let (record, durable) = {
             let mut inner = self.lock();
-            if inner.closed {
-                return Err(Error::new(
-                    ErrorKind::ShuttingDown,
-                    "the server is shutting down; retry on another replica",
-                ));
-            }
-            if inner.queue.len() >= self.capacity {
-                return Err(Error::new(
-                    ErrorKind::QueueFull,
-                    format!("{} jobs are already waiting; retry later", self.capacity),
-                )
-                .retry_after(5));
-            }
-            if let Some(owner) = job.owner.as_ref().filter(|o| o.max_jobs > 0) {
-                let active = inner
-                    .jobs
-                    .values()
-                    .filter(|j| {
-                        !j.record.state.is_final()
-                            && j.record.key_name.as_deref() == Some(owner.name.as_str())
-                    })
-                    .count();
-                if active >= owner.max_jobs {
-                    return Err(owner.too_many(active));
-                }
-            }
+            inner.admits(self.capacity, job.owner.as_ref())?;
             let (done, _) = watch::channel(State::Queued);
             let record = job.queued_record();
             inner.jobs.insert(

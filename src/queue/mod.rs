@@ -190,6 +190,12 @@ pub trait JobQueue: Send + Sync {
     /// Queues a job; refused with `queue-full` (with a retry delay) or `shutting-down`. The job's
     /// record is durable when this returns.
     async fn submit(&self, job: NewJob) -> Result<JobRecord>;
+    /// A cheap look, before an upload is read and parsed, at whether a job would be refused
+    /// now (`queue-full`, `shutting-down`, `too-many-jobs`): what [`JobQueue::submit`] would
+    /// say. Not a promise either way; `submit` decides. By default: nothing to say.
+    async fn admission(&self, _owner: Option<&Owner>) -> Result<()> {
+        Ok(())
+    }
     async fn get(&self, id: &str) -> Result<Option<JobRecord>>;
     /// Waits up to `timeout` for the job to finish; its record then.
     async fn wait(&self, id: &str, timeout: Duration) -> Result<Option<JobRecord>>;

@@ -635,9 +635,19 @@ impl Inner {
     }
 }
 
+/// The refusal of a job when `waiting` jobs wait over all replicas, the shared capacity.
+fn full(waiting: usize) -> Error {
+    Error::new(
+        ErrorKind::QueueFull,
+        format!("{waiting} jobs are already waiting (over all replicas); retry later"),
+    )
+    .retry_after(5)
+}
+
 #[async_trait]
 impl JobQueue for RedisQueue {
-    async fn submit(&self, job: NewJob) -> Result<JobRecord> {
+    /// The shared capacity only (one round trip); the owner's limit is the submit script's.
+    async fn admission(&self, _owner: Option<&crate::queue::Owner>) -> Result<()> {
         let q = &*self.inner;
         if q.is_closed() {
             return Err(Error::new(
@@ -645,18 +655,17 @@ impl JobQueue for RedisQueue {
                 "this replica is shutting down; retry on another",
             ));
         }
-        let full = |n: usize| {
-            Error::new(
-                ErrorKind::QueueFull,
-                format!("{n} jobs are already waiting (over all replicas); retry later"),
-            )
-            .retry_after(5)
-        };
-        // A look before the upload is stored; the submit script checks again, atomically.
         let waiting = q.redis.waiting().await.map_err(|e| q.unavailable(&e))?;
         if waiting >= q.opts.capacity {
             return Err(full(waiting));
         }
+        Ok(())
+    }
+
+    async fn submit(&self, job: NewJob) -> Result<JobRecord> {
+        let q = &*self.inner;
+        // A look before the upload is stored; the submit script checks again, atomically.
+        self.admission(None).await?;
         let record = job.queued_record();
         q.store
             .put_upload(&job.id, job.upload.clone())

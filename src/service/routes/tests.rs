@@ -915,4 +915,19 @@ async fn api_keys_have_their_own_rates_and_job_limits() {
         "{}",
         String::from_utf8_lossy(&r.body)
     );
+    // A full queue (16: 2 of one key and 5 of the other queued so far, 9 more) refuses before
+    // the upload is read or parsed: a body that is no mesh at all is 429 queue-full, not 422.
+    for _ in 0..9 {
+        assert_eq!(submit(&b).await.0.status, StatusCode::ACCEPTED);
+    }
+    let (r, hd) = call_with(
+        &h.app,
+        "POST",
+        "/v1/voxelize?resolution=8",
+        &[("authorization", &b), ("content-type", "model/obj")],
+        b"this is not a mesh",
+    )
+    .await;
+    r.problem(429, "queue-full");
+    assert_eq!(hd["retry-after"], "5");
 }

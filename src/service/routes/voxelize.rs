@@ -129,6 +129,9 @@ pub async fn submit(
     }
     let format = format_of(&q, &headers)?;
     let gzip = check_content_encoding(&headers, true)?;
+    // Refused before the upload is read and parsed when the queue would refuse it anyway: an
+    // overloaded server spends nothing on meshes it cannot take.
+    app.queue.admission(owner.as_ref()).await?;
     let body = read_body(&app, &headers, body, limits.max_body_bytes).await?;
     // The body's content is at fault, not the request's form: like a gzip stream that breaks
     // off, an invalid mesh (422).
