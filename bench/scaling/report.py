@@ -294,7 +294,7 @@ def main():
                       f"{w['diagnose']:.3f} | {w['voxelize']:.3f} | {w['write']:.3f} | {w['runs']} |")
         md.append("")
     wins = [r for r in tri + res if r.get("gpu_faster_passes")]
-    md.append("### Cells where the GPU engine (lavapipe) was faster\n")
+    md.append("### Cells where the GPU engine (lavapipe) was faster in at least one pass\n")
     if wins:
         md.append("| series | triangles | grid | method | cpu | gpu | cpu / gpu | passes where gpu was faster |")
         md.append("|---|---|---|---|---|---|---|---|")
