@@ -388,31 +388,44 @@ def dilate1(a):
     return ndimage.binary_dilation(a, structure=np.ones((3, 3, 3), bool))
 
 
-def cross_check(results, surface, tol_frac):
+def cross_check(results, surface, tol_frac, gross_frac=0.01):
     """results: name -> bool grid (solid tools). surface: voxd's surface volume. Compares on the
     voxels outside surface dilated by one voxel: their centres are > 1.5 voxels (Chebyshev) from
-    every triangle. Reference = majority of the solid results there, ties broken by libigl's
-    winding number when it ran, else by voxd."""
+    every triangle. Reference = majority of the solid results there, after leaving out tools
+    that differ from a first majority on more than gross_frac of those voxels (a fill that leaked
+    must not decide between the others); ties are broken by libigl's winding number when it is
+    among them, and are otherwise left undecided (counted, held against no tool)."""
     far = ~dilate1(surface)
     nfar = int(far.sum())
     names = [n for n in SOLID if n in results]
     if not names:
         return {"far_voxels": nfar}
-    stack = np.stack([results[n][far] for n in names])
-    votes = stack.sum(axis=0)
-    k = len(names)
-    ref = votes * 2 > k
-    tie = votes * 2 == k
+    stack = {n: results[n][far] for n in names}
+
+    def majority(ns):
+        votes = sum(stack[n].astype(np.int32) for n in ns)
+        return votes * 2 > len(ns), votes * 2 == len(ns)
+
+    ref, _ = majority(names)
+    gross = [n for n in names if int((stack[n] != ref).sum()) > gross_frac * nfar]
+    core = [n for n in names if n not in gross] or names
+    ref, tie = majority(core)
+    undecided = np.zeros_like(ref)
     if tie.any():
-        tb = results["igl"][far] if "igl" in results else results[names[0]][far]
-        ref = np.where(tie, tb, ref)
-    out = {"far_voxels": nfar, "reference": "majority of " + "+".join(names), "ties": int(tie.sum()),
-           "tools": {}}
-    for i, n in enumerate(names):
-        d = int((stack[i] != ref).sum())
-        dv = int((stack[i] != results["voxd"][far]).sum()) if "voxd" in results else None
+        if "igl" in core:
+            ref = np.where(tie, stack["igl"], ref)
+        else:
+            undecided = tie
+    decided = ~undecided
+    out = {"far_voxels": nfar, "reference": "majority of " + "+".join(core), "left_out": gross,
+           "ties": int(tie.sum()), "undecided": int(undecided.sum()), "tools": {}}
+    for n in names:
+        diff = (stack[n] != ref) & decided
+        d = int(diff.sum())
+        dv = int((stack[n] != stack["voxd"]).sum()) if "voxd" in stack else None
         out["tools"][n] = {"vs_reference": d, "vs_voxd": dv,
-                           "extra": int((stack[i] & ~ref).sum()), "missing": int((~stack[i] & ref).sum()),
+                           "extra": int((stack[n] & ~ref & decided).sum()),
+                           "missing": int((~stack[n] & ref & decided).sum()),
                            "wrong": d > max(tol_frac * nfar, 0)}
     return out
 
@@ -799,8 +812,9 @@ def report(doc):
     L.append("### Cross-check (voxels whose centre is more than 1.5 voxels from the surface)")
     L.append("")
     L.append("Far voxels = outside voxd's `surface` volume dilated by one voxel (26-neighbourhood). Reference = "
-             "majority of the solid results there (ties: libigl's winding number). Each entry: voxels that differ from the "
-             "reference (extra / missing). Open3D (surface only) against voxd `--method surface`: "
+             "majority of the solid results there, leaving out a result more than 1 % off a first majority (a fill "
+             "that leaked); ties go to libigl's winding number, and without it stay undecided. Each entry: voxels "
+             "that differ from the reference (extra / missing). Open3D (surface only) against voxd `--method surface`: "
              "Jaccard index and the voxels only one of them marks.")
     L.append("")
     L.append("| mesh | grid | far voxels | voxd | trimesh | VTK | libigl | Open3D vs voxd surface |")
@@ -817,7 +831,8 @@ def report(doc):
         o = cc.get("open3d_vs_voxd_surface")
         os_ = (f"{o['jaccard'] * 100:.2f} % (only voxd {o['only_voxd']:,}, only Open3D {o['only_open3d']:,})"
                if o else "–")
-        L.append(f"| {c['mesh']} | {c['resolution']}³ | {cc['far_voxels']:,} | " + " | ".join(row) + f" | {os_} |")
+        und = f" ({cc['undecided']:,} undecided)" if cc.get("undecided") else ""
+        L.append(f"| {c['mesh']} | {c['resolution']}³ | {cc['far_voxels']:,}{und} | " + " | ".join(row) + f" | {os_} |")
     L.append("")
     sk = [(c["mesh"], c["resolution"], t, why) for c in cells for t, why in c.get("skipped", {}).items()]
     fl = [(c["mesh"], c["resolution"], t, e["failed"]) for c in cells for t, e in c.get("tools", {}).items()
