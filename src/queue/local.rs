@@ -203,14 +203,14 @@ fn parse_record(bytes: &[u8]) -> Option<JobRecord> {
     serde_json::from_value(v).ok()
 }
 
-/// The one writer of job records: in order, each acknowledged once durable.
 /// Records waiting to be written at most per group commit.
 const GROUP_MAX: usize = 256;
 
-/// The record writer: a group commit. Whatever has queued up while the last batch was being
-/// written goes in the next one, each job's newest record only (a job that was queued, started
-/// and finished meanwhile is written once, in its last state), and every change in a batch is
-/// acknowledged once the whole batch is durable. Order per job is kept: a batch holds the
+/// The one writer of job records, in order, each acknowledged once durable: a group commit.
+/// Whatever has queued up while the last batch was being written goes in the next one, each
+/// job's newest record only (a job that was queued, started and finished meanwhile is written
+/// once, in its last state), and every change in a batch is acknowledged once the whole batch
+/// is durable. Order per job is kept: a batch holds the
 /// newest change of each of its jobs, and batches are written one after the other.
 async fn write_records(store: Arc<dyn VolumeStore>, mut rx: mpsc::UnboundedReceiver<Write>) {
     while let Some(first) = rx.recv().await {

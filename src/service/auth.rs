@@ -17,7 +17,6 @@
 
 use std::num::NonZeroU32;
 use std::path::Path;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use axum::http::{HeaderMap, HeaderValue, header};
@@ -26,6 +25,7 @@ use governor::{DefaultDirectRateLimiter, Quota, RateLimiter};
 use sha2::{Digest, Sha256};
 
 use crate::app::{Error, ErrorKind};
+use crate::queue::Owner;
 
 /// A key's limits. `rate` 0: no rate limit; `max_jobs` 0: no job limit.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -47,16 +47,8 @@ impl KeyLimits {
     };
 }
 
-/// The key a request was authenticated with, as handlers see it (a request extension).
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Caller {
-    pub name: Arc<str>,
-    /// Jobs this key may have queued or running at once (0: no limit).
-    pub max_jobs: usize,
-}
-
 struct Key {
-    name: Arc<str>,
+    name: String,
     digest: [u8; 32],
     limits: KeyLimits,
     limiter: Option<DefaultDirectRateLimiter>,
@@ -162,7 +154,7 @@ impl ApiKeys {
                 Some(l) => parse_limits(l, defaults).map_err(|e| at(format!("{name}: {e}")))?,
                 None => defaults,
             };
-            if keys.iter().any(|k| *k.name == *name) {
+            if keys.iter().any(|k| k.name == name) {
                 return Err(at(format!("{name}: a second key of that name")));
             }
             if keys.iter().any(|k| k.digest == digest) {
@@ -232,9 +224,10 @@ impl ApiKeys {
         path == "/v1" || path.starts_with("/v1/") || (self.protect_metrics && path == "/metrics")
     }
 
-    /// The caller of a request with these headers, or why it is refused: `401 unauthorized`
-    /// (with the `WWW-Authenticate` challenge to send) or `429 rate-limited`.
-    pub fn authenticate(&self, headers: &HeaderMap) -> Result<Caller, Refusal> {
+    /// The key a request with these headers was made with, as the owner of the jobs it
+    /// submits (handlers see it as a request extension), or why it is refused:
+    /// `401 unauthorized` (with the `WWW-Authenticate` challenge to send) or `429 rate-limited`.
+    pub fn authenticate(&self, headers: &HeaderMap) -> Result<Owner, Refusal> {
         let unauthorized = |detail: &str, error: Option<&str>| {
             self.unauthorized.fetch_add(1, Ordering::Relaxed);
             let challenge = match error {
@@ -291,7 +284,7 @@ impl ApiKeys {
                 challenge: None,
             });
         }
-        Ok(Caller {
+        Ok(Owner {
             name: key.name.clone(),
             max_jobs: key.limits.max_jobs,
         })

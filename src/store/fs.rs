@@ -199,6 +199,15 @@ impl FsStore {
         Ok(Some(meta))
     }
 
+    /// One job record written (`Some`) or removed, as a batch of one.
+    async fn one_job_record(&self, id: &str, bytes: Option<Bytes>) -> Result<(), StoreError> {
+        let batch = vec![(id.to_string(), bytes)];
+        VolumeStore::put_job_records(self, batch)
+            .await
+            .pop()
+            .expect("one result per record")
+    }
+
     fn note_write(&self, ok: bool) {
         let mut i = self.lock();
         i.last_write_failed = !ok;
@@ -416,18 +425,7 @@ impl VolumeStore for FsStore {
     }
 
     async fn put_job_record(&self, id: &str, record: Bytes) -> Result<(), StoreError> {
-        if !safe_id(id) {
-            return Err(StoreError::Corrupt(format!("bad job id {id:?}")));
-        }
-        let p = self.jobs.join(format!("{id}.json"));
-        let r = blocking(move || {
-            Ok(atomic::write_with(&p, |w| {
-                fault::write(fault::Site::MidJobRecord, w, &record)
-            })?)
-        })
-        .await;
-        self.note_write(r.is_ok());
-        r
+        self.one_job_record(id, Some(record)).await
     }
 
     /// A group commit: every record written (each file synced) and every removal made, then
@@ -443,10 +441,11 @@ impl VolumeStore for FsStore {
             for (id, bytes) in batch {
                 let p = dir.join(format!("{id}.json"));
                 each.push(match bytes {
-                    _ if !safe_id(&id) => match bytes {
-                        Some(_) => Err(StoreError::Corrupt(format!("bad job id {id:?}"))),
-                        None => Ok(()),
-                    },
+                    // A removal of a job that cannot exist has nothing to do.
+                    None if !safe_id(&id) => Ok(()),
+                    Some(_) if !safe_id(&id) => {
+                        Err(StoreError::Corrupt(format!("bad job id {id:?}")))
+                    }
                     Some(record) => atomic::replace_with(&p, |w| {
                         fault::write(fault::Site::MidJobRecord, w, &record)
                     })
@@ -475,15 +474,7 @@ impl VolumeStore for FsStore {
     }
 
     async fn delete_job_record(&self, id: &str) -> Result<(), StoreError> {
-        if !safe_id(id) {
-            return Ok(());
-        }
-        let p = self.jobs.join(format!("{id}.json"));
-        blocking(move || match std::fs::remove_file(&p) {
-            Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e.into()),
-            _ => Ok(()),
-        })
-        .await
+        self.one_job_record(id, None).await
     }
 
     async fn job_records(&self) -> Result<Vec<Bytes>, StoreError> {

@@ -180,9 +180,9 @@ async fn request_context(State(app): AppState, mut req: Request, next: Next) -> 
         .or_else(|| {
             let keys = app.keys.as_ref().filter(|k| k.guards(&path))?;
             match keys.authenticate(req.headers()) {
-                Ok(caller) => {
-                    span.record("key", tracing::field::display(&caller.name));
-                    req.extensions_mut().insert(caller);
+                Ok(owner) => {
+                    span.record("key", tracing::field::display(&owner.name));
+                    req.extensions_mut().insert(owner);
                     None
                 }
                 Err(refusal) => {

@@ -93,14 +93,11 @@ fn format_of(q: &VoxelizeQuery, headers: &HeaderMap) -> app::Result<Option<Forma
 pub async fn submit(
     axum::extract::State(app): AppState,
     Query(q): Query<VoxelizeQuery>,
-    caller: Option<axum::Extension<crate::service::auth::Caller>>,
+    owner: Option<axum::Extension<crate::queue::Owner>>,
     headers: HeaderMap,
     body: Body,
 ) -> Result<Response, Problem> {
-    let owner = caller.map(|axum::Extension(c)| crate::queue::Owner {
-        name: c.name.to_string(),
-        max_jobs: c.max_jobs,
-    });
+    let owner = owner.map(|axum::Extension(o)| o);
     let method = match q.method {
         None => MethodSpec::Bits(crate::engine::Method::Solid),
         Some(m) => MethodSpec::new(crate::names::Named::name(m), q.density_factor)?,
