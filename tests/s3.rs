@@ -19,18 +19,10 @@ use serde_json::Value;
 use voxd::engine::Method;
 use voxd::grid::GridSpec;
 use voxd::store::s3::{Location, S3Store};
-use voxd::store::{ByteStream, SourceInfo, StoreError, VolumeMeta, VolumeStore};
+use voxd::store::{ByteStream, SourceInfo, StoreError, VolumeMeta, VolumeStore, sha256_hex};
 
 use crate::common::s3::{self as s3, BUCKET, Weed};
 use crate::common::{Resp, data, http_exchange, voxelize_file};
-
-fn sha256_hex(b: &[u8]) -> String {
-    use sha2::Digest;
-    sha2::Sha256::digest(b)
-        .iter()
-        .map(|x| format!("{x:02x}"))
-        .collect()
-}
 
 /// Metadata that describes `data` truthfully.
 fn meta(id: &str, data: &[u8]) -> VolumeMeta {

@@ -66,14 +66,18 @@ impl Reply {
         serde_json::from_slice(&self.body)
             .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&self.body)))
     }
-    /// Asserts a problem document of `slug` with `status`; its detail.
-    fn problem(&self, status: u16, slug: &str) -> String {
+    /// Asserts the status (showing the body when it is another).
+    fn ok(&self, status: StatusCode) {
         assert_eq!(
-            self.status.as_u16(),
+            self.status,
             status,
             "{}",
             String::from_utf8_lossy(&self.body)
         );
+    }
+    /// Asserts a problem document of `slug` with `status`; its detail.
+    fn problem(&self, status: u16, slug: &str) -> String {
+        self.ok(StatusCode::from_u16(status).unwrap());
         assert_eq!(self.content_type, "application/problem+json");
         let p = self.json();
         assert_eq!(
@@ -314,12 +318,7 @@ async fn a_voxelization_through_the_router() {
         TETRA,
     )
     .await;
-    assert_eq!(
-        r.status,
-        StatusCode::CREATED,
-        "{}",
-        String::from_utf8_lossy(&r.body)
-    );
+    r.ok(StatusCode::CREATED);
     let meta = r.json();
     let id = meta["id"].as_str().unwrap().to_string();
     assert_eq!(meta["name"], "t");
@@ -433,12 +432,7 @@ async fn contract_edges() {
         TETRA,
     )
     .await;
-    assert_eq!(
-        r.status,
-        StatusCode::CREATED,
-        "{}",
-        String::from_utf8_lossy(&r.body)
-    );
+    r.ok(StatusCode::CREATED);
     let id = r.json()["id"].as_str().unwrap().to_string();
     let d = call(
         &h.app,
@@ -520,12 +514,7 @@ async fn contract_edges() {
     let euro = "%E2%82%AC";
     let name = |n: usize| format!("/v1/voxelize?resolution=8&wait=30&name={}", euro.repeat(n));
     let (r, _) = call_with(&h.app, "POST", &name(256), &obj, TETRA).await;
-    assert_eq!(
-        r.status,
-        StatusCode::CREATED,
-        "{}",
-        String::from_utf8_lossy(&r.body)
-    );
+    r.ok(StatusCode::CREATED);
     assert_eq!(r.json()["name"], "€".repeat(256));
     h.app
         .store
@@ -565,12 +554,7 @@ async fn contract_edges() {
     for o in ["0,0,0", "100,100,100"] {
         let uri = format!("/v1/voxelize?origin={o}&voxel_size=0.25&dims=4,4,4&wait=30");
         let (r, _) = call_with(&h.app, "POST", &uri, &obj, TETRA).await;
-        assert_eq!(
-            r.status,
-            StatusCode::CREATED,
-            "{}",
-            String::from_utf8_lossy(&r.body)
-        );
+        r.ok(StatusCode::CREATED);
         ids.push(r.json()["id"].as_str().unwrap().to_string());
     }
     let body = format!(r#"{{"op":"union","operands":["{}","{}"]}}"#, ids[0], ids[1]);
@@ -596,12 +580,7 @@ async fn downloads_stream_in_bounded_chunks() {
         TETRA,
     )
     .await;
-    assert_eq!(
-        r.status,
-        StatusCode::CREATED,
-        "{}",
-        String::from_utf8_lossy(&r.body)
-    );
+    r.ok(StatusCode::CREATED);
     let id = r.json()["id"].as_str().unwrap().to_string();
     let get = |uri: String| {
         let app = h.app.clone();
@@ -865,12 +844,7 @@ async fn api_keys_have_their_own_rates_and_job_limits() {
     let mut ids = Vec::new();
     for _ in 0..2 {
         let (r, _) = submit(&a).await;
-        assert_eq!(
-            r.status,
-            StatusCode::ACCEPTED,
-            "{}",
-            String::from_utf8_lossy(&r.body)
-        );
+        r.ok(StatusCode::ACCEPTED);
         assert_eq!(r.json()["key_name"], "limited");
         ids.push(r.json()["id"].as_str().unwrap().to_string());
     }
@@ -897,24 +871,14 @@ async fn api_keys_have_their_own_rates_and_job_limits() {
         b"",
     )
     .await;
-    assert_eq!(
-        r.status,
-        StatusCode::OK,
-        "{}",
-        String::from_utf8_lossy(&r.body)
-    );
+    r.ok(StatusCode::OK);
     let (r, hd) = call_with(&h.app, "GET", "/v1/volumes", &[("authorization", &a)], b"").await;
     r.problem(429, "rate-limited");
     assert_eq!(hd["retry-after"], "1");
     // After a second, one more request is allowed: a submit, in the place the cancel freed.
     tokio::time::sleep(std::time::Duration::from_millis(1100)).await;
     let (r, _) = submit(&a).await;
-    assert_eq!(
-        r.status,
-        StatusCode::ACCEPTED,
-        "{}",
-        String::from_utf8_lossy(&r.body)
-    );
+    r.ok(StatusCode::ACCEPTED);
     // A full queue (16: 2 of one key and 5 of the other queued so far, 9 more) refuses before
     // the upload is read or parsed: a body that is no mesh at all is 429 queue-full, not 422.
     for _ in 0..9 {
