@@ -401,6 +401,17 @@ impl Inner {
         *self.closed.borrow()
     }
 
+    /// `shutting-down` once this replica is closed.
+    fn open_for_jobs(&self) -> Result<()> {
+        if self.is_closed() {
+            return Err(Error::new(
+                ErrorKind::ShuttingDown,
+                "this replica is shutting down; retry on another",
+            ));
+        }
+        Ok(())
+    }
+
     /// Removes what is left of a job that has ended: its upload, and its volume unless the
     /// job succeeded with it (a run that lost its job may have stored one).
     async fn clean_up(&self, id: &str, keep_volume: bool) {
@@ -649,12 +660,7 @@ impl JobQueue for RedisQueue {
     /// The shared capacity only (one round trip); the owner's limit is the submit script's.
     async fn admission(&self, _owner: Option<&crate::queue::Owner>) -> Result<()> {
         let q = &*self.inner;
-        if q.is_closed() {
-            return Err(Error::new(
-                ErrorKind::ShuttingDown,
-                "this replica is shutting down; retry on another",
-            ));
-        }
+        q.open_for_jobs()?;
         let waiting = q.redis.waiting().await.map_err(|e| q.unavailable(&e))?;
         if waiting >= q.opts.capacity {
             return Err(full(waiting));
@@ -664,8 +670,9 @@ impl JobQueue for RedisQueue {
 
     async fn submit(&self, job: NewJob) -> Result<JobRecord> {
         let q = &*self.inner;
-        // A look before the upload is stored; the submit script checks again, atomically.
-        self.admission(None).await?;
+        // The shared capacity was looked at by `admission` before the upload was read (the
+        // route asks it); the submit script decides, atomically.
+        q.open_for_jobs()?;
         let record = job.queued_record();
         q.store
             .put_upload(&job.id, job.upload.clone())
