@@ -24,6 +24,12 @@ pub async fn run(
     store: &dyn VolumeStore,
     claim: &Claim,
 ) -> Result<VolumeMeta> {
+    let built = build(engine, claim).await?;
+    keep(store, claim, built).await
+}
+
+/// The engine's part of [`run`]: the volume and its metadata, not yet stored.
+async fn build(engine: Arc<dyn Engine>, claim: &Claim) -> Result<metadata::Built> {
     let work = claim.work.clone();
     let (id, name) = (claim.id.clone(), claim.name.clone());
     let ctl = claim.control.clone();
@@ -48,7 +54,15 @@ pub async fn run(
         Err(Canceled::DeadlinePassed) if built.is_err() => return Err(timed_out(claim.timeout)),
         _ => {}
     }
-    let mut built = built?;
+    built
+}
+
+/// The store's part of [`run`]: the volume under its id, once the claim's guard agrees.
+async fn keep(
+    store: &dyn VolumeStore,
+    claim: &Claim,
+    mut built: metadata::Built,
+) -> Result<VolumeMeta> {
     if let Some(id) = &claim.volume_id {
         built.meta.id = id.clone();
     }
@@ -80,28 +94,57 @@ pub trait JobObserver: Send + Sync {
     fn job_done(&self, secs: f64, result: &Result<VolumeMeta>);
 }
 
-/// Takes jobs from `queue` and runs them until the queue is closed and drained.
+/// Jobs a worker may have between its engine and the store: the one it is building and up to
+/// this many minus one whose volumes are still being written. While the store syncs one job's
+/// volume (a group commit gathers the volumes written meanwhile), the worker builds the next.
+pub const JOBS_PER_WORKER: usize = 4;
+
+/// Takes jobs from `queue` and runs them until the queue is closed and drained. One job at a time
+/// is on the engine; its volume is stored by a task of its own, so that the next job starts
+/// while the store syncs (at most [`JOBS_PER_WORKER`] jobs in all). A job is finished in the
+/// queue, and its waiters answered, only once its volume is stored. Returns when every job it
+/// took is finished.
 pub async fn work(
     queue: Arc<dyn JobQueue>,
     store: Arc<dyn VolumeStore>,
     engine: Arc<dyn Engine>,
     observer: Arc<dyn JobObserver>,
 ) {
-    while let Some(claim) = queue.next().await {
+    let places = Arc::new(tokio::sync::Semaphore::new(JOBS_PER_WORKER));
+    let mut storing = tokio::task::JoinSet::new();
+    loop {
+        // A place first: a job is not taken from the queue before this worker can run it.
+        let place = places
+            .clone()
+            .acquire_owned()
+            .await
+            .expect("the semaphore is never closed");
+        let Some(claim) = queue.next().await else {
+            break;
+        };
         let span = tracing::info_span!("job", id = %claim.id, method = claim.work.method.name(), dims = ?claim.work.grid.dims);
         span.in_scope(|| tracing::info!("job started"));
         let t = Instant::now();
-        let result = run(engine.clone(), &*store, &claim)
-            .instrument(span.clone())
-            .await;
-        let secs = t.elapsed().as_secs_f64();
-        span.in_scope(|| match &result {
-            Ok(m) => tracing::info!(volume = %m.id, secs, "job succeeded"),
-            Err(e) => tracing::warn!(problem = %e.detail, secs, "job failed"),
-        });
-        observer.job_done(secs, &result);
-        queue.finish(&claim.id, result.map(|m| m.id)).await;
+        let built = build(engine.clone(), &claim).instrument(span.clone()).await;
+        let (queue, store, observer) = (queue.clone(), store.clone(), observer.clone());
+        let end = async move {
+            let result = match built {
+                Ok(built) => keep(&*store, &claim, built).await,
+                Err(e) => Err(e),
+            };
+            let secs = t.elapsed().as_secs_f64();
+            match &result {
+                Ok(m) => tracing::info!(volume = %m.id, secs, "job succeeded"),
+                Err(e) => tracing::warn!(problem = %e.detail, secs, "job failed"),
+            }
+            observer.job_done(secs, &result);
+            queue.finish(&claim.id, result.map(|m| m.id)).await;
+            drop(place);
+        };
+        storing.spawn(end.instrument(span));
+        while storing.try_join_next().is_some() {}
     }
+    while storing.join_next().await.is_some() {}
 }
 
 #[cfg(test)]
