@@ -9,9 +9,9 @@
 //! that does not describe its bytes. The quota counts both files of a volume, data and metadata.
 //!
 //! Volumes are written by a group commit: puts that arrive while a group is being written wait
-//! for the next one, which syncs all their files together and the directory twice (data, then
-//! metadata), instead of four syncs per volume ([`commit_group`]). A put returns once its
-//! volume is durable, as before.
+//! for the next one, which syncs all their files side by side and the directory once, instead of
+//! four sequential syncs per volume ([`commit_group`]). A put returns once its volume is
+//! durable, as before.
 //!
 //! The catalogue is held in memory (read once at open; a volume asked for by id that another
 //! process sharing the directory stored since is read from disk and catalogued then); every
@@ -117,11 +117,11 @@ impl FsStore {
                     let m = serde_json::from_slice::<VolumeMeta>(&b).ok()?;
                     Some((m, b.len() as u64))
                 });
-                let data = parsed.as_ref().and_then(|(m, _)| {
-                    std::fs::metadata(volumes.join(format!("{}.vxl", m.id))).ok()
-                });
+                let data = parsed
+                    .as_ref()
+                    .map(|(m, _)| std::fs::metadata(volumes.join(format!("{}.vxl", m.id))));
                 match (parsed, data) {
-                    (Some((m, json_len)), Some(data)) => {
+                    (Some((m, json_len)), Some(Ok(data))) => {
                         if data.len() != m.bytes {
                             // Kept listed, so that reading it says what is wrong (Corrupt).
                             tracing::error!(
@@ -133,6 +133,13 @@ impl FsStore {
                         }
                         let stored = data.len() + json_len;
                         index.insert(m.id.clone(), Entry { meta: m, stored });
+                    }
+                    (Some((m, _)), Some(Err(e))) if e.kind() == std::io::ErrorKind::NotFound => {
+                        // Metadata whose data file is missing: a group commit interrupted before
+                        // its directory sync kept this rename and not the data's. Never
+                        // acknowledged, so nothing is lost by removing it.
+                        tracing::warn!(id = %m.id, "removing the metadata of a volume whose data was never stored (an interrupted write)");
+                        let _ = std::fs::remove_file(p);
                     }
                     _ => tracing::warn!(path = %p.display(), "ignoring unreadable volume metadata"),
                 }
@@ -453,8 +460,8 @@ impl VolumeStore for FsStore {
         self.one_job_record(id, Some(record)).await
     }
 
-    /// A group commit: every record written (each file synced) and every removal made, then
-    /// the directory synced once for all of them.
+    /// A group commit: every record written (each file synced, side by side) and every
+    /// removal made, then the directory synced once for all of them.
     async fn put_job_records(
         &self,
         batch: Vec<(String, Option<Bytes>)>,
@@ -462,25 +469,24 @@ impl VolumeStore for FsStore {
         let dir = self.jobs.clone();
         let n = batch.len();
         let r = blocking(move || {
-            let mut each: Vec<Result<(), StoreError>> = Vec::with_capacity(batch.len());
-            for (id, bytes) in batch {
+            let each = in_parallel(&batch, |(id, bytes)| {
                 let p = dir.join(format!("{id}.json"));
-                each.push(match bytes {
+                match bytes {
                     // A removal of a job that cannot exist has nothing to do.
-                    None if !safe_id(&id) => Ok(()),
-                    Some(_) if !safe_id(&id) => {
+                    None if !safe_id(id) => Ok(()),
+                    Some(_) if !safe_id(id) => {
                         Err(StoreError::Corrupt(format!("bad job id {id:?}")))
                     }
                     Some(record) => atomic::replace_with(&p, |w| {
-                        fault::write(fault::Site::MidJobRecord, w, &record)
+                        fault::write(fault::Site::MidJobRecord, w, record)
                     })
                     .map_err(StoreError::from),
                     None => match std::fs::remove_file(&p) {
                         Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e.into()),
                         _ => Ok(()),
                     },
-                });
-            }
+                }
+            });
             // Nothing of the batch is durable before this: a failure fails every record.
             match atomic::sync_dir(&dir) {
                 Ok(()) => Ok(each),
@@ -609,13 +615,41 @@ fn commit_volumes(dir: &Path, inner: &Mutex<Inner>, queued: &std::sync::mpsc::Re
     }
 }
 
+/// `f` of every item, on up to [`GROUP_THREADS`] threads (a lone item on this one): the
+/// file writes and syncs of a group commit run side by side, so that the file system can fold
+/// their syncs into shared journal commits rather than make each wait for the one before.
+fn in_parallel<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+    if items.len() <= 1 {
+        return items.iter().map(f).collect();
+    }
+    let threads = items.len().min(GROUP_THREADS);
+    let per = items.len().div_ceil(threads);
+    let mut out: Vec<Option<R>> = (0..items.len()).map(|_| None).collect();
+    std::thread::scope(|s| {
+        for (items, out) in items.chunks(per).zip(out.chunks_mut(per)) {
+            let f = &f;
+            s.spawn(move || {
+                for (item, o) in items.iter().zip(out) {
+                    *o = Some(f(item));
+                }
+            });
+        }
+    });
+    out.into_iter()
+        .map(|r| r.expect("every item done"))
+        .collect()
+}
+
 /// Writes a group of volumes with the guarantees of one atomic put each and a fraction of the
 /// syncs: every volume's two files are written to temporary files and fsynced (on up to
 /// [`GROUP_THREADS`] threads, so the file system can fold their syncs into shared journal
-/// commits); then every `.vxl` is renamed into place and the directory synced once; then every
-/// `.json` (the commit record) is renamed and the directory synced once more. So metadata is
-/// never in place before its data is durable, and every `Ok` means both files are. A volume
-/// whose files could not be written fails alone; a failed directory sync fails the group.
+/// commits); then every `.vxl` is renamed into place, then every `.json` (the commit record), and
+/// the directory is synced once. A live reader never sees metadata without its data (each
+/// volume's data is renamed before its metadata), and every `Ok` means both files are durable.
+/// A crash before the directory sync may keep some of the group's renames and not others;
+/// those volumes were never acknowledged, and [`FsStore::open`] removes whichever half is left
+/// (data without metadata, or metadata whose data is missing). A volume whose files could not be
+/// written fails alone; a failed directory sync fails the group.
 fn commit_group(dir: &Path, group: &[Pending]) -> Vec<Result<(), StoreError>> {
     let stage = |p: &Pending| -> Result<(atomic::Staged, atomic::Staged), StoreError> {
         let id = &p.meta.id;
@@ -627,26 +661,11 @@ fn commit_group(dir: &Path, group: &[Pending]) -> Vec<Result<(), StoreError>> {
         })?;
         Ok((data, json))
     };
-    let mut staged: Vec<Option<Result<_, StoreError>>> = (0..group.len()).map(|_| None).collect();
-    if group.len() == 1 {
-        staged[0] = Some(stage(&group[0]));
-    } else {
-        let threads = group.len().min(GROUP_THREADS);
-        let per = group.len().div_ceil(threads);
-        std::thread::scope(|s| {
-            for (items, out) in group.chunks(per).zip(staged.chunks_mut(per)) {
-                s.spawn(move || {
-                    for (p, o) in items.iter().zip(out) {
-                        *o = Some(stage(p));
-                    }
-                });
-            }
-        });
-    }
+    let staged = in_parallel(group, stage);
     let mut outcomes: Vec<Result<(), StoreError>> = Vec::with_capacity(group.len());
     let mut records = Vec::with_capacity(group.len());
     for s in staged {
-        match s.expect("every volume staged") {
+        match s {
             Ok((data, json)) => match data.commit() {
                 Ok(()) => {
                     outcomes.push(Ok(()));
@@ -668,11 +687,6 @@ fn commit_group(dir: &Path, group: &[Pending]) -> Vec<Result<(), StoreError>> {
             *o = Err(StoreError::Io(std::io::Error::new(e.kind(), e.to_string())));
         }
     };
-    if let Err(e) = atomic::sync_dir(dir) {
-        // No commit record goes in: the data files are leftovers, removed at the next open.
-        fail_all(&mut outcomes, e);
-        return outcomes;
-    }
     for _ in records.iter().flatten() {
         fault::point(fault::Site::AfterData);
     }
@@ -700,7 +714,8 @@ fn commit_group(dir: &Path, group: &[Pending]) -> Vec<Result<(), StoreError>> {
 ///
 /// - `mid-data`: inside a put's `.vxl` write, half the bytes in the temporary file, not renamed
 ///   (the S3 store: a data object of half the bytes);
-/// - `after-data` (alias `before-commit`): a put's `.vxl` is durable, its metadata not written;
+/// - `after-data` (alias `before-commit`): a put's `.vxl` is written and in place, its metadata
+///   not;
 /// - `after-commit`: both files durable, the catalogue and the caller not told;
 /// - `mid-job-record`: inside a job record's write, half of it in the temporary file (the S3
 ///   store: before the PUT, which is atomic).
@@ -1152,6 +1167,43 @@ mod tests {
                 );
             }
         });
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// What an interrupted group commit can leave, either half of a volume, is removed at open;
+    /// whole volumes stay.
+    #[test]
+    fn open_removes_either_half_of_an_interrupted_volume() {
+        let dir = scratch("halves");
+        let volumes = dir.join("volumes");
+        std::fs::create_dir_all(&volumes).unwrap();
+        let data = vec![9u8; 64];
+        for (id, vxl, json) in [
+            ("whole", true, true),
+            ("nodata", false, true),
+            ("nometa", true, false),
+        ] {
+            if vxl {
+                std::fs::write(volumes.join(format!("{id}.vxl")), &data).unwrap();
+            }
+            if json {
+                let m = serde_json::to_vec_pretty(&meta(id, &data)).unwrap();
+                std::fs::write(volumes.join(format!("{id}.json")), m).unwrap();
+            }
+        }
+        let store = FsStore::open(&dir, 1 << 20).unwrap();
+        let mut names: Vec<String> = std::fs::read_dir(&volumes)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        assert_eq!(names, ["whole.json", "whole.vxl"]);
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .build()
+            .unwrap();
+        let listed = rt.block_on(store.list(None, 10)).unwrap().0;
+        assert_eq!(listed.len(), 1);
+        assert_eq!(listed[0].id, "whole");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
