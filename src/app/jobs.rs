@@ -33,7 +33,8 @@ async fn build(engine: Arc<dyn Engine>, claim: &Claim) -> Result<metadata::Built
     let work = claim.work.clone();
     let (id, name) = (claim.id.clone(), claim.name.clone());
     let ctl = claim.control.clone();
-    let built = blocking(move || {
+    let gpu = engine.name() == "gpu";
+    let job = move || {
         let v = super::voxelize::run(&work, &*engine, &ctl)?;
         metadata::build(
             &v.volume,
@@ -45,8 +46,17 @@ async fn build(engine: Arc<dyn Engine>, claim: &Claim) -> Result<metadata::Built
             name,
             &engine.describe(),
         )
-    })
-    .await;
+    };
+    // The GPU engine waits on its device (under its lock): not on the CPU pool, where a job
+    // taken up by a pool thread waiting inside another could wait for that lock forever.
+    let built = if gpu {
+        tokio::task::spawn_blocking(job)
+            .await
+            .map_err(|e| Error::internal(format!("the job panicked: {e}")))
+            .and_then(|r| r)
+    } else {
+        blocking(job).await
+    };
     // Canceled: the result is discarded whatever it is. Past the deadline: a job that failed
     // (at a check point) failed for that; one that finished in time keeps its result.
     match claim.control.check() {

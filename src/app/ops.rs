@@ -25,13 +25,42 @@ use crate::volume::{BitVolume, Volume, csg};
 /// The engine name derived volumes record.
 const DERIVED_ENGINE: &str = "cpu";
 
-/// Runs CPU work on the blocking pool.
+/// Runs CPU work on rayon's global pool (the CPU engine's), off the async runtime. The work runs
+/// on a pool thread, so the parallel loops inside it are split among the pool's threads
+/// directly: called from any other thread, each of them would be handed to the pool and waited
+/// for, two thread switches per loop, which on small jobs cost more than the loops. Not for
+/// work that blocks on anything but the CPU (files, the GPU): that goes to tokio's blocking pool.
 pub async fn blocking<T: Send + 'static>(
     f: impl FnOnce() -> Result<T> + Send + 'static,
 ) -> Result<T> {
-    tokio::task::spawn_blocking(f)
-        .await
-        .map_err(|e| Error::internal(format!("the operation panicked: {e}")))?
+    on_pool(None, f).await
+}
+
+/// [`blocking`] on `pool` (`None`: rayon's global pool). A panic in `f` is an internal error.
+pub async fn on_pool<T: Send + 'static>(
+    pool: Option<&rayon::ThreadPool>,
+    f: impl FnOnce() -> Result<T> + Send + 'static,
+) -> Result<T> {
+    let (tx, rx) = tokio::sync::oneshot::channel();
+    let task = move || {
+        let _ = tx.send(std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)));
+    };
+    match pool {
+        Some(p) => p.spawn(task),
+        None => rayon::spawn(task),
+    }
+    match rx.await {
+        Ok(Ok(r)) => r,
+        Ok(Err(panic)) => {
+            let msg = panic
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "no message".into());
+            Err(Error::internal(format!("the operation panicked: {msg}")))
+        }
+        Err(_) => Err(Error::internal("the operation's thread went away")),
+    }
 }
 
 /// The bit volume, or why a density volume cannot be used for `what` (`CSG`, `morphology`).

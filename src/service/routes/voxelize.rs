@@ -151,7 +151,7 @@ pub async fn submit(
     };
     let spec = JobSpec::of(&req);
     let ingest = app.ingest.clone();
-    let work = ops::blocking(move || ingest.install(|| app::prepare(&req))).await?;
+    let work = ops::on_pool(Some(&ingest), move || app::prepare(&req)).await?;
     let id = app::new_id();
     let record = app
         .queue
