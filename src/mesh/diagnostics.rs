@@ -1,6 +1,8 @@
 //! What is wrong with a mesh, computed on positions merged by exact equality (so UV and normal
 //! seams do not count as holes).
 
+use std::hash::BuildHasher;
+
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -46,8 +48,176 @@ pub(crate) fn merged_ids(mesh: &Mesh) -> Vec<u32> {
     remap
 }
 
+/// For every position, the index of the first position equal to it (-0.0 = 0.0): the classes of
+/// [`merged_ids`], each named by its first member instead of numbered in sorted order, found
+/// by hashing instead of sorting (what the diagnosis needs: which positions are one vertex).
+///
+/// Positions are split by hash among as many parts as there are threads; each part goes
+/// through its positions in order with a table of its own, and reports those equal to an
+/// earlier one (few, usually none). The hash is keyed per process (SipHash, std's
+/// `RandomState`), so a file cannot be made of positions that all collide.
+fn first_equal(positions: &[[f64; 3]]) -> Vec<u32> {
+    let key = |p: &[f64; 3]| p.map(|c| if c == 0.0 { 0u64 } else { c.to_bits() });
+    let state = std::hash::RandomState::new();
+    let hashes: Vec<u64> = positions
+        .par_iter()
+        .map(|p| state.hash_one(key(p)))
+        .collect();
+    let parts = rayon::current_num_threads()
+        .clamp(1, 64)
+        .next_power_of_two();
+    let mut ids: Vec<u32> = (0..positions.len() as u32).into_par_iter().collect();
+    let equal: Vec<Vec<(u32, u32)>> = (0..parts as u64)
+        .into_par_iter()
+        .map(|part| {
+            // Top 6 bits: the part; low bits: the slot; the middle: a fingerprint, compared
+            // before the positions are.
+            let size = (2 * positions.len() / parts + 16).next_power_of_two();
+            let mask = size - 1;
+            const EMPTY: u32 = u32::MAX;
+            let mut table = vec![(EMPTY, 0u32); size];
+            let mut equal = Vec::new();
+            for (i, &h) in hashes.iter().enumerate() {
+                if (h >> 58) & (parts as u64 - 1) != part {
+                    continue;
+                }
+                let fingerprint = (h >> 26) as u32;
+                let mut slot = h as usize & mask;
+                loop {
+                    let (j, f) = table[slot];
+                    if j == EMPTY {
+                        table[slot] = (i as u32, fingerprint);
+                        break;
+                    }
+                    if f == fingerprint && key(&positions[j as usize]) == key(&positions[i]) {
+                        equal.push((i as u32, j));
+                        break;
+                    }
+                    slot = (slot + 1) & mask;
+                }
+            }
+            equal
+        })
+        .collect();
+    for (i, j) in equal.into_iter().flatten() {
+        ids[i as usize] = j;
+    }
+    ids
+}
+
+/// Boundary (used by one triangle) and non-manifold (three or more) edges, on vertex ids
+/// `ids` (below `n`); an edge whose two ends are one vertex is no edge.
+///
+/// Edges are bucketed by their lower end (counted, then placed: no sort of all of them), each
+/// bucket holding the higher ends, a few per vertex, sorted to count repeats. The range of lower
+/// ends is split among the threads; each goes through all triangles for its own edges.
+fn edge_counts(triangles: &[[u32; 3]], ids: &[u32], n: usize) -> (usize, usize) {
+    let parts = rayon::current_num_threads().max(1);
+    let per = n.div_ceil(parts).max(1);
+    (0..parts)
+        .into_par_iter()
+        .map(|k| {
+            let (first, end) = ((k * per).min(n), ((k + 1) * per).min(n));
+            let mut start = vec![0usize; end - first + 1];
+            edges_from(triangles, ids, first..end, |lo, _| start[lo + 1] += 1);
+            for i in 1..start.len() {
+                start[i] += start[i - 1];
+            }
+            let mut next = start.clone();
+            let mut higher = vec![0u32; start[end - first]];
+            edges_from(triangles, ids, first..end, |lo, hi| {
+                higher[next[lo]] = hi;
+                next[lo] += 1;
+            });
+            let (mut boundary, mut non_manifold) = (0, 0);
+            for w in start.windows(2) {
+                let bucket = &mut higher[w[0]..w[1]];
+                bucket.sort_unstable();
+                for run in bucket.chunk_by(|a, b| a == b) {
+                    match run.len() {
+                        1 => boundary += 1,
+                        2 => {}
+                        _ => non_manifold += 1,
+                    }
+                }
+            }
+            (boundary, non_manifold)
+        })
+        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+}
+
+/// Calls `f(lower end - lower.start, higher end)` for every edge whose lower end is in `lower`.
+#[inline]
+fn edges_from(
+    triangles: &[[u32; 3]],
+    ids: &[u32],
+    lower: std::ops::Range<usize>,
+    mut f: impl FnMut(usize, u32),
+) {
+    for t in triangles {
+        let m = t.map(|i| ids[i as usize]);
+        for (p, q) in [(m[0], m[1]), (m[1], m[2]), (m[2], m[0])] {
+            let lo = p.min(q) as usize;
+            if p != q && lower.contains(&lo) {
+                f(lo - lower.start, p.max(q));
+            }
+        }
+    }
+}
+
 impl MeshDiagnostics {
     pub fn of(mesh: &Mesh) -> MeshDiagnostics {
+        let ids = first_equal(&mesh.positions);
+        let merged = |t: &[u32; 3]| t.map(|i| ids[i as usize]);
+        let degenerate = mesh
+            .triangles
+            .par_iter()
+            .enumerate()
+            .filter(|(t, tri)| {
+                let m = merged(tri);
+                let [a, b, c] = mesh.triangle(*t);
+                let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+                let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+                let cross = [
+                    u[1] * v[2] - u[2] * v[1],
+                    u[2] * v[0] - u[0] * v[2],
+                    u[0] * v[1] - u[1] * v[0],
+                ];
+                m[0] == m[1] || m[1] == m[2] || m[0] == m[2] || cross == [0.0; 3]
+            })
+            .count();
+        let (boundary, non_manifold) = edge_counts(&mesh.triangles, &ids, ids.len());
+        // The vertices used, and the bounding box exactly as [`Mesh::bounds`] folds it (same
+        // order, so the same zero wins where -0.0 and 0.0 tie), in one pass.
+        let mut used = vec![false; ids.len()];
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for tri in &mesh.triangles {
+            for &i in tri {
+                used[ids[i as usize] as usize] = true;
+                let p = mesh.positions[i as usize];
+                for a in 0..3 {
+                    lo[a] = lo[a].min(p[a]);
+                    hi[a] = hi[a].max(p[a]);
+                }
+            }
+        }
+        MeshDiagnostics {
+            triangles: mesh.triangles.len(),
+            vertices: used.iter().filter(|&&u| u).count(),
+            degenerate_triangles: degenerate,
+            boundary_edges: boundary,
+            non_manifold_edges: non_manifold,
+            watertight: boundary == 0 && non_manifold == 0,
+            bbox_min: lo,
+            bbox_max: hi,
+        }
+    }
+
+    /// The diagnosis as it was computed before [`first_equal`] and [`edge_counts`]: positions
+    /// merged by sorting, every edge sorted. What the tests hold the fast one to.
+    #[cfg(test)]
+    fn by_sorting(mesh: &Mesh) -> MeshDiagnostics {
         let remap = merged_ids(mesh);
         let distinct = remap.iter().copied().max().unwrap_or(0);
         let merged = |t: &[u32; 3]| t.map(|i| remap[i as usize]);
@@ -165,5 +335,77 @@ mod tests {
         assert_eq!(d.boundary_edges, 8);
         assert_eq!(d.degenerate_triangles, 1);
         assert!(!d.watertight);
+    }
+
+    /// Random meshes made to have what the diagnosis counts: coordinates from a few values
+    /// (so positions repeat, -0.0 and 0.0 among them), triangles on few vertices (so edges
+    /// repeat and corners coincide).
+    #[test]
+    fn hashing_and_bucketing_give_what_sorting_gives() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = |n: usize| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state % n as u64) as usize
+        };
+        let values = [0.0, -0.0, 1.0, -1.0, 0.5, 2.0, 1e-300, -3.25];
+        for case in 0..3000 {
+            let n = 1 + next(40);
+            let spread = 1 + next(values.len());
+            let positions: Vec<[f64; 3]> = (0..n)
+                .map(|_| [0; 3].map(|_| values[next(spread)]))
+                .collect();
+            let triangles: Vec<[u32; 3]> = (0..1 + next(60))
+                .map(|_| [0; 3].map(|_| next(n) as u32))
+                .collect();
+            let m = Mesh::new(positions, triangles).unwrap();
+            let (new, old) = (MeshDiagnostics::of(&m), MeshDiagnostics::by_sorting(&m));
+            assert_eq!(new, old, "case {case}: {m:?}");
+            // PartialEq takes -0.0 for 0.0: the box must be the same bits.
+            let bits = |d: &MeshDiagnostics| [d.bbox_min, d.bbox_max].map(|b| b.map(f64::to_bits));
+            assert_eq!(bits(&new), bits(&old), "case {case}: {m:?}");
+        }
+    }
+
+    /// The same on a big mesh (many buckets per thread, long tables): a grid of quads, with
+    /// its seam duplicated and a few triangles repeated.
+    #[test]
+    fn big_grid() {
+        let k = 300;
+        let mut positions = Vec::new();
+        for y in 0..=k {
+            for x in 0..=k {
+                positions.push([x as f64, y as f64, ((x * y) % 7) as f64 - 3.0]);
+            }
+        }
+        // Column 0 again: a seam of equal positions.
+        for y in 0..=k {
+            positions.push([0.0, y as f64, -3.0]);
+        }
+        let at = |x: usize, y: usize| (y * (k + 1) + x) as u32;
+        let mut triangles = Vec::new();
+        for y in 0..k {
+            for x in 0..k {
+                let seam = |v: u32, xx: usize, yy: usize| {
+                    if xx == 0 && y % 2 == 0 {
+                        ((k + 1) * (k + 1) + yy) as u32
+                    } else {
+                        v
+                    }
+                };
+                let (a, b) = (seam(at(x, y), x, y), at(x + 1, y));
+                let (c, d) = (at(x + 1, y + 1), seam(at(x, y + 1), x, y + 1));
+                triangles.push([a, b, c]);
+                triangles.push([a, c, d]);
+            }
+        }
+        for t in 0..50 {
+            triangles.push(triangles[t * 97]);
+        }
+        let m = Mesh::new(positions, triangles).unwrap();
+        let d = MeshDiagnostics::of(&m);
+        assert_eq!(d, MeshDiagnostics::by_sorting(&m));
+        assert!(d.non_manifold_edges > 0 && d.boundary_edges > 0);
     }
 }

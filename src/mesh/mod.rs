@@ -13,6 +13,8 @@ mod streaming_tests;
 
 use std::path::{Path, PathBuf};
 
+use rayon::prelude::*;
+
 use stream::Stream;
 
 pub use diagnostics::MeshDiagnostics;
@@ -267,11 +269,18 @@ impl Mesh {
         if triangles.is_empty() {
             return Err(MeshError::NoTriangles(String::new()));
         }
-        for (i, p) in positions.iter().enumerate() {
+        // The first bad vertex and the first bad triangle, looked for in parallel (a big mesh
+        // has millions of each), reported as a front-to-back scan would.
+        let bad = |p: &[f64; 3]| {
+            p.iter()
+                .any(|c| !c.is_finite() || c.abs() > MAX_ABS_COORDINATE)
+        };
+        if let Some(i) = positions.par_iter().position_first(bad) {
+            let p = positions[i];
             if p.iter().any(|c| !c.is_finite()) {
                 return Err(MeshError::NonFinite {
                     vertex: i,
-                    value: *p,
+                    value: p,
                 });
             }
             if let Some(&c) = p.iter().find(|c| c.abs() > MAX_ABS_COORDINATE) {
@@ -282,14 +291,14 @@ impl Mesh {
             }
         }
         let n = positions.len();
-        for (t, tri) in triangles.iter().enumerate() {
-            if let Some(&i) = tri.iter().find(|&&i| i as usize >= n) {
-                return Err(MeshError::IndexOutOfRange {
-                    triangle: t,
-                    index: i as u64,
-                    vertices: n,
-                });
-            }
+        let out = |tri: &[u32; 3]| tri.iter().any(|&i| i as usize >= n);
+        if let Some(t) = triangles.par_iter().position_first(out) {
+            let i = *triangles[t].iter().find(|&&i| i as usize >= n).unwrap();
+            return Err(MeshError::IndexOutOfRange {
+                triangle: t,
+                index: i as u64,
+                vertices: n,
+            });
         }
         Ok(Mesh {
             positions,
