@@ -71,24 +71,26 @@ fn first_equal(positions: &[[f64; 3]]) -> Vec<u32> {
         .into_par_iter()
         .map(|part| {
             // Top 6 bits: the part; low bits: the slot; the middle: a fingerprint, compared
-            // before the positions are.
-            let size = (2 * positions.len() / parts + 16).next_power_of_two();
-            let mask = size - 1;
-            const EMPTY: u32 = u32::MAX;
-            let mut table = vec![(EMPTY, 0u32); size];
+            // before the positions are. Slots hold a position's index + 1 (0: empty), at most
+            // two thirds of them used.
+            let of_part = |h: &u64| (h >> 58) & (parts as u64 - 1) == part;
+            let count = hashes.iter().filter(|h| of_part(h)).count();
+            let mask = (count + count / 2 + 1).next_power_of_two().max(16) - 1;
+            let mut table = vec![(0u32, 0u32); mask + 1];
             let mut equal = Vec::new();
-            for (i, &h) in hashes.iter().enumerate() {
-                if (h >> 58) & (parts as u64 - 1) != part {
+            for (i, h) in hashes.iter().enumerate() {
+                if !of_part(h) {
                     continue;
                 }
                 let fingerprint = (h >> 26) as u32;
-                let mut slot = h as usize & mask;
+                let mut slot = *h as usize & mask;
                 loop {
                     let (j, f) = table[slot];
-                    if j == EMPTY {
-                        table[slot] = (i as u32, fingerprint);
+                    if j == 0 {
+                        table[slot] = (i as u32 + 1, fingerprint);
                         break;
                     }
+                    let j = j - 1;
                     if f == fingerprint && key(&positions[j as usize]) == key(&positions[i]) {
                         equal.push((i as u32, j));
                         break;
