@@ -271,24 +271,8 @@ impl Mesh {
         }
         // The first bad vertex and the first bad triangle, looked for in parallel (a big mesh
         // has millions of each), reported as a front-to-back scan would.
-        let bad = |p: &[f64; 3]| {
-            p.iter()
-                .any(|c| !c.is_finite() || c.abs() > MAX_ABS_COORDINATE)
-        };
-        if let Some(i) = positions.par_iter().position_first(bad) {
-            let p = positions[i];
-            if p.iter().any(|c| !c.is_finite()) {
-                return Err(MeshError::NonFinite {
-                    vertex: i,
-                    value: p,
-                });
-            }
-            if let Some(&c) = p.iter().find(|c| c.abs() > MAX_ABS_COORDINATE) {
-                return Err(MeshError::HugeCoordinate {
-                    vertex: i,
-                    value: c,
-                });
-            }
+        if let Some(i) = positions.par_iter().position_first(bad_position) {
+            check_position(i, &positions[i])?;
         }
         let n = positions.len();
         let out = |tri: &[u32; 3]| tri.iter().any(|&i| i as usize >= n);
@@ -304,6 +288,22 @@ impl Mesh {
             positions,
             triangles,
         })
+    }
+
+    /// A mesh whose loader has made the checks of [`Mesh::new`] itself: at least one
+    /// triangle, [`check_position`] on every position, every index in range.
+    fn checked(positions: Vec<[f64; 3]>, triangles: Vec<[u32; 3]>) -> Mesh {
+        debug_assert_eq!(
+            Mesh::new(positions.clone(), triangles.clone()).as_ref(),
+            Ok(&Mesh {
+                positions: positions.clone(),
+                triangles: triangles.clone(),
+            })
+        );
+        Mesh {
+            positions,
+            triangles,
+        }
     }
 
     pub fn positions(&self) -> &[[f64; 3]] {
@@ -344,6 +344,30 @@ impl Mesh {
             triangles,
         }
     }
+}
+
+/// Whether [`Mesh::new`] refuses a position: a coordinate that is not finite or is huge.
+#[inline]
+fn bad_position(p: &[f64; 3]) -> bool {
+    p.iter()
+        .any(|c| !c.is_finite() || c.abs() > MAX_ABS_COORDINATE)
+}
+
+/// The error of [`Mesh::new`] for position `i`, if it has one.
+fn check_position(i: usize, p: &[f64; 3]) -> Result<(), MeshError> {
+    if p.iter().any(|c| !c.is_finite()) {
+        return Err(MeshError::NonFinite {
+            vertex: i,
+            value: *p,
+        });
+    }
+    if let Some(&c) = p.iter().find(|c| c.abs() > MAX_ABS_COORDINATE) {
+        return Err(MeshError::HugeCoordinate {
+            vertex: i,
+            value: c,
+        });
+    }
+    Ok(())
 }
 
 /// Fan-triangulates a polygon of vertex indices (what OBJ and PLY readers do with n-gons).

@@ -16,10 +16,12 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use rayon::prelude::*;
 
 use super::stream::{Stream, line_blocks};
-use super::{LoadOptions, Mesh, MeshError, fan, malformed};
+use super::{LoadOptions, Mesh, MeshError, bad_position, check_position, fan, malformed};
 
-/// Bytes per block of a compressed file, and the longest line one may have.
-const BLOCK: usize = 16 << 20;
+/// Bytes per block of a compressed file (small, so little of the inflating and parsing is not
+/// overlapped: the first block's inflating and the last one's parsing), and the longest line
+/// one may have.
+const BLOCK: usize = 4 << 20;
 const MAX_LINE: usize = 16 << 20;
 
 pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshError> {
@@ -28,6 +30,7 @@ pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshErro
         triangles: Vec::new(),
         lines: 0,
         forward: None,
+        bad: None,
         max_vertices: opts.max_vertices(),
         max_triangles: opts.max_triangles,
     };
@@ -65,7 +68,12 @@ pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshErro
             " (no `f` lines with three or more vertices)".into(),
         ));
     }
-    Mesh::new(st.positions, st.triangles)
+    // What `Mesh::new` would check, already checked: the first bad position was noted as the
+    // vertices were read, and every index was checked against the vertex count above.
+    if let Some(i) = st.bad {
+        check_position(i, &st.positions[i])?;
+    }
+    Ok(Mesh::checked(st.positions, st.triangles))
 }
 
 /// The end of the last line of `b` that a backslash does not continue onto the next.
@@ -144,6 +152,8 @@ struct Chunk {
     triangles: Vec<[u32; 3]>,
     /// The largest index used before its vertex was defined, with its line and as written.
     forward: Option<(usize, i64, usize)>,
+    /// The first vertex (its index in the file) that `Mesh::new` would refuse.
+    bad: Option<usize>,
 }
 
 /// What the blocks read so far add up to.
@@ -155,6 +165,8 @@ struct State {
     /// The largest (0-based) index a face used before its vertex was read, its line (1-based)
     /// and how it was written: checked once the file's vertex count is known.
     forward: Option<(usize, i64, usize)>,
+    /// The first vertex that `Mesh::new` would refuse (non-finite or huge).
+    bad: Option<usize>,
     max_vertices: usize,
     max_triangles: usize,
 }
@@ -203,6 +215,7 @@ impl State {
         for c in parsed {
             self.positions.extend_from_slice(&c.positions);
             self.triangles.extend_from_slice(&c.triangles);
+            self.bad = self.bad.or(c.bad);
             if let Some(f) = c.forward {
                 if self.forward.is_none_or(|g| f.2 > g.2) {
                     self.forward = Some(f);
@@ -259,6 +272,7 @@ fn parse_chunk(
     let mut poly: Vec<u32> = Vec::new();
     let mut forward: Option<(usize, i64, usize)> = None;
     let mut reported = 0;
+    let mut bad = None;
     let mut cur = Cursor { text, at: 0 };
     let mut i = 0;
     loop {
@@ -273,6 +287,9 @@ fn parse_chunk(
                     *c = parse_f64(t).ok_or_else(|| {
                         err(&format!("{:?} is not a number", String::from_utf8_lossy(t)))
                     })?;
+                }
+                if bad.is_none() && bad_position(&p) {
+                    bad = Some(vbase + positions.len());
                 }
                 positions.push(p);
             }
@@ -323,6 +340,7 @@ fn parse_chunk(
         positions,
         triangles,
         forward,
+        bad,
     })
 }
 
@@ -513,10 +531,12 @@ mod tests {
             }
         }
         shared.add(triangles.len() - reported)?;
+        let bad = positions.iter().position(bad_position).map(|i| vbase + i);
         Ok(Chunk {
             positions,
             triangles,
             forward,
+            bad,
         })
     }
 
@@ -777,7 +797,15 @@ mod tests {
         s.into_bytes()
     }
 
-    type Parsed = Result<(Vec<[u64; 3]>, Vec<[u32; 3]>, Option<(usize, i64, usize)>), MeshError>;
+    type Parsed = Result<
+        (
+            Vec<[u64; 3]>,
+            Vec<[u32; 3]>,
+            Option<(usize, i64, usize)>,
+            Option<usize>,
+        ),
+        MeshError,
+    >;
 
     fn run(
         f: fn(&[u8], usize, usize, usize, Option<usize>, &Shared) -> Result<Chunk, MeshError>,
@@ -795,6 +823,7 @@ mod tests {
                 c.positions.iter().map(|p| p.map(f64::to_bits)).collect(),
                 c.triangles,
                 c.forward,
+                c.bad,
             )
         })
     }

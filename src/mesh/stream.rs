@@ -183,6 +183,9 @@ impl<'a> Stream<'a> {
     }
 }
 
+/// Bytes [`line_blocks`] decodes before the first block of a compressed file is read.
+const FIRST_BLOCK: usize = 1 << 20;
+
 /// Feeds `f` the unconsumed rest of the file in blocks of whole lines: all of it at once when it
 /// is in memory, else blocks of about `block` bytes cut after a line that `line_end` accepts (it
 /// gives the end of the last complete line of a block). A line longer than `max_line` in a
@@ -194,12 +197,14 @@ pub(super) fn line_blocks(
     block: usize,
     max_line: usize,
     line_end: fn(&[u8]) -> Option<usize>,
-    mut f: impl FnMut(&[u8], bool) -> Result<(), MeshError>,
+    mut f: impl FnMut(&[u8], bool) -> Result<(), MeshError> + Send,
 ) -> Result<(), MeshError> {
     let block = s
         .test_block
         .unwrap_or(if s.compressed { block } else { usize::MAX });
-    let mut want = block;
+    // The first block is small: it is read while the next is decoded, but nothing is read
+    // while it is.
+    let mut want = block.min(FIRST_BLOCK);
     // The allocation of the block read last, for the window to reuse.
     let mut spare = Vec::new();
     loop {
@@ -237,17 +242,17 @@ pub(super) fn line_blocks(
             }
             s.consume(end);
         } else {
-            // The next block is decoded (on a thread of its own) while this one is read: the
-            // two take about as long for OBJ text, and inflating is serial. Decoding stays
-            // within the limit, one block ahead at most; an error of this block wins over one
-            // of decoding the next, as when they came one after the other.
+            // The next block is decoded while this one is read: the two take about as long for
+            // OBJ text, and inflating is serial. One worker of the pool decodes, the others
+            // read (and the decoder helps them once it is done): a thread of its own would
+            // compete with them for the cores. Decoding stays within the limit, one block
+            // ahead at most; an error of this block wins over one of decoding the next, as
+            // when they came one after the other.
             let (taken, start) = s.take_front(end, std::mem::take(&mut spare));
-            let (read, ahead) = std::thread::scope(|scope| {
-                let ahead = scope.spawn(|| s.fill_to(block));
-                (f(&taken[start..start + end], false), ahead.join())
-            });
+            let (ahead, read) =
+                rayon::join(|| s.fill_to(block), || f(&taken[start..start + end], false));
             read?;
-            ahead.unwrap_or_else(|panic| std::panic::resume_unwind(panic))?;
+            ahead?;
             spare = taken;
         }
         want = block;
