@@ -807,8 +807,12 @@ mod tests {
         MeshError,
     >;
 
+    /// A chunk reader: [`parse_chunk`] or [`parse_chunk_std`].
+    type Reader =
+        fn(&[u8], usize, usize, usize, Option<usize>, &Shared) -> Result<Chunk, MeshError>;
+
     fn run(
-        f: fn(&[u8], usize, usize, usize, Option<usize>, &Shared) -> Result<Chunk, MeshError>,
+        f: Reader,
         text: &[u8],
         vbase: usize,
         total: Option<usize>,
