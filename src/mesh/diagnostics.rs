@@ -1,6 +1,9 @@
 //! What is wrong with a mesh, computed on positions merged by exact equality (so UV and normal
 //! seams do not count as holes).
 
+use std::hash::BuildHasher;
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -46,8 +49,267 @@ pub(crate) fn merged_ids(mesh: &Mesh) -> Vec<u32> {
     remap
 }
 
+/// For every position, the index of the first position equal to it (-0.0 = 0.0): the classes of
+/// [`merged_ids`], each named by its first member instead of numbered in sorted order, found
+/// by hashing instead of sorting (what the diagnosis needs: which positions are one vertex).
+/// And whether every position is its own (no two are equal), so the ids are the indices.
+///
+/// Positions are split by hash into parts (of about 64 Ki positions, at least one per thread);
+/// each part goes through its positions in order with a table of its own, and reports those
+/// equal to an earlier one (few, usually none). The hash is seeded per process, and a part
+/// that probes its table far more than a good hash would (positions made to collide) has the
+/// classes found by sorting instead: the same ids, in O(n log n) whatever the positions.
+fn first_equal(positions: &[[f64; 3]]) -> (Vec<u32>, bool) {
+    first_equal_within(positions, 16)
+}
+
+/// [`first_equal`], falling back to sorting once a part probes more than `budget` slots per
+/// position.
+fn first_equal_within(positions: &[[f64; 3]], budget: usize) -> (Vec<u32>, bool) {
+    let key = |p: &[f64; 3]| p.map(|c| if c == 0.0 { 0u64 } else { c.to_bits() });
+    let seed = {
+        let state = std::hash::RandomState::new();
+        [0u64, 1, 2, 3].map(|i| state.hash_one(i))
+    };
+    // Folded multiplies (as foldhash and ahash mix): every bit of the key reaches the middle
+    // and top bits of the product.
+    let fold = |a: u64, b: u64| {
+        let p = a as u128 * b as u128;
+        p as u64 ^ (p >> 64) as u64
+    };
+    let hash = |k: [u64; 3]| {
+        let h = fold(k[0] ^ seed[0], k[1] ^ seed[1]);
+        fold(h ^ k[2] ^ seed[2], seed[3] | 1)
+    };
+    let hashes: Vec<u64> = positions.par_iter().map(|p| hash(key(p))).collect();
+    // Parts of about 64 Ki positions (tables of a megabyte, which caches hold), at least one
+    // per thread.
+    let parts = (positions.len() >> 16)
+        .max(rayon::current_num_threads())
+        .clamp(1, 64)
+        .next_power_of_two();
+    let equal: Option<Vec<Vec<(u32, u32)>>> = (0..parts as u64)
+        .into_par_iter()
+        .map(|part| {
+            // Top 6 bits: the part; low bits: the slot; the middle: a fingerprint, compared
+            // before the positions are. Slots hold a position's index + 1 (0: empty), at most
+            // two thirds of them used.
+            let of_part = |h: &u64| (h >> 58) & (parts as u64 - 1) == part;
+            let count = hashes.iter().filter(|h| of_part(h)).count();
+            let mask = (count + count / 2 + 1).next_power_of_two().max(16) - 1;
+            let mut table = vec![(0u32, 0u32); mask + 1];
+            let mut equal = Vec::new();
+            let mut probes_left = budget.saturating_mul(count).saturating_add(64);
+            for (i, h) in hashes.iter().enumerate() {
+                if !of_part(h) {
+                    continue;
+                }
+                let fingerprint = (h >> 26) as u32;
+                let mut slot = *h as usize & mask;
+                loop {
+                    probes_left = probes_left.checked_sub(1)?;
+                    let (j, f) = table[slot];
+                    if j == 0 {
+                        table[slot] = (i as u32 + 1, fingerprint);
+                        break;
+                    }
+                    let j = j - 1;
+                    if f == fingerprint && key(&positions[j as usize]) == key(&positions[i]) {
+                        equal.push((i as u32, j));
+                        break;
+                    }
+                    slot = (slot + 1) & mask;
+                }
+            }
+            Some(equal)
+        })
+        .collect();
+    let Some(equal) = equal else {
+        return first_equal_by_sorting(positions);
+    };
+    let mut ids: Vec<u32> = (0..positions.len() as u32).into_par_iter().collect();
+    let distinct = equal.iter().all(Vec::is_empty);
+    for (i, j) in equal.into_iter().flatten() {
+        ids[i as usize] = j;
+    }
+    (ids, distinct)
+}
+
+/// [`first_equal`] by sorting (key, index) pairs, as [`merged_ids`] does.
+fn first_equal_by_sorting(positions: &[[f64; 3]]) -> (Vec<u32>, bool) {
+    let key = |p: &[f64; 3]| p.map(|c| if c == 0.0 { 0u64 } else { c.to_bits() });
+    let mut keyed: Vec<([u64; 3], u32)> = positions
+        .par_iter()
+        .enumerate()
+        .map(|(i, p)| (key(p), i as u32))
+        .collect();
+    keyed.par_sort_unstable();
+    let mut ids = vec![0u32; positions.len()];
+    let mut distinct = true;
+    for run in keyed.chunk_by(|a, b| a.0 == b.0) {
+        // Sorted by index within the run: the first is the class's first member.
+        distinct &= run.len() == 1;
+        for &(_, i) in run {
+            ids[i as usize] = run[0].1;
+        }
+    }
+    (ids, distinct)
+}
+
+/// Boundary (used by one triangle) and non-manifold (three or more) edges, on vertex ids
+/// `ids` (below `n`; the indices themselves when `distinct`); an edge whose two ends are one
+/// vertex is no edge.
+///
+/// Edges are bucketed by their lower end (counted, then placed: no sort of all of them), each
+/// bucket holding the higher ends, a few per vertex, sorted to count repeats. The range of lower
+/// ends is split among the threads; each goes through all triangles for its own edges.
+fn edge_counts(triangles: &[[u32; 3]], ids: &[u32], distinct: bool, n: usize) -> (usize, usize) {
+    if distinct {
+        edge_counts_by(triangles, |i| i, n)
+    } else {
+        edge_counts_by(triangles, |i| ids[i as usize], n)
+    }
+}
+
+fn edge_counts_by(
+    triangles: &[[u32; 3]],
+    id: impl Fn(u32) -> u32 + Copy + Sync,
+    n: usize,
+) -> (usize, usize) {
+    let parts = rayon::current_num_threads().max(1);
+    let per = n.div_ceil(parts).max(1);
+    (0..parts)
+        .into_par_iter()
+        .map(|k| {
+            let (first, end) = ((k * per).min(n), ((k + 1) * per).min(n));
+            let mut start = vec![0usize; end - first + 1];
+            edges_from(triangles, id, first..end, |lo, _| start[lo + 1] += 1);
+            for i in 1..start.len() {
+                start[i] += start[i - 1];
+            }
+            // Placing an edge moves its bucket's start up by one: once all are placed, a
+            // bucket starts where the one before it did and ends where its own start is.
+            let mut higher = vec![0u32; start[end - first]];
+            edges_from(triangles, id, first..end, |lo, hi| {
+                higher[start[lo]] = hi;
+                start[lo] += 1;
+            });
+            let (mut boundary, mut non_manifold) = (0, 0);
+            let mut from = 0;
+            for &to in &start[..end - first] {
+                let bucket = &mut higher[from..to];
+                from = to;
+                // A few entries each (about six on a closed mesh): sorted by insertion here.
+                if bucket.len() <= 16 {
+                    for i in 1..bucket.len() {
+                        let mut j = i;
+                        while j > 0 && bucket[j - 1] > bucket[j] {
+                            bucket.swap(j - 1, j);
+                            j -= 1;
+                        }
+                    }
+                } else {
+                    bucket.sort_unstable();
+                }
+                for run in bucket.chunk_by(|a, b| a == b) {
+                    match run.len() {
+                        1 => boundary += 1,
+                        2 => {}
+                        _ => non_manifold += 1,
+                    }
+                }
+            }
+            (boundary, non_manifold)
+        })
+        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+}
+
+/// Calls `f(lower end - lower.start, higher end)` for every edge whose lower end is in `lower`.
+#[inline]
+fn edges_from(
+    triangles: &[[u32; 3]],
+    id: impl Fn(u32) -> u32,
+    lower: std::ops::Range<usize>,
+    mut f: impl FnMut(usize, u32),
+) {
+    for t in triangles {
+        let m = t.map(&id);
+        for (p, q) in [(m[0], m[1]), (m[1], m[2]), (m[2], m[0])] {
+            let lo = p.min(q) as usize;
+            if p != q && lower.contains(&lo) {
+                f(lo - lower.start, p.max(q));
+            }
+        }
+    }
+}
+
 impl MeshDiagnostics {
     pub fn of(mesh: &Mesh) -> MeshDiagnostics {
+        let (ids, distinct) = first_equal(&mesh.positions);
+        let merged = |t: &[u32; 3]| t.map(|i| ids[i as usize]);
+        let (boundary, non_manifold) = edge_counts(&mesh.triangles, &ids, distinct, ids.len());
+        // One pass over the triangles for the rest: the degenerate ones, the vertices used,
+        // and the bounding box as [`Mesh::bounds`] folds it: pieces of the triangles folded in
+        // order, then the pieces' boxes in order (the same folds, as `min` and `max` are
+        // associative, even in which of -0.0 and 0.0 wins a tie).
+        let used: Vec<AtomicBool> = (0..ids.len()).map(|_| AtomicBool::new(false)).collect();
+        let empty = || (0usize, [f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        let (degenerate, lo, hi) = mesh
+            .triangles
+            .par_chunks(1 << 14)
+            .map(|piece| {
+                let (mut degenerate, mut lo, mut hi) = empty();
+                for tri in piece {
+                    let m = merged(tri);
+                    for v in m {
+                        used[v as usize].store(true, Ordering::Relaxed);
+                    }
+                    let [a, b, c] = tri.map(|i| mesh.positions[i as usize]);
+                    for p in [a, b, c] {
+                        for a in 0..3 {
+                            lo[a] = lo[a].min(p[a]);
+                            hi[a] = hi[a].max(p[a]);
+                        }
+                    }
+                    let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+                    let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+                    let cross = [
+                        u[1] * v[2] - u[2] * v[1],
+                        u[2] * v[0] - u[0] * v[2],
+                        u[0] * v[1] - u[1] * v[0],
+                    ];
+                    degenerate +=
+                        (m[0] == m[1] || m[1] == m[2] || m[0] == m[2] || cross == [0.0; 3])
+                            as usize;
+                }
+                (degenerate, lo, hi)
+            })
+            .reduce(empty, |(d, mut lo, mut hi), (e, l, h)| {
+                for a in 0..3 {
+                    lo[a] = lo[a].min(l[a]);
+                    hi[a] = hi[a].max(h[a]);
+                }
+                (d + e, lo, hi)
+            });
+        MeshDiagnostics {
+            triangles: mesh.triangles.len(),
+            vertices: used
+                .par_iter()
+                .filter(|u| u.load(Ordering::Relaxed))
+                .count(),
+            degenerate_triangles: degenerate,
+            boundary_edges: boundary,
+            non_manifold_edges: non_manifold,
+            watertight: boundary == 0 && non_manifold == 0,
+            bbox_min: lo,
+            bbox_max: hi,
+        }
+    }
+
+    /// The diagnosis as it was computed before [`first_equal`] and [`edge_counts`]: positions
+    /// merged by sorting, every edge sorted. What the tests hold the fast one to.
+    #[cfg(test)]
+    fn by_sorting(mesh: &Mesh) -> MeshDiagnostics {
         let remap = merged_ids(mesh);
         let distinct = remap.iter().copied().max().unwrap_or(0);
         let merged = |t: &[u32; 3]| t.map(|i| remap[i as usize]);
@@ -165,5 +427,88 @@ mod tests {
         assert_eq!(d.boundary_edges, 8);
         assert_eq!(d.degenerate_triangles, 1);
         assert!(!d.watertight);
+    }
+
+    /// Random meshes made to have what the diagnosis counts: coordinates from a few values
+    /// (so positions repeat, -0.0 and 0.0 among them), triangles on few vertices (so edges
+    /// repeat and corners coincide).
+    #[test]
+    fn hashing_and_bucketing_give_what_sorting_gives() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = |n: usize| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state % n as u64) as usize
+        };
+        let values = [0.0, -0.0, 1.0, -1.0, 0.5, 2.0, 1e-300, -3.25];
+        for case in 0..3000 {
+            let n = 1 + next(40);
+            let spread = 1 + next(values.len());
+            let positions: Vec<[f64; 3]> = (0..n)
+                .map(|_| [0; 3].map(|_| values[next(spread)]))
+                .collect();
+            let triangles: Vec<[u32; 3]> = (0..1 + next(60))
+                .map(|_| [0; 3].map(|_| next(n) as u32))
+                .collect();
+            let m = Mesh::new(positions, triangles).unwrap();
+            let (new, old) = (MeshDiagnostics::of(&m), MeshDiagnostics::by_sorting(&m));
+            assert_eq!(new, old, "case {case}: {m:?}");
+            // PartialEq takes -0.0 for 0.0: the box must be the same bits.
+            let bits = |d: &MeshDiagnostics| [d.bbox_min, d.bbox_max].map(|b| b.map(f64::to_bits));
+            assert_eq!(bits(&new), bits(&old), "case {case}: {m:?}");
+        }
+    }
+
+    /// The same on a big mesh (many buckets per thread, long tables): a grid of quads, with
+    /// its seam duplicated and a few triangles repeated.
+    #[test]
+    fn big_grid() {
+        let k = 300;
+        let mut positions = Vec::new();
+        for y in 0..=k {
+            for x in 0..=k {
+                positions.push([x as f64, y as f64, ((x * y) % 7) as f64 - 3.0]);
+            }
+        }
+        // Column 0 again: a seam of equal positions.
+        for y in 0..=k {
+            positions.push([0.0, y as f64, -3.0]);
+        }
+        let at = |x: usize, y: usize| (y * (k + 1) + x) as u32;
+        let mut triangles = Vec::new();
+        for y in 0..k {
+            for x in 0..k {
+                let seam = |v: u32, xx: usize, yy: usize| {
+                    if xx == 0 && y % 2 == 0 {
+                        ((k + 1) * (k + 1) + yy) as u32
+                    } else {
+                        v
+                    }
+                };
+                let (a, b) = (seam(at(x, y), x, y), at(x + 1, y));
+                let (c, d) = (at(x + 1, y + 1), seam(at(x, y + 1), x, y + 1));
+                triangles.push([a, b, c]);
+                triangles.push([a, c, d]);
+            }
+        }
+        for t in 0..50 {
+            triangles.push(triangles[t * 97]);
+        }
+        let m = Mesh::new(positions, triangles).unwrap();
+        let d = MeshDiagnostics::of(&m);
+        assert_eq!(d, MeshDiagnostics::by_sorting(&m));
+        // Sorting instead of hashing (what a part that probes too much falls back to) gives
+        // the same ids.
+        let hashed = first_equal(&m.positions);
+        assert!(!hashed.1);
+        assert_eq!(first_equal_by_sorting(&m.positions), hashed);
+        assert_eq!(first_equal_within(&m.positions, 0), hashed);
+        let distinct = &m.positions[..(k + 1) * (k + 1)];
+        assert_eq!(
+            first_equal(distinct),
+            ((0..distinct.len() as u32).collect(), true)
+        );
+        assert!(d.non_manifold_edges > 0 && d.boundary_edges > 0);
     }
 }

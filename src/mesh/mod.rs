@@ -13,6 +13,8 @@ mod streaming_tests;
 
 use std::path::{Path, PathBuf};
 
+use rayon::prelude::*;
+
 use stream::Stream;
 
 pub use diagnostics::MeshDiagnostics;
@@ -267,34 +269,41 @@ impl Mesh {
         if triangles.is_empty() {
             return Err(MeshError::NoTriangles(String::new()));
         }
-        for (i, p) in positions.iter().enumerate() {
-            if p.iter().any(|c| !c.is_finite()) {
-                return Err(MeshError::NonFinite {
-                    vertex: i,
-                    value: *p,
-                });
-            }
-            if let Some(&c) = p.iter().find(|c| c.abs() > MAX_ABS_COORDINATE) {
-                return Err(MeshError::HugeCoordinate {
-                    vertex: i,
-                    value: c,
-                });
-            }
+        // The first bad vertex and the first bad triangle, looked for in parallel (a big mesh
+        // has millions of each), reported as a front-to-back scan would.
+        if let Some(i) = positions.par_iter().position_first(bad_position) {
+            check_position(i, &positions[i])?;
         }
         let n = positions.len();
-        for (t, tri) in triangles.iter().enumerate() {
-            if let Some(&i) = tri.iter().find(|&&i| i as usize >= n) {
-                return Err(MeshError::IndexOutOfRange {
-                    triangle: t,
-                    index: i as u64,
-                    vertices: n,
-                });
-            }
+        let out = |tri: &[u32; 3]| tri.iter().any(|&i| i as usize >= n);
+        if let Some(t) = triangles.par_iter().position_first(out) {
+            let i = *triangles[t].iter().find(|&&i| i as usize >= n).unwrap();
+            return Err(MeshError::IndexOutOfRange {
+                triangle: t,
+                index: i as u64,
+                vertices: n,
+            });
         }
         Ok(Mesh {
             positions,
             triangles,
         })
+    }
+
+    /// A mesh whose loader has made the checks of [`Mesh::new`] itself: at least one
+    /// triangle, [`check_position`] on every position, every index in range.
+    fn checked(positions: Vec<[f64; 3]>, triangles: Vec<[u32; 3]>) -> Mesh {
+        debug_assert_eq!(
+            Mesh::new(positions.clone(), triangles.clone()).as_ref(),
+            Ok(&Mesh {
+                positions: positions.clone(),
+                triangles: triangles.clone(),
+            })
+        );
+        Mesh {
+            positions,
+            triangles,
+        }
     }
 
     pub fn positions(&self) -> &[[f64; 3]] {
@@ -335,6 +344,30 @@ impl Mesh {
             triangles,
         }
     }
+}
+
+/// Whether [`Mesh::new`] refuses a position: a coordinate that is not finite or is huge.
+#[inline]
+fn bad_position(p: &[f64; 3]) -> bool {
+    p.iter()
+        .any(|c| !c.is_finite() || c.abs() > MAX_ABS_COORDINATE)
+}
+
+/// The error of [`Mesh::new`] for position `i`, if it has one.
+fn check_position(i: usize, p: &[f64; 3]) -> Result<(), MeshError> {
+    if p.iter().any(|c| !c.is_finite()) {
+        return Err(MeshError::NonFinite {
+            vertex: i,
+            value: *p,
+        });
+    }
+    if let Some(&c) = p.iter().find(|c| c.abs() > MAX_ABS_COORDINATE) {
+        return Err(MeshError::HugeCoordinate {
+            vertex: i,
+            value: c,
+        });
+    }
+    Ok(())
 }
 
 /// Fan-triangulates a polygon of vertex indices (what OBJ and PLY readers do with n-gons).

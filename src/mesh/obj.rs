@@ -8,7 +8,7 @@
 //! on real files; it is 3–5× faster than `tobj` and its errors name the line.
 //!
 //! A file in memory is parsed as one block; a gzip'd one in blocks of about [`BLOCK`] bytes as
-//! it is decoded, so its text is never held whole. Vertices and triangles are counted as they
+//! it is decoded (the next one while one is parsed), so its text is never held whole. Vertices and triangles are counted as they
 //! are read and the file is refused once either is over the limits.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -16,10 +16,12 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use rayon::prelude::*;
 
 use super::stream::{Stream, line_blocks};
-use super::{LoadOptions, Mesh, MeshError, fan, malformed};
+use super::{LoadOptions, Mesh, MeshError, bad_position, check_position, fan, malformed};
 
-/// Bytes per block of a compressed file, and the longest line one may have.
-const BLOCK: usize = 16 << 20;
+/// Bytes per block of a compressed file (small, so little of the inflating and parsing is not
+/// overlapped: the first block's inflating and the last one's parsing), and the longest line
+/// one may have.
+const BLOCK: usize = 4 << 20;
 const MAX_LINE: usize = 16 << 20;
 
 pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshError> {
@@ -28,6 +30,7 @@ pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshErro
         triangles: Vec::new(),
         lines: 0,
         forward: None,
+        bad: None,
         max_vertices: opts.max_vertices(),
         max_triangles: opts.max_triangles,
     };
@@ -42,7 +45,7 @@ pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshErro
             // The whole file in one block: every index can be checked as it is read.
             let whole = first && last;
             first = false;
-            if block.windows(2).any(|w| w == b"\\\n") || block.windows(3).any(|w| w == b"\\\r\n") {
+            if has_continued_lines(block) {
                 st.block(&join_continued_lines(block), whole)
             } else {
                 st.block(block, whole)
@@ -65,7 +68,12 @@ pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshErro
             " (no `f` lines with three or more vertices)".into(),
         ));
     }
-    Mesh::new(st.positions, st.triangles)
+    // What `Mesh::new` would check, already checked: the first bad position was noted as the
+    // vertices were read, and every index was checked against the vertex count above.
+    if let Some(i) = st.bad {
+        check_position(i, &st.positions[i])?;
+    }
+    Ok(Mesh::checked(st.positions, st.triangles))
 }
 
 /// The end of the last line of `b` that a backslash does not continue onto the next.
@@ -80,6 +88,14 @@ fn end_of_joined_lines(b: &[u8]) -> Option<usize> {
         end = i;
     }
     None
+}
+
+/// Whether a backslash ends a line of `b`. Backslashes are rare in OBJ text: the bytes are
+/// looked at pairwise only when there is one (a memchr scan, where the pairwise look at the
+/// 42 MB of a big mesh took 38 ms of a single core).
+fn has_continued_lines(b: &[u8]) -> bool {
+    memchr::memchr(b'\\', b).is_some()
+        && (b.windows(2).any(|w| w == b"\\\n") || b.windows(3).any(|w| w == b"\\\r\n"))
 }
 
 /// Replaces every backslash-newline with a space.
@@ -119,11 +135,25 @@ fn is_vertex_line(line: &[u8]) -> bool {
     l.len() > 2 && l[0] == b'v' && (l[1] == b' ' || l[1] == b'\t')
 }
 
+/// The `v` lines (as [`is_vertex_line`] tells them) and the newlines of a chunk.
+fn count_lines(c: &[u8]) -> (usize, usize) {
+    let (mut vertices, mut newlines, mut start) = (0, 0, 0);
+    for end in memchr::memchr_iter(b'\n', c) {
+        vertices += is_vertex_line(&c[start..end]) as usize;
+        newlines += 1;
+        start = end + 1;
+    }
+    vertices += is_vertex_line(&c[start..]) as usize;
+    (vertices, newlines)
+}
+
 struct Chunk {
     positions: Vec<[f64; 3]>,
     triangles: Vec<[u32; 3]>,
     /// The largest index used before its vertex was defined, with its line and as written.
     forward: Option<(usize, i64, usize)>,
+    /// The first vertex (its index in the file) that `Mesh::new` would refuse.
+    bad: Option<usize>,
 }
 
 /// What the blocks read so far add up to.
@@ -135,6 +165,8 @@ struct State {
     /// The largest (0-based) index a face used before its vertex was read, its line (1-based)
     /// and how it was written: checked once the file's vertex count is known.
     forward: Option<(usize, i64, usize)>,
+    /// The first vertex that `Mesh::new` would refuse (non-finite or huge).
+    bad: Option<usize>,
     max_vertices: usize,
     max_triangles: usize,
 }
@@ -144,17 +176,7 @@ impl State {
     /// whole file.
     fn block(&mut self, bytes: &[u8], whole: bool) -> Result<(), MeshError> {
         let parts = chunks(bytes);
-        let counts: Vec<(usize, usize)> = parts
-            .par_iter()
-            .map(|c| {
-                (
-                    c.split(|&b| b == b'\n')
-                        .filter(|l| is_vertex_line(l))
-                        .count(),
-                    c.iter().filter(|&&b| b == b'\n').count(),
-                )
-            })
-            .collect();
+        let counts: Vec<(usize, usize)> = parts.par_iter().map(|c| count_lines(c)).collect();
         let mut bases = Vec::with_capacity(parts.len());
         let (mut v, mut l) = (self.positions.len(), self.lines);
         for &(nv, nl) in &counts {
@@ -193,6 +215,7 @@ impl State {
         for c in parsed {
             self.positions.extend_from_slice(&c.positions);
             self.triangles.extend_from_slice(&c.triangles);
+            self.bad = self.bad.or(c.bad);
             if let Some(f) = c.forward {
                 if self.forward.is_none_or(|g| f.2 > g.2) {
                     self.forward = Some(f);
@@ -232,6 +255,10 @@ const REPORT_EVERY: usize = 1 << 12;
 /// Parses one chunk whose first vertex is number `vbase` and first line `lbase` (0-based) of a
 /// file with `total` vertices (when known: else indices past the vertices read so far are
 /// kept in `forward`, checked at the end).
+///
+/// One pass over the bytes: a line's tokens are the runs of bytes that are not ASCII
+/// whitespace, numbers are read by [`parse_f64`] and [`parse_index`] (what `str::parse` gives,
+/// bit for bit), and a line is skipped once what matters of it is read.
 fn parse_chunk(
     text: &[u8],
     vbase: usize,
@@ -245,40 +272,38 @@ fn parse_chunk(
     let mut poly: Vec<u32> = Vec::new();
     let mut forward: Option<(usize, i64, usize)> = None;
     let mut reported = 0;
-    for (i, raw) in text.split(|&b| b == b'\n').enumerate() {
-        let line = raw.trim_ascii();
+    let mut bad = None;
+    let mut cur = Cursor { text, at: 0 };
+    let mut i = 0;
+    loop {
         let err = |what: &str| malformed("OBJ", format!("line {}: {what}", lbase + i + 1));
-        let mut tok = line
-            .split(|b| b.is_ascii_whitespace())
-            .filter(|t| !t.is_empty());
-        match tok.next() {
+        match cur.token() {
             Some(b"v") => {
                 let mut p = [0.0; 3];
                 for c in &mut p {
-                    let t = tok.next().ok_or_else(|| err("a vertex needs x, y and z"))?;
-                    *c = std::str::from_utf8(t)
-                        .ok()
-                        .and_then(|s| s.parse().ok())
-                        .ok_or_else(|| {
-                            err(&format!("{:?} is not a number", String::from_utf8_lossy(t)))
-                        })?;
+                    let t = cur
+                        .token()
+                        .ok_or_else(|| err("a vertex needs x, y and z"))?;
+                    *c = parse_f64(t).ok_or_else(|| {
+                        err(&format!("{:?} is not a number", String::from_utf8_lossy(t)))
+                    })?;
+                }
+                if bad.is_none() && bad_position(&p) {
+                    bad = Some(vbase + positions.len());
                 }
                 positions.push(p);
             }
             Some(b"f") => {
                 let defined = (vbase + positions.len()) as i64;
                 poly.clear();
-                for t in tok {
+                while let Some(t) = cur.token() {
                     let idx = t.split(|&b| b == b'/').next().unwrap_or(t);
-                    let n: i64 = std::str::from_utf8(idx)
-                        .ok()
-                        .and_then(|s| s.parse().ok())
-                        .ok_or_else(|| {
-                            err(&format!(
-                                "{:?} is not a vertex index",
-                                String::from_utf8_lossy(t)
-                            ))
-                        })?;
+                    let n = parse_index(idx).ok_or_else(|| {
+                        err(&format!(
+                            "{:?} is not a vertex index",
+                            String::from_utf8_lossy(t)
+                        ))
+                    })?;
                     // 1-based from the start, or negative: relative to the vertices defined so far.
                     let abs = if n > 0 { n - 1 } else { defined + n };
                     let out = match total {
@@ -305,11 +330,553 @@ fn parse_chunk(
             }
             _ => {} // comments, vt, vn, o, g, s, usemtl, mtllib, l, p, ...
         }
+        if !cur.next_line() {
+            break;
+        }
+        i += 1;
     }
     shared.add(triangles.len() - reported)?;
     Ok(Chunk {
         positions,
         triangles,
         forward,
+        bad,
     })
+}
+
+/// Tokens of one line at a time.
+struct Cursor<'a> {
+    text: &'a [u8],
+    /// Where the next token is looked for; never past the end of the current line.
+    at: usize,
+}
+
+impl<'a> Cursor<'a> {
+    /// The next token of the current line (a run of bytes that are not ASCII whitespace), or
+    /// `None` at its end.
+    #[inline]
+    fn token(&mut self) -> Option<&'a [u8]> {
+        let t = self.text;
+        let mut i = self.at;
+        while i < t.len() && t[i] != b'\n' && t[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        let start = i;
+        while i < t.len() && !t[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        self.at = i;
+        (i > start).then(|| &t[start..i])
+    }
+
+    /// Moves to the start of the next line; `false` when the text ends on this one.
+    #[inline]
+    fn next_line(&mut self) -> bool {
+        let t = self.text;
+        let mut i = self.at;
+        while i < t.len() && t[i] != b'\n' {
+            i += 1;
+        }
+        self.at = i + 1;
+        i < t.len()
+    }
+}
+
+/// 10^0 to 10^22, the powers of ten that f64 holds exactly.
+const POW10: [f64; 23] = [
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
+    1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
+];
+
+/// `t` read as `str::parse::<f64>` reads it (`None` where that refuses it), bit for bit.
+///
+/// Plain decimals (`[+-]digits[.digits]`, 19 digits at most, whose digits as an integer are
+/// at most 2^53 and with at most 22 after the point), what OBJ files are made of, are read
+/// here: the digits and the power of ten are both exact in f64, so their quotient is the
+/// correctly rounded value, which is what the standard parser computes for them too (its own
+/// fast path). Everything else (exponents, more digits, `inf`, `nan`, garbage) goes to the
+/// standard parser.
+#[inline]
+fn parse_f64(t: &[u8]) -> Option<f64> {
+    plain_decimal(t).or_else(|| std::str::from_utf8(t).ok()?.parse().ok())
+}
+
+#[inline]
+fn plain_decimal(t: &[u8]) -> Option<f64> {
+    let (neg, d) = match t.first()? {
+        b'-' => (true, &t[1..]),
+        b'+' => (false, &t[1..]),
+        _ => (false, t),
+    };
+    let mut m: u64 = 0;
+    let mut i = 0;
+    while i < d.len() && d[i].is_ascii_digit() {
+        m = m.wrapping_mul(10).wrapping_add((d[i] - b'0') as u64);
+        i += 1;
+    }
+    let whole = i;
+    let mut frac = 0;
+    if i < d.len() && d[i] == b'.' {
+        i += 1;
+        let start = i;
+        while i < d.len() && d[i].is_ascii_digit() {
+            m = m.wrapping_mul(10).wrapping_add((d[i] - b'0') as u64);
+            i += 1;
+        }
+        frac = i - start;
+    }
+    // 19 digits cannot overflow u64 (so the wrapping above never wraps when this holds).
+    let digits = whole + frac;
+    if i != d.len() || digits == 0 || digits > 19 || m > 1 << 53 || frac > 22 {
+        return None;
+    }
+    let v = m as f64 / POW10[frac];
+    Some(if neg { -v } else { v })
+}
+
+/// `t` read as `str::parse::<i64>` reads it: 18 digits or fewer with an optional sign here,
+/// anything else by the standard parser.
+#[inline]
+fn parse_index(t: &[u8]) -> Option<i64> {
+    let (neg, d) = match t.first()? {
+        b'-' => (true, &t[1..]),
+        b'+' => (false, &t[1..]),
+        _ => (false, t),
+    };
+    if d.is_empty() || d.len() > 18 || !d.iter().all(u8::is_ascii_digit) {
+        return std::str::from_utf8(t).ok()?.parse().ok();
+    }
+    let n = d.iter().fold(0i64, |n, &b| n * 10 + (b - b'0') as i64);
+    Some(if neg { -n } else { n })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The chunk reader before its hand-written scanner and number parsers (tokens by
+    /// `split`, numbers by `str::parse`): what the new one must give, error for error.
+    fn parse_chunk_std(
+        text: &[u8],
+        vbase: usize,
+        lbase: usize,
+        nv: usize,
+        total: Option<usize>,
+        shared: &Shared,
+    ) -> Result<Chunk, MeshError> {
+        let mut positions = Vec::with_capacity(nv);
+        let mut triangles = Vec::new();
+        let mut poly: Vec<u32> = Vec::new();
+        let mut forward: Option<(usize, i64, usize)> = None;
+        let mut reported = 0;
+        for (i, raw) in text.split(|&b| b == b'\n').enumerate() {
+            let line = raw.trim_ascii();
+            let err = |what: &str| malformed("OBJ", format!("line {}: {what}", lbase + i + 1));
+            let mut tok = line
+                .split(|b| b.is_ascii_whitespace())
+                .filter(|t| !t.is_empty());
+            match tok.next() {
+                Some(b"v") => {
+                    let mut p = [0.0; 3];
+                    for c in &mut p {
+                        let t = tok.next().ok_or_else(|| err("a vertex needs x, y and z"))?;
+                        *c = std::str::from_utf8(t)
+                            .ok()
+                            .and_then(|s| s.parse().ok())
+                            .ok_or_else(|| {
+                                err(&format!("{:?} is not a number", String::from_utf8_lossy(t)))
+                            })?;
+                    }
+                    positions.push(p);
+                }
+                Some(b"f") => {
+                    let defined = (vbase + positions.len()) as i64;
+                    poly.clear();
+                    for t in tok {
+                        let idx = t.split(|&b| b == b'/').next().unwrap_or(t);
+                        let n: i64 = std::str::from_utf8(idx)
+                            .ok()
+                            .and_then(|s| s.parse().ok())
+                            .ok_or_else(|| {
+                                err(&format!(
+                                    "{:?} is not a vertex index",
+                                    String::from_utf8_lossy(t)
+                                ))
+                            })?;
+                        // 1-based from the start, or negative: relative to the vertices defined so far.
+                        let abs = if n > 0 { n - 1 } else { defined + n };
+                        let out = match total {
+                            Some(total) => abs >= total as i64,
+                            None => abs > u32::MAX as i64,
+                        };
+                        if n == 0 || abs < 0 || out {
+                            let has = match total {
+                                Some(t) => format!("the file has {t} vertices"),
+                                None => format!("{defined} vertices are defined before this line"),
+                            };
+                            return Err(err(&format!("vertex index {n} is out of range ({has})")));
+                        }
+                        if abs >= defined && forward.is_none_or(|f| abs as usize > f.2) {
+                            forward = Some((lbase + i + 1, n, abs as usize));
+                        }
+                        poly.push(abs as u32);
+                    }
+                    fan(&poly, &mut triangles);
+                    if triangles.len() - reported >= REPORT_EVERY {
+                        shared.add(triangles.len() - reported)?;
+                        reported = triangles.len();
+                    }
+                }
+                _ => {} // comments, vt, vn, o, g, s, usemtl, mtllib, l, p, ...
+            }
+        }
+        shared.add(triangles.len() - reported)?;
+        let bad = positions.iter().position(bad_position).map(|i| vbase + i);
+        Ok(Chunk {
+            positions,
+            triangles,
+            forward,
+            bad,
+        })
+    }
+
+    /// A small deterministic generator (xorshift64*), so failures reproduce.
+    struct Rng(u64);
+
+    impl Rng {
+        fn next(&mut self) -> u64 {
+            self.0 ^= self.0 >> 12;
+            self.0 ^= self.0 << 25;
+            self.0 ^= self.0 >> 27;
+            self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
+        }
+        fn below(&mut self, n: usize) -> usize {
+            (self.next() % n as u64) as usize
+        }
+        fn pick<'a>(&mut self, of: &[&'a str]) -> &'a str {
+            of[self.below(of.len())]
+        }
+    }
+
+    fn std_f64(t: &[u8]) -> Option<f64> {
+        std::str::from_utf8(t).ok()?.parse().ok()
+    }
+
+    fn digits(r: &mut Rng, n: usize) -> String {
+        (0..n).map(|_| (b'0' + r.below(10) as u8) as char).collect()
+    }
+
+    /// A token like those of OBJ files and their corners: signs, points, exponents, long
+    /// digit runs, special values and garbage.
+    fn number_token(r: &mut Rng) -> String {
+        match r.below(8) {
+            0 => r
+                .pick(&[
+                    "inf",
+                    "-inf",
+                    "+inf",
+                    "Infinity",
+                    "-infinity",
+                    "NaN",
+                    "nan",
+                    "-nan",
+                    "+",
+                    "-",
+                    ".",
+                    "-.",
+                    "+.",
+                    "",
+                    "e5",
+                    ".e1",
+                    "1e",
+                    "1e+",
+                    "0x10",
+                    "1_0",
+                    "1,5",
+                    "--1",
+                    "+-1",
+                    "1.2.3",
+                    "١",
+                    "1\u{a0}",
+                ])
+                .to_string(),
+            1 => {
+                let v = f64::from_bits(r.next());
+                match r.below(4) {
+                    0 => format!("{v}"),
+                    1 => format!("{v:e}"),
+                    2 => format!("{v:.7}"),
+                    _ => format!("{:?}", v as f32),
+                }
+            }
+            2 => {
+                // Subnormals and values near the ends of the range.
+                let v = f64::from_bits(r.next() % (1 << 53));
+                let w = f64::MAX / (1 + r.below(1000)) as f64;
+                format!("{}", if r.below(2) == 0 { v } else { w })
+            }
+            _ => {
+                let sign = r.pick(&["", "", "-", "+"]);
+                let most = if r.below(4) == 0 { 25 } else { 4 };
+                let n = r.below(most);
+                let whole = digits(r, n);
+                let point = r.pick(&["", ".", ".", "."]);
+                let most = if r.below(4) == 0 { 30 } else { 9 };
+                let n = r.below(most);
+                let frac = digits(r, n);
+                let exp = match r.below(6) {
+                    0 => format!("e{}", r.below(40) as i64 - 20),
+                    1 => format!("E+{}", r.below(400)),
+                    _ => String::new(),
+                };
+                format!("{sign}{whole}{point}{frac}{exp}")
+            }
+        }
+    }
+
+    #[test]
+    fn floats_read_as_std_reads_them() {
+        let fixed = [
+            "0",
+            "-0",
+            "+0",
+            "-0.0",
+            "0.",
+            "-.0",
+            ".5",
+            "5.",
+            "+.5",
+            "-5.",
+            "0.0081780",
+            "-0.0496510",
+            "1.7976931348623157e308",
+            "4.9e-324",
+            "9007199254740992",
+            "9007199254740993",
+            "9007199254740993.0",
+            "0.9007199254740993",
+            "1234567890123456789",
+            "12345678901234567890",
+            "0.1",
+            "0.2",
+            "0.3",
+            "3.14159265358979",
+            "0.0000000000000000000001",
+            "0.00000000000000000000001",
+            "1e22",
+            "1e23",
+        ];
+        for t in fixed {
+            let (a, b) = (parse_f64(t.as_bytes()), std_f64(t.as_bytes()));
+            assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits), "{t:?}");
+        }
+        let mut r = Rng(0x9e37_79b9_7f4a_7c15);
+        let mut fast = 0;
+        for _ in 0..300_000 {
+            let t = number_token(&mut r);
+            let (a, b) = (parse_f64(t.as_bytes()), std_f64(t.as_bytes()));
+            // NaN == NaN by bits: the standard parser's NaN is one value.
+            assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits), "{t:?}");
+            fast += plain_decimal(t.as_bytes()).is_some() as usize;
+        }
+        // The fast path is taken for most of them (so it is what is being tested).
+        assert!(fast > 100_000, "{fast}");
+        // Not UTF-8: refused like the standard parser refuses it.
+        assert_eq!(parse_f64(b"1\xff"), None);
+        assert_eq!(parse_f64(b"\xff"), None);
+    }
+
+    #[test]
+    fn indices_read_as_std_reads_them() {
+        let std_i64 = |t: &[u8]| -> Option<i64> { std::str::from_utf8(t).ok()?.parse().ok() };
+        let mut r = Rng(7);
+        let fixed = [
+            "",
+            "+",
+            "-",
+            "0",
+            "-0",
+            "+0",
+            "1",
+            "+1",
+            "-1",
+            "007",
+            "1a",
+            "--1",
+            "+-1",
+            "999999999999999999",
+            "9223372036854775807",
+            "9223372036854775808",
+            "-9223372036854775808",
+            "-9223372036854775809",
+            "1.0",
+            " 1",
+            "\u{ff}",
+        ];
+        let mut tokens: Vec<String> = fixed.iter().map(|t| t.to_string()).collect();
+        for _ in 0..100_000 {
+            let sign = r.pick(&["", "", "-", "+", "--"]);
+            let most = if r.below(8) == 0 { 22 } else { 8 };
+            let n = r.below(most);
+            let tail = r.pick(&["", "", "", "", "x", "."]);
+            tokens.push(format!("{sign}{}{tail}", digits(&mut r, n)));
+        }
+        for t in tokens {
+            assert_eq!(parse_index(t.as_bytes()), std_i64(t.as_bytes()), "{t:?}");
+        }
+    }
+
+    /// Random OBJ text: vertices written many ways, faces with every index form (some out of
+    /// range, zero, negative, malformed), other statements, blank lines, odd whitespace.
+    fn obj_text(r: &mut Rng) -> Vec<u8> {
+        let mut s = String::new();
+        let mut vertices = 0i64;
+        for _ in 0..r.below(60) {
+            let ws = |r: &mut Rng| r.pick(&[" ", " ", " ", "  ", "\t", " \t ", "\x0c", "\r"]);
+            let lead = r.pick(&["", "", "", "", " ", "\t", "\r"]);
+            s += lead;
+            match r.below(10) {
+                0..=3 => {
+                    s += "v";
+                    for _ in 0..[3, 3, 3, 3, 3, 4, 6, 2, 0][r.below(9)] {
+                        s += ws(r);
+                        s += &if r.below(30) == 0 {
+                            number_token(r)
+                        } else {
+                            let v = (r.next() % 2_000_001) as f64 / 1e6 - 1.0;
+                            format!("{v}")
+                        };
+                    }
+                    vertices += 1;
+                }
+                4..=6 => {
+                    s += r.pick(&["f", "f", "f", "f", "fo", "F"]);
+                    for _ in 0..r.below(6) {
+                        s += ws(r);
+                        let n = match r.below(12) {
+                            0 => 0,
+                            1 => -(r.below(vertices as usize + 2) as i64),
+                            2 => vertices + 1 + r.below(3) as i64,
+                            _ => 1 + r.below(vertices.max(1) as usize) as i64,
+                        };
+                        s += &match r.below(12) {
+                            0 => format!("{n}/{n}"),
+                            1 => format!("{n}//{n}"),
+                            2 => format!("{n}/1/2"),
+                            3 => format!("+{n}"),
+                            4 if r.below(4) == 0 => r.pick(&["x", "/1", "1x", "-", ""]).into(),
+                            _ => format!("{n}"),
+                        };
+                    }
+                }
+                7 => {
+                    s += r.pick(&[
+                        "# v 1 2 3",
+                        "vt 0.5 0.5",
+                        "vn 0 0 1",
+                        "o a",
+                        "g b",
+                        "s 1",
+                        "l 1 2",
+                        "v",
+                        "f",
+                        "g a\\",
+                        "# \\ x",
+                    ])
+                }
+                _ => {}
+            }
+            if r.below(3) == 0 {
+                s += ws(r);
+            }
+            s += r.pick(&["\n", "\n", "\n", "\r\n", "\n\n"]);
+        }
+        if r.below(2) == 0 {
+            s.pop();
+        }
+        s.into_bytes()
+    }
+
+    type Parsed = Result<
+        (
+            Vec<[u64; 3]>,
+            Vec<[u32; 3]>,
+            Option<(usize, i64, usize)>,
+            Option<usize>,
+        ),
+        MeshError,
+    >;
+
+    /// A chunk reader: [`parse_chunk`] or [`parse_chunk_std`].
+    type Reader =
+        fn(&[u8], usize, usize, usize, Option<usize>, &Shared) -> Result<Chunk, MeshError>;
+
+    fn run(
+        f: Reader,
+        text: &[u8],
+        vbase: usize,
+        total: Option<usize>,
+        max_triangles: usize,
+    ) -> Parsed {
+        let shared = Shared {
+            triangles: AtomicUsize::new(0),
+            max_triangles,
+        };
+        f(text, vbase, 3, 0, total, &shared).map(|c| {
+            (
+                c.positions.iter().map(|p| p.map(f64::to_bits)).collect(),
+                c.triangles,
+                c.forward,
+                c.bad,
+            )
+        })
+    }
+
+    #[test]
+    fn chunks_read_as_before() {
+        let mut r = Rng(0x5eed);
+        let (mut ok, mut errors) = (0, 0);
+        for case in 0..20_000 {
+            let text = obj_text(&mut r);
+            let vbase = [0, 0, 5, 1 << 20][r.below(4)];
+            let total = [None, None, Some(vbase + 10), Some(vbase + 100)][r.below(4)];
+            let max = [usize::MAX, usize::MAX, 3][r.below(3)];
+            let new = run(parse_chunk, &text, vbase, total, max);
+            let old = run(parse_chunk_std, &text, vbase, total, max);
+            assert_eq!(
+                new,
+                old,
+                "case {case}: {:?}",
+                String::from_utf8_lossy(&text)
+            );
+            if new.is_ok() { ok += 1 } else { errors += 1 }
+        }
+        // Both outcomes are well represented.
+        assert!(ok > 1000 && errors > 1000, "{ok} {errors}");
+    }
+
+    #[test]
+    fn line_counts_as_before() {
+        let mut r = Rng(99);
+        for _ in 0..5000 {
+            let text = obj_text(&mut r);
+            let old = (
+                text.split(|&b| b == b'\n')
+                    .filter(|l| is_vertex_line(l))
+                    .count(),
+                text.iter().filter(|&&b| b == b'\n').count(),
+            );
+            assert_eq!(
+                count_lines(&text),
+                old,
+                "{:?}",
+                String::from_utf8_lossy(&text)
+            );
+            let continued =
+                text.windows(2).any(|w| w == b"\\\n") || text.windows(3).any(|w| w == b"\\\r\n");
+            assert_eq!(has_continued_lines(&text), continued);
+        }
+        assert!(has_continued_lines(b"v 1 \\\r\n2 3\n"));
+        assert!(!has_continued_lines(b"# a \\ b\n"));
+    }
 }

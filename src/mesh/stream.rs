@@ -100,6 +100,18 @@ impl<'a> Stream<'a> {
         debug_assert!(self.pos <= self.buf.len());
     }
 
+    /// Takes the next `n` unconsumed bytes of a compressed file out of the window, which keeps
+    /// what follows them (in `spare`'s allocation), so that they can be read while more is
+    /// decoded. They are `taken[start..start + n]`.
+    fn take_front(&mut self, n: usize, mut spare: Vec<u8>) -> (Vec<u8>, usize) {
+        let buf = self.buf.to_mut();
+        spare.clear();
+        spare.extend_from_slice(&buf[self.pos + n..]);
+        let taken = std::mem::replace(buf, spare);
+        let start = std::mem::take(&mut self.pos);
+        (taken, start)
+    }
+
     /// The most bytes that can still come: exact at the end, else what the limit still allows.
     pub(super) fn remaining_bound(&self) -> u64 {
         let at_hand = (self.buf.len() - self.pos) as u64;
@@ -171,22 +183,30 @@ impl<'a> Stream<'a> {
     }
 }
 
+/// Bytes [`line_blocks`] decodes before the first block of a compressed file is read.
+const FIRST_BLOCK: usize = 1 << 20;
+
 /// Feeds `f` the unconsumed rest of the file in blocks of whole lines: all of it at once when it
 /// is in memory, else blocks of about `block` bytes cut after a line that `line_end` accepts (it
 /// gives the end of the last complete line of a block). A line longer than `max_line` in a
-/// compressed file is refused. `f` gets each block and whether it is the last.
+/// compressed file is refused. `f` gets each block and whether it is the last; while it reads a
+/// block of a compressed file, the next one is decoded.
 pub(super) fn line_blocks(
     s: &mut Stream,
     format: &'static str,
     block: usize,
     max_line: usize,
     line_end: fn(&[u8]) -> Option<usize>,
-    mut f: impl FnMut(&[u8], bool) -> Result<(), MeshError>,
+    mut f: impl FnMut(&[u8], bool) -> Result<(), MeshError> + Send,
 ) -> Result<(), MeshError> {
     let block = s
         .test_block
         .unwrap_or(if s.compressed { block } else { usize::MAX });
-    let mut want = block;
+    // The first block is small: it is read while the next is decoded, but nothing is read
+    // while it is.
+    let mut want = block.min(FIRST_BLOCK);
+    // The allocation of the block read last, for the window to reuse.
+    let mut spare = Vec::new();
     loop {
         s.fill_to(want)?;
         let at_end = s.at_end();
@@ -215,11 +235,26 @@ pub(super) fn line_blocks(
             }
         };
         let last = at_end && end == avail.len();
-        f(&avail[..end], last)?;
-        if last {
-            return Ok(());
+        if last || !s.compressed {
+            f(&avail[..end], last)?;
+            if last {
+                return Ok(());
+            }
+            s.consume(end);
+        } else {
+            // The next block is decoded while this one is read: the two take about as long for
+            // OBJ text, and inflating is serial. One worker of the pool decodes, the others
+            // read (and the decoder helps them once it is done): a thread of its own would
+            // compete with them for the cores. Decoding stays within the limit, one block
+            // ahead at most; an error of this block wins over one of decoding the next, as
+            // when they came one after the other.
+            let (taken, start) = s.take_front(end, std::mem::take(&mut spare));
+            let (ahead, read) =
+                rayon::join(|| s.fill_to(block), || f(&taken[start..start + end], false));
+            read?;
+            ahead?;
+            spare = taken;
         }
-        s.consume(end);
         want = block;
     }
 }

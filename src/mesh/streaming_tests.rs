@@ -390,3 +390,54 @@ fn ascii_stl_in_blocks_reads_what_ascii_stl_in_memory_reads() {
     let [whole, blocks] = whole_and_blocks(cut, Format::Stl, 333);
     assert_eq!(whole.unwrap_err(), blocks.unwrap_err());
 }
+
+/// A bad vertex (non-finite or huge) is refused as `Mesh::new` refuses it, whichever block or
+/// chunk it is in, and only once the rest of the file has been read without error.
+#[test]
+fn obj_bad_vertices_are_refused_as_mesh_new_refuses_them() {
+    let n = 60_000;
+    let position = |i: usize| [i as f64, (i % 7) as f64, 0.5];
+    for (bad, value) in [
+        (0, "nan"),
+        (1, "inf"),
+        (n / 2, "-inf"),
+        (n / 2 + 1, "1e300"),
+        (n - 1, "-2e15"),
+    ] {
+        let mut positions: Vec<[f64; 3]> = (0..n).map(position).collect();
+        let mut text = String::new();
+        for (i, p) in positions.iter_mut().enumerate() {
+            if i == bad {
+                p[1] = value.parse().unwrap();
+                text += &format!("v {} {value} {}\n", p[0], p[2]);
+            } else if i == bad + 7 && i < n {
+                // A second bad one later: the first is named.
+                p[0] = f64::NAN;
+                text += &format!("v nan {} {}\n", p[1], p[2]);
+            } else {
+                text += &format!("v {} {} {}\n", p[0], p[1], p[2]);
+            }
+        }
+        let triangles: Vec<[u32; 3]> = (0..n as u32 - 2).map(|i| [i, i + 1, i + 2]).collect();
+        for t in &triangles {
+            text += &format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1);
+        }
+        let want = Mesh::new(positions, triangles).unwrap_err();
+        for block in [1 << 10, 1 << 16, usize::MAX] {
+            for got in whole_and_blocks(text.as_bytes(), Format::Obj, block) {
+                // By their Debug text: NaN is not equal to itself.
+                let got = format!("{:?}", got.unwrap_err());
+                assert_eq!(got, format!("{want:?}"), "vertex {bad}, block {block}");
+            }
+        }
+        // A malformed line after the bad vertex is what is reported.
+        let broken = text.clone() + "f 1 2 x\n";
+        for got in whole_and_blocks(broken.as_bytes(), Format::Obj, 1 << 16) {
+            assert!(
+                got.unwrap_err()
+                    .to_string()
+                    .contains("is not a vertex index")
+            );
+        }
+    }
+}
