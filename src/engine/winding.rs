@@ -26,7 +26,6 @@
 //! Both parts run on the CPU; the signed counts use the same integer crossing rule as `solid`.
 
 use std::f64::consts::PI;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -46,19 +45,47 @@ const LEAF: usize = 8;
 const CAP_LIMIT: f64 = 0.45;
 /// Edge of the voxel blocks certified at once.
 const BLOCK: u32 = 8;
+/// Added to every block's interval (in units of w) for the hierarchy's approximation error at
+/// the block's centre (about 10⁻³; see the tests).
+const MARGIN: f64 = 0.02;
+/// Voxels within this many voxel sizes of a cap triangle are ties (decided by the mesh's own
+/// winding number), and blocks that near a triangle are split.
+const TIE: f64 = 0.01;
 
 /// How the voxels of a winding fill were decided.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct WindingStats {
     /// Triangles added to close the mesh's boundary cycles.
     pub cap_triangles: u64,
-    /// Voxels decided by the exact crossing count alone (proven far from the caps).
+    /// Voxels decided by the exact crossing count alone (|w_caps| < 0.45 proven by the bound
+    /// Σ area / (distance − radius)² over the block or voxel).
     pub exact_voxels: u64,
-    /// Voxels decided by the crossing count minus the caps' winding number (hierarchy).
+    /// Voxels decided a block at a time by the crossing count against an integer k: the
+    /// interval of the caps' winding number over the block (the hierarchy at its centre ± a
+    /// bound on its variation and a margin) contains no half-integer, and inside ⇔ N ≠ k.
+    #[serde(default)]
+    pub cap_block_voxels: u64,
+    /// Voxels decided a block at a time by the mesh's own winding number: its interval over the
+    /// block (away from the mesh's triangles) excludes ±½.
+    #[serde(default)]
+    pub mesh_block_voxels: u64,
+    /// Voxels decided one by one by the crossing count minus the caps' winding number
+    /// (hierarchy).
     pub cap_evaluated_voxels: u64,
-    /// Voxels within a hundredth of a voxel of a cap's plane, decided by the hierarchy over
-    /// the mesh itself.
+    /// Voxels within a hundredth of a voxel of a cap triangle, decided by the mesh's own winding
+    /// number (exact sums, or the hierarchy over the mesh when there are many).
     pub mesh_evaluated_voxels: u64,
+}
+
+impl WindingStats {
+    /// Every voxel is counted once.
+    pub fn voxels(&self) -> u64 {
+        self.exact_voxels
+            + self.cap_block_voxels
+            + self.mesh_block_voxels
+            + self.cap_evaluated_voxels
+            + self.mesh_evaluated_voxels
+    }
 }
 
 /// The solid of `mesh` on `grid` under `fill=winding`.
@@ -66,18 +93,208 @@ pub fn solid(mesh: &Mesh, grid: &Grid) -> Result<(BitVolume, WindingStats), Engi
     solid_with(mesh, grid, &Control::none())
 }
 
-/// [`solid`], checking `ctl` per column of blocks while certifying, per band and x-row while
-/// counting, and per tie voxel after, and reporting progress there.
+/// [`solid`], checking `ctl` per column of blocks while certifying, per tie voxel after, and per
+/// band and x-row while counting, and reporting progress there.
 pub fn solid_with(
     mesh: &Mesh,
     grid: &Grid,
     ctl: &Control,
 ) -> Result<(BitVolume, WindingStats), EngineError> {
-    // Shares of the progress: certifying blocks, the counting pass, the tie voxels.
-    let (certify, count, ties) = (
-        ctl.stage(0.0, 0.15),
-        ctl.stage(0.15, 0.95),
-        ctl.stage(0.95, 1.0),
+    solid_impl(mesh, grid, ctl, true)
+}
+
+/// How the voxels of one `BLOCK`³ block are decided.
+#[derive(Clone, Copy, Debug)]
+enum Block {
+    /// Inside ⇔ N ≠ k.
+    Ne(i32),
+    /// All inside, or all outside.
+    Is(bool),
+    /// Per voxel: the codes of `mixed[i]`.
+    Mixed(u32),
+}
+
+/// Codes of the voxels of a mixed block, x-major: a value k means inside ⇔ N ≠ k, else one of
+/// these three.
+type Codes = [i8; (BLOCK * BLOCK * BLOCK) as usize];
+const V_OUT: i8 = i8::MIN;
+const V_IN: i8 = i8::MIN + 1;
+/// A tie, to be replaced by `V_IN` or `V_OUT` from the mesh's own winding number.
+const V_TIE: i8 = i8::MIN + 2;
+/// The largest |k| a code holds (larger ones are ties).
+const K_MAX: f64 = 100.0;
+
+/// Indices of the statistics' voxel counts.
+const EXACT: usize = 0;
+const CAP_BLOCK: usize = 1;
+const MESH_BLOCK: usize = 2;
+const CAP_EVAL: usize = 3;
+const MESH_EVAL: usize = 4;
+
+/// The certification of blocks: trees, grid, and what a column of blocks found.
+struct Certifier<'a> {
+    grid: &'a Grid,
+    caps: &'a WindingTree,
+    mesh: &'a WindingTree,
+    /// Whether blocks are decided as wholes (off: every voxel one by one, for the tests).
+    blocks: bool,
+}
+
+/// What a column of blocks found.
+#[derive(Default)]
+struct Column {
+    blocks: Vec<Block>,
+    mixed: Vec<Codes>,
+    ties: Vec<[u32; 3]>,
+    counts: [u64; 5],
+}
+
+/// A block's or voxel's decision.
+#[derive(Clone, Copy)]
+enum Decision {
+    Ne(i32, usize),
+    Is(bool),
+    Tie,
+}
+
+impl Certifier<'_> {
+    /// The decision for the voxels `lo..lo + size` (clamped to the grid) as a whole, if any.
+    fn decide(&self, lo: [u32; 3], size: u32) -> Option<Decision> {
+        let g = self.grid;
+        let s = g.voxel_size;
+        let hi = [0, 1, 2].map(|a| (lo[a] + size).min(g.dims[a]));
+        let c = g.world_of([0, 1, 2].map(|a| (lo[a] as f64 + hi[a] as f64) * 0.5));
+        let rb = 0.5
+            * s
+            * (0..3)
+                .map(|a| ((hi[a] - lo[a] - 1) as f64).powi(2))
+                .sum::<f64>()
+                .sqrt();
+        let four_pi = 4.0 * PI;
+        let caps = self.caps.spread(c, rb, TIE * s, 2.0 * PI);
+        if size == 1 {
+            // One voxel: the hierarchy's value, as [`WindingTree::winding_number_off_planes`].
+            let Some(caps) = caps else {
+                return Some(Decision::Tie);
+            };
+            if caps.crude < CAP_LIMIT * four_pi {
+                return Some(Decision::Ne(0, EXACT));
+            }
+            let v = caps.value / four_pi;
+            let k = v.round();
+            return Some(if k.abs() > K_MAX {
+                Decision::Tie
+            } else if (v - k).abs() < 0.5 {
+                Decision::Ne(k as i32, CAP_EVAL)
+            } else {
+                // |N − v| ≥ ½ for every integer N.
+                Decision::Is(true)
+            });
+        }
+        if let Some(caps) = caps {
+            if caps.crude < CAP_LIMIT * four_pi {
+                return Some(Decision::Ne(0, EXACT));
+            }
+            if !self.blocks {
+                return None;
+            }
+            let v = caps.value / four_pi;
+            let k = v.round();
+            if (v - k).abs() + caps.spread / four_pi + MARGIN < 0.5 && k.abs() <= K_MAX {
+                return Some(Decision::Ne(k as i32, CAP_BLOCK));
+            }
+        }
+        if !self.blocks {
+            return None;
+        }
+        let m = self.mesh.spread(c, rb, TIE * s, 2.0 * PI)?;
+        let (v, e) = (m.value / four_pi, m.spread / four_pi + MARGIN);
+        ((v - 0.5).abs() > e && (v + 0.5).abs() > e).then_some(Decision::Is(v.abs() >= 0.5))
+    }
+
+    /// Decides the block at block coordinates `b` into `col`.
+    fn block(&self, b: [u32; 3], col: &mut Column) {
+        let lo = b.map(|v| v * BLOCK);
+        let voxels = |lo: [u32; 3], size: u32| -> u64 {
+            (0..3)
+                .map(|a| ((lo[a] + size).min(self.grid.dims[a]) - lo[a]) as u64)
+                .product()
+        };
+        match self.decide(lo, BLOCK) {
+            Some(Decision::Ne(k, how)) => {
+                col.counts[how] += voxels(lo, BLOCK);
+                col.blocks.push(Block::Ne(k));
+                return;
+            }
+            Some(Decision::Is(inside)) => {
+                col.counts[MESH_BLOCK] += voxels(lo, BLOCK);
+                col.blocks.push(Block::Is(inside));
+                return;
+            }
+            Some(Decision::Tie) | None => {}
+        }
+        let mut codes: Codes = [V_OUT; (BLOCK * BLOCK * BLOCK) as usize];
+        let mut stack: Vec<([u32; 3], u32)> = Vec::with_capacity(32);
+        let h = BLOCK / 2;
+        for d in 0..8u32 {
+            stack.push(([0, 1, 2].map(|a| lo[a] + ((d >> a) & 1) * h), h));
+        }
+        while let Some((sub, size)) = stack.pop() {
+            if (0..3).any(|a| sub[a] >= self.grid.dims[a]) {
+                continue;
+            }
+            let decision = self.decide(sub, size);
+            let (code, how) = match decision {
+                Some(Decision::Ne(k, how)) => (k as i8, how),
+                Some(Decision::Is(inside)) => (
+                    if inside { V_IN } else { V_OUT },
+                    if size == 1 { CAP_EVAL } else { MESH_BLOCK },
+                ),
+                Some(Decision::Tie) => (V_TIE, MESH_EVAL),
+                None => {
+                    let h = size / 2;
+                    for d in 0..8u32 {
+                        stack.push(([0, 1, 2].map(|a| sub[a] + ((d >> a) & 1) * h), h));
+                    }
+                    continue;
+                }
+            };
+            col.counts[how] += voxels(sub, size);
+            let hi = [0, 1, 2].map(|a| (sub[a] + size).min(self.grid.dims[a]));
+            for x in sub[0]..hi[0] {
+                for y in sub[1]..hi[1] {
+                    for z in sub[2]..hi[2] {
+                        if code == V_TIE {
+                            col.ties.push([x, y, z]);
+                        }
+                        codes[local([x, y, z])] = code;
+                    }
+                }
+            }
+        }
+        col.blocks.push(Block::Mixed(col.mixed.len() as u32));
+        col.mixed.push(codes);
+    }
+}
+
+/// A voxel's index in its block's codes.
+fn local([x, y, z]: [u32; 3]) -> usize {
+    (((x % BLOCK) * BLOCK + y % BLOCK) * BLOCK + z % BLOCK) as usize
+}
+
+/// [`solid_with`]; `blocks` off decides every voxel near the caps one by one (the tests compare).
+fn solid_impl(
+    mesh: &Mesh,
+    grid: &Grid,
+    ctl: &Control,
+    blocks: bool,
+) -> Result<(BitVolume, WindingStats), EngineError> {
+    // Shares of the progress: certifying blocks (and evaluating the voxels that need it), the
+    // tie voxels, the counting pass.
+    let (certify, ties, count) = (
+        ctl.stage(0.0, 0.8),
+        ctl.stage(0.8, 0.85),
+        ctl.stage(0.85, 1.0),
     );
     let (apexes, caps) = closing_caps(mesh);
     let mut positions = mesh.positions().to_vec();
@@ -86,156 +303,132 @@ pub fn solid_with(
     triangles.extend_from_slice(&caps);
     let closed = Mesh::new(positions, triangles).expect("caps index the mesh's own positions");
     let gm = GridMesh::new(&closed, grid)?;
-    // The caps exactly as the crossing count sees them: on the 1/256-voxel lattice.
-    let s = grid.voxel_size;
-    let cap_positions: Vec<[f64; 3]> = closed
-        .positions()
-        .iter()
-        .map(|&p| snapped_world(grid, p))
-        .collect();
-    let cap_tree = (!caps.is_empty()).then(|| WindingTree::new(&cap_positions, &caps));
     let centre = |[x, y, z]: [u32; 3]| grid.voxel_center(x, y, z);
-    let near_caps = |p: [f64; 3], r: f64| match &cap_tree {
-        Some(t) => t.bound_exceeds(p, r, CAP_LIMIT * 4.0 * PI),
-        None => false,
-    };
-    // The voxels not proven away from the caps: BLOCK³ blocks first, a failing block split into
-    // eight, down to single voxels.
-    let [_, ny, nz] = grid.dims;
     let nb = grid.dims.map(|d| d.div_ceil(BLOCK));
-    let refine = |lo: [u32; 3], out: &mut Vec<[u32; 3]>| {
-        let mut stack = vec![(lo, BLOCK)];
-        while let Some((lo, size)) = stack.pop() {
-            let hi = [0, 1, 2].map(|a| (lo[a] + size).min(grid.dims[a]));
-            if (0..3).any(|a| lo[a] >= hi[a]) {
-                continue;
-            }
-            let c = grid.world_of([0, 1, 2].map(|a| (lo[a] as f64 + hi[a] as f64) * 0.5));
-            let r = 0.5 * 3f64.sqrt() * (size - 1) as f64 * s;
-            if !near_caps(c, r) {
-                continue;
-            }
-            if size == 1 {
-                out.push(lo);
-                continue;
-            }
-            let h = size / 2;
-            for d in 0..8u32 {
-                stack.push(([0, 1, 2].map(|a| lo[a] + ((d >> a) & 1) * h), h));
+    let mut counts = [0u64; 5];
+    let mut block_codes: Vec<Block> = Vec::new();
+    let mut mixed: Vec<Codes> = Vec::new();
+    ctl.check()?;
+    if caps.is_empty() {
+        // Closed: N is the winding number.
+        counts[EXACT] = grid.voxel_count();
+    } else {
+        // The caps exactly as the crossing count sees them: on the 1/256-voxel lattice.
+        let cap_positions: Vec<[f64; 3]> = closed
+            .positions()
+            .iter()
+            .map(|&p| snapped_world(grid, p))
+            .collect();
+        let (cap_tree, mesh_tree) = rayon::join(
+            || WindingTree::new(&cap_positions, &caps),
+            || WindingTree::new(mesh.positions(), mesh.triangles()),
+        );
+        let cert = Certifier {
+            grid,
+            caps: &cap_tree,
+            mesh: &mesh_tree,
+            blocks,
+        };
+        let block_columns = nb[0] * nb[1];
+        let certified = certify.counter(block_columns as u64);
+        let columns: Vec<Column> = (0..block_columns)
+            .into_par_iter()
+            .map(|c| {
+                certified.check()?;
+                let mut col = Column::default();
+                let (bx, by) = (c / nb[1], c % nb[1]);
+                for bz in 0..nb[2] {
+                    cert.block([bx, by, bz], &mut col);
+                }
+                certified.add(1);
+                Ok(col)
+            })
+            .collect::<Result<_, Canceled>>()?;
+        certify.complete();
+        block_codes.reserve(nb.iter().map(|&n| n as usize).product());
+        let mut deferred = Vec::new();
+        for col in columns {
+            let base = mixed.len() as u32;
+            block_codes.extend(col.blocks.iter().map(|&b| match b {
+                Block::Mixed(i) => Block::Mixed(base + i),
+                b => b,
+            }));
+            mixed.extend(col.mixed);
+            deferred.extend(col.ties);
+            for (t, c) in counts.iter_mut().zip(col.counts) {
+                *t += c;
             }
         }
-    };
-    ctl.check()?;
-    let block_columns = if cap_tree.is_some() { nb[0] * nb[1] } else { 0 };
-    let certified = certify.counter(block_columns as u64);
-    let lists: Vec<Vec<[u32; 3]>> = (0..block_columns)
-        .into_par_iter()
-        .map(|c| {
-            certified.check()?;
-            let mut out = Vec::new();
-            let (bx, by) = (c / nb[1], c % nb[1]);
-            for bz in 0..nb[2] {
-                refine([bx, by, bz].map(|v| v * BLOCK), &mut out);
-            }
-            certified.add(1);
-            Ok(out)
-        })
-        .collect::<Result<_, Canceled>>()?;
-    certify.complete();
-    let mut uncertain = BitVolume::new(*grid);
-    for v in lists.iter().flatten() {
-        uncertain.set(v[0], v[1], v[2], true);
+        // Voxels at a cap's tie: the mesh's own winding number. A few: exact sums over the mesh;
+        // many: the hierarchy over it.
+        let tris = mesh.triangles().len();
+        let tied = ties.counter(deferred.len() as u64);
+        let exact = (deferred.len() as u64) * (tris as u64) < 50_000_000;
+        let winding: Vec<f64> = deferred
+            .par_iter()
+            .map(|&v| {
+                tied.check()?;
+                let w = if exact {
+                    exact_winding_number((0..tris).map(|t| mesh.triangle(t)), centre(v))
+                } else {
+                    mesh_tree.winding_number(centre(v))
+                };
+                tied.add(1);
+                Ok(w)
+            })
+            .collect::<Result<_, Canceled>>()?;
+        for (&v, w) in deferred.iter().zip(winding) {
+            let b = v.map(|c| c / BLOCK);
+            let Block::Mixed(i) = block_codes[((b[0] * nb[1] + b[1]) * nb[2] + b[2]) as usize]
+            else {
+                unreachable!("a tie lies in a mixed block");
+            };
+            mixed[i as usize][local(v)] = if w.abs() >= 0.5 { V_IN } else { V_OUT };
+        }
     }
-    // Voxels at a cap's tie, decided after the pass by the mesh's own winding number.
-    let deferred = std::sync::Mutex::new(Vec::new());
-    let counters = [0, 1, 2].map(|_| AtomicU64::new(0));
+    ties.complete();
+    let [_, ny, nz] = grid.dims;
     let wpc = nz.div_ceil(64) as usize;
     let vol = crate::engine::cpu::signed_counts(&gm, &count, |x, counts, words| {
         // Stopped: the row is left empty and the pass fails below.
         if count.check().is_err() {
             return;
         }
-        let mut n = [0u64; 3];
+        let bx = x / BLOCK;
         for y in 0..ny {
             let col = &counts[(y * nz) as usize..((y + 1) * nz) as usize];
             let out = &mut words[y as usize * wpc..(y as usize + 1) * wpc];
-            for (z, &count) in col.iter().enumerate() {
+            let row = ((bx * nb[1] + y / BLOCK) * nb[2]) as usize;
+            for (z, &n) in col.iter().enumerate() {
                 let z = z as u32;
-                let p = centre([x, y, z]);
-                let inside = if !uncertain.get(x, y, z) {
-                    n[0] += 1;
-                    count != 0
-                } else {
-                    let caps = cap_tree
-                        .as_ref()
-                        .expect("caps exist where a block is uncertain");
-                    match caps.winding_number_off_planes(p, 0.01 * s) {
-                        Some(w_caps) => {
-                            n[1] += 1;
-                            (count as f64 - w_caps).abs() >= 0.5
-                        }
-                        None => {
-                            n[2] += 1;
-                            deferred
-                                .lock()
-                                .expect("no panics while held")
-                                .push([x, y, z]);
-                            false
-                        }
-                    }
+                let inside = match block_codes.get(row + (z / BLOCK) as usize) {
+                    None => n != 0,
+                    Some(&Block::Ne(k)) => n != k,
+                    Some(&Block::Is(inside)) => inside,
+                    Some(&Block::Mixed(i)) => match mixed[i as usize][local([x, y, z])] {
+                        V_OUT => false,
+                        V_IN => true,
+                        k => n != k as i32,
+                    },
                 };
                 if inside {
                     out[z as usize / 64] |= 1 << (z % 64);
                 }
             }
         }
-        for (c, v) in counters.iter().zip(n) {
-            c.fetch_add(v, Ordering::Relaxed);
-        }
     })?;
     // A row skipped because the work was stopped must not pass for a finished one.
     ctl.check()?;
-    let mut vol = vol;
-    let deferred = deferred.into_inner().expect("no panics while held");
-    // A few voxels: exact sums over the mesh; many: the hierarchy over it is worth building.
-    let tris = mesh.triangles().len();
-    let tied = ties.counter(deferred.len() as u64);
-    let winding: Vec<f64> = if (deferred.len() as u64) * (tris as u64) < 50_000_000 {
-        deferred
-            .par_iter()
-            .map(|&v| {
-                tied.check()?;
-                let w = exact_winding_number((0..tris).map(|t| mesh.triangle(t)), centre(v));
-                tied.add(1);
-                Ok(w)
-            })
-            .collect::<Result<_, Canceled>>()?
-    } else {
-        let tree = WindingTree::new(mesh.positions(), mesh.triangles());
-        deferred
-            .par_iter()
-            .map(|&v| {
-                tied.check()?;
-                let w = tree.winding_number(centre(v));
-                tied.add(1);
-                Ok(w)
-            })
-            .collect::<Result<_, Canceled>>()?
-    };
     ctl.complete();
-    for (v, w) in deferred.iter().zip(winding) {
-        if w.abs() >= 0.5 {
-            vol.set(v[0], v[1], v[2], true);
-        }
-    }
-    let [exact, cap_eval, mesh_eval] = counters.map(|c| c.into_inner());
     Ok((
         vol,
         WindingStats {
             cap_triangles: caps.len() as u64,
-            exact_voxels: exact,
-            cap_evaluated_voxels: cap_eval,
-            mesh_evaluated_voxels: mesh_eval,
+            exact_voxels: counts[EXACT],
+            cap_block_voxels: counts[CAP_BLOCK],
+            mesh_block_voxels: counts[MESH_BLOCK],
+            cap_evaluated_voxels: counts[CAP_EVAL],
+            mesh_evaluated_voxels: counts[MESH_EVAL],
         },
     ))
 }
@@ -464,43 +657,70 @@ impl WindingTree {
         Some(sum / (4.0 * PI))
     }
 
-    /// Whether Σ |solid angle| of the triangles over the ball (q, rq) may reach `limit`
-    /// steradians, by the bound area / (distance − radii)².
-    fn bound_exceeds(&self, q: [f64; 3], rq: f64, limit: f64) -> bool {
+    /// Over the ball (q, rq), in steradians: the hierarchy's Σ solid angles at q, a bound on how
+    /// far the exact sum anywhere in the ball lies from the exact sum at q, and a bound on
+    /// Σ |solid angle| anywhere in the ball. `None` when a triangle comes within `gap` of the
+    /// ball, or when the variation bound reaches `limit`.
+    ///
+    /// A node farther than β (radius + rq) from q is used through its expansion at q; otherwise
+    /// its children, and a leaf's triangles are summed exactly. The variation: the gradient of a
+    /// triangle's solid angle at a point at distance ≥ d from it is at most 2·area/d³
+    /// (∇(n·r/|r|³) = (n − 3(n·r̂)r̂)/|r|³, of magnitude √(1 + 3(n·r̂)²)/|r|³), so along a
+    /// segment from q of length ≤ rq the sum changes by at most Σ rq · 2·area/gap³, gap being
+    /// the distance from the ball to the node's ball (or to the triangle). The magnitude: a
+    /// triangle's solid angle is at most its area over its squared distance (and 2π).
+    fn spread(&self, q: [f64; 3], rq: f64, gap: f64, limit: f64) -> Option<Spread> {
+        let mut out = Spread::default();
         if self.nodes.is_empty() {
-            return false;
+            return Some(out);
         }
-        let mut sum = 0.0;
         let mut stack = [0u32; 64];
         let mut top = 1;
         while top > 0 {
             top -= 1;
             let n = &self.nodes[stack[top] as usize];
-            let d = norm(sub(n.centre, q));
-            if d > 2.0 * (n.radius + rq) {
-                sum += n.area / (d - n.radius - rq).powi(2);
+            let r = sub(n.centre, q);
+            let d2 = dot(r, r);
+            if d2 > (BETA * (n.radius + rq)).powi(2) {
+                out.value += far_field(n, r, d2);
+                let g = d2.sqrt() - n.radius - rq;
+                out.spread += rq * 2.0 * n.area / (g * g * g);
+                out.crude += n.area / (g * g);
             } else if n.count > 0 {
                 let (s, e) = (n.first as usize, (n.first + n.count) as usize);
                 for t in &self.tris[s..e] {
-                    let (c, r) = ball(t);
-                    let gap = norm(sub(c, q)) - r - rq;
-                    if gap <= 0.0 {
-                        return true;
+                    let area = norm(area_normal(t));
+                    // A degenerate triangle (of a fan over collinear edges) subtends nothing.
+                    if area == 0.0 {
+                        continue;
                     }
-                    sum += (area_normal(t).map(|v| v * v).iter().sum::<f64>().sqrt() / gap.powi(2))
-                        .min(2.0 * PI);
+                    let g = dist2_to_triangle(q, t).sqrt() - rq;
+                    if g.is_nan() || g <= gap {
+                        return None;
+                    }
+                    out.value += solid_angle(t, q);
+                    out.spread += (rq * 2.0 * area / (g * g * g)).min(4.0 * PI);
+                    out.crude += (area / (g * g)).min(2.0 * PI);
                 }
             } else {
                 stack[top] = n.first;
                 stack[top + 1] = n.right;
                 top += 2;
             }
-            if sum >= limit {
-                return true;
+            if out.spread >= limit {
+                return None;
             }
         }
-        false
+        Some(out)
     }
+}
+
+/// See [`WindingTree::spread`].
+#[derive(Clone, Copy, Debug, Default)]
+struct Spread {
+    value: f64,
+    spread: f64,
+    crude: f64,
 }
 
 /// 4π × the node's expanded winding number at q, with r = centre − q and d2 = |r|².
@@ -672,13 +892,6 @@ fn combine(l: &Node, r: &Node, li: u32, ri: u32) -> Node {
 /// Area × unit normal (half the cross product).
 fn area_normal(t: &[[f64; 3]; 3]) -> [f64; 3] {
     cross(sub(t[1], t[0]), sub(t[2], t[0])).map(|v| 0.5 * v)
-}
-
-/// A ball holding the triangle: centroid and farthest vertex.
-fn ball(t: &[[f64; 3]; 3]) -> ([f64; 3], f64) {
-    let c = [0, 1, 2].map(|k| (t[0][k] + t[1][k] + t[2][k]) / 3.0);
-    let r = t.iter().map(|v| norm(sub(*v, c))).fold(0.0, f64::max);
-    (c, r)
 }
 
 /// Squared distance from p to a triangle (Ericson, *Real-Time Collision Detection*, 5.1.5).
@@ -896,5 +1109,250 @@ mod tests {
             let w = exact_winding_number(tris.iter().copied(), q);
             assert!((w - w.round()).abs() < 1e-9, "{q:?}: {w}");
         }
+    }
+
+    /// xorshift64*: reproducible test inputs.
+    struct Rng(u64);
+    impl Rng {
+        fn next(&mut self) -> f64 {
+            self.0 ^= self.0 >> 12;
+            self.0 ^= self.0 << 25;
+            self.0 ^= self.0 >> 27;
+            (self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
+        }
+        fn range(&mut self, lo: f64, hi: f64) -> f64 {
+            lo + (hi - lo) * self.next()
+        }
+        fn point(&mut self, lo: f64, hi: f64) -> [f64; 3] {
+            [0, 1, 2].map(|_| self.range(lo, hi))
+        }
+        /// A uniformly random unit vector.
+        fn direction(&mut self) -> [f64; 3] {
+            loop {
+                let v = self.point(-1.0, 1.0);
+                let l = norm(v);
+                if l > 0.1 && l <= 1.0 {
+                    return v.map(|c| c / l);
+                }
+            }
+        }
+    }
+
+    fn add(a: [f64; 3], b: [f64; 3], t: f64) -> [f64; 3] {
+        [0, 1, 2].map(|k| a[k] + t * b[k])
+    }
+
+    /// The gradient of `solid_angle` by central differences.
+    fn gradient(t: &[[f64; 3]; 3], q: [f64; 3], h: f64) -> [f64; 3] {
+        [0, 1, 2].map(|k| {
+            let mut e = [0.0; 3];
+            e[k] = h;
+            (solid_angle(t, add(q, e, 1.0)) - solid_angle(t, add(q, e, -1.0))) / (2.0 * h)
+        })
+    }
+
+    #[test]
+    fn solid_angle_gradient_is_at_most_twice_the_area_over_the_cubed_distance() {
+        let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+        let mut tightest: f64 = 0.0;
+        for i in 0..4000 {
+            let t = [0; 3].map(|_| rng.point(-1.0, 1.0));
+            let area = norm(area_normal(&t));
+            if area < 1e-3 {
+                continue;
+            }
+            // Near and far, from all sides; every fourth along the normal, where the bound is
+            // attained in the limit.
+            let centroid = [0, 1, 2].map(|k| (t[0][k] + t[1][k] + t[2][k]) / 3.0);
+            let dir = if i % 4 == 0 {
+                area_normal(&t).map(|v| v / area)
+            } else {
+                rng.direction()
+            };
+            let q = add(centroid, dir, rng.range(0.05, 1.0) * 10f64.powf(rng.range(0.0, 2.0)));
+            let d = dist2_to_triangle(q, &t).sqrt();
+            if d < 1e-2 {
+                continue;
+            }
+            let g = norm(gradient(&t, q, 1e-5 * d));
+            let bound = 2.0 * area / d.powi(3);
+            let ratio = g / bound;
+            assert!(ratio <= 1.0 + 1e-4, "{t:?} {q:?}: |∇Ω| {g} > bound {bound}");
+            tightest = tightest.max(ratio);
+        }
+        // The bound is nearly attained: half of it would be wrong.
+        assert!(tightest > 0.95, "{tightest}");
+    }
+
+    #[test]
+    fn spread_bounds_the_variation_over_the_ball() {
+        let mut rng = Rng(12345);
+        let (p, t) = sheet(12);
+        let one = vec![[0.2, 0.1, 0.0], [0.9, 0.3, 0.05], [0.4, 0.8, -0.1]];
+        let sets: [(Vec<[f64; 3]>, Vec<[u32; 3]>); 3] = [
+            (p.clone(), t.clone()),
+            (one, vec![[0, 1, 2]]),
+            sheet(3),
+        ];
+        let (mut tightest, mut checked, mut worst_value): (f64, u32, f64) = (0.0, 0, 0.0);
+        for (p, t) in &sets {
+            let tree = WindingTree::new(p, t);
+            let tris: Vec<_> = t.iter().map(|t| t.map(|i| p[i as usize])).collect();
+            let exact = |q: [f64; 3]| tris.iter().map(|t| solid_angle(t, q)).sum::<f64>();
+            for i in 0..600 {
+                let q = add([0.5, 0.5, 0.0], rng.direction(), 10f64.powf(rng.range(-0.7, 1.3)));
+                let rq = if i % 5 == 0 {
+                    0.0
+                } else {
+                    norm(sub(q, [0.5, 0.5, 0.0])) * 10f64.powf(rng.range(-3.0, -0.3))
+                };
+                let Some(s) = tree.spread(q, rq, 0.0, f64::INFINITY) else {
+                    continue;
+                };
+                checked += 1;
+                let at_q = exact(q);
+                worst_value = worst_value.max((s.value - at_q).abs() / (4.0 * PI));
+                // Points of the ball: random ones, and the two along the gradient at q.
+                let grad = {
+                    let g: [f64; 3] = (0..3)
+                        .map(|k| {
+                            let h = 1e-6 * (1.0 + norm(q));
+                            let mut e = [0.0; 3];
+                            e[k] = h;
+                            (exact(add(q, e, 1.0)) - exact(add(q, e, -1.0))) / (2.0 * h)
+                        })
+                        .collect::<Vec<_>>()
+                        .try_into()
+                        .unwrap();
+                    let l = norm(g);
+                    if l > 0.0 { g.map(|v| v / l) } else { [1.0, 0.0, 0.0] }
+                };
+                let mut points = vec![add(q, grad, rq), add(q, grad, -rq)];
+                for _ in 0..6 {
+                    points.push(add(q, rng.direction(), rq * rng.next().sqrt()));
+                }
+                for x in points {
+                    let change = (exact(x) - at_q).abs();
+                    assert!(
+                        change <= s.spread * (1.0 + 1e-9) + 1e-12,
+                        "{q:?} r {rq}: change {change} > spread {}",
+                        s.spread
+                    );
+                    let magnitude: f64 = tris.iter().map(|t| solid_angle(t, x).abs()).sum();
+                    assert!(magnitude <= s.crude * (1.0 + 1e-9) + 1e-12);
+                    if s.spread > 1e-9 {
+                        tightest = tightest.max(change / s.spread);
+                    }
+                }
+            }
+        }
+        assert!(checked > 1000, "{checked}");
+        // The variation bound is close to attained somewhere (half of it would be wrong), and the
+        // hierarchy's value at the centre is well within the margin added for it.
+        assert!(tightest > 0.6, "{tightest}");
+        assert!(worst_value < MARGIN / 4.0, "{worst_value}");
+    }
+
+    /// A UV sphere: positions and outward triangles.
+    fn uv_sphere(c: [f64; 3], r: f64, n: u32) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
+        let (rings, segs) = (n, 2 * n);
+        let mut p = vec![[c[0], c[1], c[2] + r], [c[0], c[1], c[2] - r]];
+        for i in 1..rings {
+            let th = PI * i as f64 / rings as f64;
+            for j in 0..segs {
+                let ph = 2.0 * PI * j as f64 / segs as f64;
+                p.push([
+                    c[0] + r * th.sin() * ph.cos(),
+                    c[1] + r * th.sin() * ph.sin(),
+                    c[2] + r * th.cos(),
+                ]);
+            }
+        }
+        let id = |i: u32, j: u32| 2 + (i - 1) * segs + j % segs;
+        let mut t = Vec::new();
+        for j in 0..segs {
+            t.push([0, id(1, j), id(1, j + 1)]);
+            t.push([1, id(rings - 1, j + 1), id(rings - 1, j)]);
+            for i in 1..rings - 1 {
+                t.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+                t.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+            }
+        }
+        (p, t)
+    }
+
+    /// Meshes with holes on a 32³ unit grid: a sphere with triangles missing, an open bowl, a
+    /// patch left of a sphere (where the caps' winding number is near ±1), two overlapping
+    /// spheres (w = 2) with holes, and a bumpy sheet.
+    fn holey_meshes() -> Vec<Mesh> {
+        let mut rng = Rng(777);
+        let mut out = Vec::new();
+        let (p, mut t) = uv_sphere([15.7, 16.2, 16.1], 11.3, 14);
+        for _ in 0..6 {
+            t.remove((rng.next() * t.len() as f64) as usize);
+        }
+        out.push(Mesh::new(p, t).unwrap());
+        let (p, mut t) = uv_sphere([16.2, 15.9, 15.4], 12.1, 16);
+        t.retain(|tri| tri.iter().map(|&v| p[v as usize][2]).sum::<f64>() / 3.0 < 22.0);
+        out.push(Mesh::new(p, t).unwrap().flipped());
+        let (p, mut t) = uv_sphere([16.1, 16.3, 15.8], 12.4, 16);
+        t.retain(|tri| tri.iter().map(|&v| p[v as usize][0]).sum::<f64>() / 3.0 > 9.0);
+        out.push(Mesh::new(p, t).unwrap());
+        let (mut p, mut t) = uv_sphere([13.1, 14.2, 15.3], 8.7, 12);
+        let (p2, t2) = uv_sphere([18.4, 17.9, 16.6], 9.2, 12);
+        let off = p.len() as u32;
+        p.extend(p2);
+        t.extend(t2.iter().map(|tri| tri.map(|v| v + off)));
+        for _ in 0..8 {
+            t.remove((rng.next() * t.len() as f64) as usize);
+        }
+        out.push(Mesh::new(p, t).unwrap());
+        let (p, t) = sheet(24);
+        let p = p.iter().map(|v| [3.3 + 25.0 * v[0], 4.1 + 24.0 * v[1], 15.2 + 60.0 * v[2]]);
+        out.push(Mesh::new(p.collect(), t).unwrap());
+        out
+    }
+
+    #[test]
+    fn blocks_decide_as_voxel_by_voxel_evaluation_does() {
+        let grid = Grid {
+            origin: [0.0; 3],
+            voxel_size: 1.0,
+            dims: [32, 31, 33],
+        };
+        let mut total = WindingStats::default();
+        for (i, mesh) in holey_meshes().iter().enumerate() {
+            let (a, sa) = solid_impl(mesh, &grid, &Control::none(), true).unwrap();
+            let (b, sb) = solid_impl(mesh, &grid, &Control::none(), false).unwrap();
+            assert_eq!(sa.voxels(), grid.voxel_count());
+            assert_eq!(sb.voxels(), grid.voxel_count());
+            assert_eq!(sb.cap_block_voxels + sb.mesh_block_voxels, 0);
+            let tris: Vec<_> = (0..mesh.triangles().len())
+                .map(|t| mesh.triangle(t))
+                .collect();
+            let [nx, ny, nz] = grid.dims;
+            let differ: Vec<[u32; 3]> = (0..nx)
+                .flat_map(|x| (0..ny).flat_map(move |y| (0..nz).map(move |z| [x, y, z])))
+                .filter(|&[x, y, z]| a.get(x, y, z) != b.get(x, y, z))
+                .collect();
+            for &[x, y, z] in &differ {
+                let w = exact_winding_number(tris.iter().copied(), grid.voxel_center(x, y, z));
+                assert!(
+                    (w.abs() - 0.5).abs() <= 0.05,
+                    "mesh {i}: voxel {:?} differs, w = {w}",
+                    [x, y, z]
+                );
+            }
+            eprintln!("mesh {i}: {sa:?}; {} differ", differ.len());
+            total.cap_block_voxels += sa.cap_block_voxels;
+            total.mesh_block_voxels += sa.mesh_block_voxels;
+            total.cap_evaluated_voxels += sa.cap_evaluated_voxels;
+        }
+        assert!(
+            total.cap_block_voxels > 10_000
+                && total.mesh_block_voxels > 1_000
+                && total.cap_evaluated_voxels > 1_000,
+            "{total:?}"
+        );
     }
 }
