@@ -141,6 +141,9 @@ struct Certifier<'a> {
     grid: &'a Grid,
     caps: &'a WindingTree,
     mesh: &'a WindingTree,
+    /// The boundary chain on the caps' positions (on the lattice) and on the mesh's.
+    cap_edges: &'a EdgeTree,
+    mesh_edges: &'a EdgeTree,
     /// Whether blocks are decided as wholes (off: every voxel one by one, for the tests).
     blocks: bool,
 }
@@ -180,8 +183,8 @@ impl Certifier<'_> {
         let limit = (0.5 - MARGIN) * four_pi;
         // Small nodes enter as bounds (not with the reference evaluation of the tests).
         let small = if self.blocks { SMALL * four_pi } else { 0.0 };
-        let caps = self.caps.spread(c, rb, TIE * s, limit, small);
         if size == 1 {
+            let caps = self.caps.spread(c, rb, TIE * s, limit, small, true);
             // One voxel: the hierarchy's value, as [`WindingTree::winding_number_off_planes`],
             // first with small nodes bounded, then, where that leaves it open, in full.
             let Some(mut caps) = caps else {
@@ -194,7 +197,7 @@ impl Certifier<'_> {
             if caps.left_out > 0.0 && (v - v.round()).abs() + e >= 0.5 {
                 caps = self
                     .caps
-                    .spread(c, rb, TIE * s, limit, 0.0)
+                    .spread(c, rb, TIE * s, limit, 0.0, true)
                     .expect("no tie where there was none");
             }
             let v = caps.value / four_pi;
@@ -208,24 +211,42 @@ impl Certifier<'_> {
                 Decision::Is(true)
             });
         }
-        if let Some(caps) = caps {
-            if caps.crude < CAP_LIMIT * four_pi {
+        if !self.blocks {
+            return match self.caps.spread(c, rb, TIE * s, limit, 0.0, true) {
+                Some(caps) if caps.crude < CAP_LIMIT * four_pi => Some(Decision::Ne(0, EXACT)),
+                _ => None,
+            };
+        }
+        // The variation over the block, wherever a winding number is smooth on it: rb × the
+        // Biot–Savart bound of the boundary; where that is too large, the triangles' own bounds.
+        let interval = |tree: &WindingTree, edges: &EdgeTree| -> Option<(f64, f64, f64)> {
+            let bs = rb * edges.bound(c, rb, limit / rb);
+            let by_edges = bs < limit;
+            let t = tree.spread(
+                c,
+                rb,
+                TIE * s,
+                if by_edges { f64::INFINITY } else { limit },
+                small,
+                !by_edges,
+            )?;
+            let e = if by_edges {
+                t.spread.min(t.left_out + bs)
+            } else {
+                t.spread
+            };
+            Some((t.value / four_pi, e / four_pi + MARGIN, t.crude))
+        };
+        if let Some((v, e, crude)) = interval(self.caps, self.cap_edges) {
+            if crude < CAP_LIMIT * four_pi {
                 return Some(Decision::Ne(0, EXACT));
             }
-            if !self.blocks {
-                return None;
-            }
-            let v = caps.value / four_pi;
             let k = v.round();
-            if (v - k).abs() + caps.spread / four_pi + MARGIN < 0.5 && k.abs() <= K_MAX {
+            if (v - k).abs() + e < 0.5 && k.abs() <= K_MAX {
                 return Some(Decision::Ne(k as i32, CAP_BLOCK));
             }
         }
-        if !self.blocks {
-            return None;
-        }
-        let m = self.mesh.spread(c, rb, TIE * s, limit, small)?;
-        let (v, e) = (m.value / four_pi, m.spread / four_pi + MARGIN);
+        let (v, e, _) = interval(self.mesh, self.mesh_edges)?;
         ((v - 0.5).abs() > e && (v + 0.5).abs() > e).then_some(Decision::Is(v.abs() >= 0.5))
     }
 
@@ -340,10 +361,18 @@ fn solid_impl(
             || WindingTree::new(&cap_positions, &caps),
             || WindingTree::new(mesh.positions(), mesh.triangles()),
         );
+        let boundary = chain_boundary(&caps);
+        let segments = |p: &[[f64; 3]]| {
+            let segs = boundary.iter().map(|e| e.map(|i| p[i as usize])).collect();
+            EdgeTree::new(segs)
+        };
+        let (cap_edges, mesh_edges) = (segments(&cap_positions), segments(closed.positions()));
         let cert = Certifier {
             grid,
             caps: &cap_tree,
             mesh: &mesh_tree,
+            cap_edges: &cap_edges,
+            mesh_edges: &mesh_edges,
             blocks,
         };
         let block_columns = nb[0] * nb[1];
@@ -688,8 +717,17 @@ impl WindingTree {
     /// magnitude alone; one farther than β radii from q (Barill et al.'s rule; with rq = 0 and
     /// `small` 0 this is [`Self::winding_number`]) through its expansion at q ± its variation;
     /// any other is opened, nearer child first, and a leaf's triangles are taken one by one, the
-    /// same way, with exact solid angles.
-    fn spread(&self, q: [f64; 3], rq: f64, gap: f64, limit: f64, small: f64) -> Option<Spread> {
+    /// same way, with exact solid angles. Without `by_area`, nodes enter alone only when small (the
+    /// caller bounds the variation otherwise, by [`EdgeTree::bound`]).
+    fn spread(
+        &self,
+        q: [f64; 3],
+        rq: f64,
+        gap: f64,
+        limit: f64,
+        small: f64,
+        by_area: bool,
+    ) -> Option<Spread> {
         let mut out = Spread::default();
         if self.nodes.is_empty() {
             return Some(out);
@@ -714,7 +752,7 @@ impl WindingTree {
                     budget -= magnitude;
                     true
                 } else {
-                    expanded && variation >= magnitude
+                    by_area && expanded && variation >= magnitude
                 };
                 if alone {
                     out.spread += magnitude;
@@ -746,7 +784,9 @@ impl WindingTree {
                     }
                     let magnitude = (area / (g * g)).min(2.0 * PI);
                     let variation = rq * 2.0 * area / (g * g * g);
-                    if (magnitude <= small && magnitude <= budget) || variation >= magnitude {
+                    if (magnitude <= small && magnitude <= budget)
+                        || (by_area && variation >= magnitude)
+                    {
                         if magnitude <= small && magnitude <= budget {
                             budget -= magnitude;
                         }
@@ -791,6 +831,158 @@ struct Spread {
     crude: f64,
     /// The part of `spread` from nodes entered as ± their magnitude alone (left out of `value`).
     left_out: f64,
+}
+
+/// A hierarchy over segments (a boundary chain's edges, each as often as its multiplicity) that
+/// bounds ∮ |dl| / r², the Biot–Savart bound on the gradient of the solid angle of any surface
+/// the chain bounds: off the surface, ∇Ω(q) = ∮ dl × (x − q) / |x − q|³ over its boundary (the
+/// edges inside cancel), so |∇Ω| ≤ ∮ |dl| / r². For the mesh and for its caps, whose boundaries
+/// are the same chain, this bounds the gradient of their winding numbers wherever they are
+/// smooth, however large or curved the surfaces.
+struct EdgeTree {
+    nodes: Vec<EdgeNode>,
+    segs: Vec<[[f64; 3]; 2]>,
+}
+
+struct EdgeNode {
+    centre: [f64; 3],
+    radius: f64,
+    length: f64,
+    /// As [`Node`]: a leaf's range, or `first` the left child and `right` the right one.
+    first: u32,
+    count: u32,
+    right: u32,
+}
+
+impl EdgeTree {
+    fn new(segs: Vec<[[f64; 3]; 2]>) -> EdgeTree {
+        let mut t = EdgeTree {
+            nodes: Vec::with_capacity(2 * segs.len() / LEAF + 2),
+            segs,
+        };
+        if !t.segs.is_empty() {
+            let mut segs = std::mem::take(&mut t.segs);
+            t.build(&mut segs, 0);
+            t.segs = segs;
+        }
+        t
+    }
+
+    fn build(&mut self, segs: &mut [[[f64; 3]; 2]], offset: u32) -> u32 {
+        let index = self.nodes.len() as u32;
+        let mid = |s: &[[f64; 3]; 2]| [0, 1, 2].map(|a| 0.5 * (s[0][a] + s[1][a]));
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for s in segs.iter() {
+            for p in s {
+                for a in 0..3 {
+                    lo[a] = lo[a].min(p[a]);
+                    hi[a] = hi[a].max(p[a]);
+                }
+            }
+        }
+        let centre = [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a]));
+        let radius = segs
+            .iter()
+            .flat_map(|s| s.iter())
+            .map(|&p| norm(sub(p, centre)))
+            .fold(0.0, f64::max);
+        let length = segs.iter().map(|s| norm(sub(s[1], s[0]))).sum();
+        self.nodes.push(EdgeNode {
+            centre,
+            radius,
+            length,
+            first: offset,
+            count: segs.len() as u32,
+            right: 0,
+        });
+        if segs.len() > LEAF {
+            let axis = (0..3)
+                .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
+                .unwrap_or(0);
+            let m = segs.len() / 2;
+            segs.select_nth_unstable_by(m, |a, b| mid(a)[axis].total_cmp(&mid(b)[axis]));
+            let (left, right) = segs.split_at_mut(m);
+            let l = self.build(left, offset);
+            let r = self.build(right, offset + m as u32);
+            let n = &mut self.nodes[index as usize];
+            (n.first, n.count, n.right) = (l, 0, r);
+        }
+        index
+    }
+
+    /// Σ length / distance² from the ball (q, rq) to the segments (by clusters far away), or
+    /// infinity when a segment meets the ball or the sum reaches `limit`.
+    fn bound(&self, q: [f64; 3], rq: f64, limit: f64) -> f64 {
+        if self.nodes.is_empty() {
+            return 0.0;
+        }
+        let mut sum = 0.0;
+        let mut stack = [0u32; 64];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let n = &self.nodes[stack[top] as usize];
+            let d = norm(sub(n.centre, q));
+            let g = d - n.radius - rq;
+            if g > n.radius + rq {
+                sum += n.length / (g * g);
+            } else if n.count > 0 {
+                let (s, e) = (n.first as usize, (n.first + n.count) as usize);
+                for seg in &self.segs[s..e] {
+                    let g = dist2_to_segment(q, seg).sqrt() - rq;
+                    if g.is_nan() || g <= 0.0 {
+                        return f64::INFINITY;
+                    }
+                    sum += norm(sub(seg[1], seg[0])) / (g * g);
+                }
+            } else {
+                stack[top] = n.first;
+                stack[top + 1] = n.right;
+                top += 2;
+            }
+            if sum >= limit {
+                return f64::INFINITY;
+            }
+        }
+        sum
+    }
+}
+
+/// The directed edges of the chain boundary of `tris` (indices into one position list, each
+/// edge as often as its multiplicity).
+fn chain_boundary(tris: &[[u32; 3]]) -> Vec<[u32; 2]> {
+    let mut edges: Vec<(u64, i32)> = tris
+        .iter()
+        .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+        .filter(|(a, b)| a != b)
+        .map(|(a, b)| {
+            let key = ((a.min(b) as u64) << 32) | a.max(b) as u64;
+            (key, if a < b { 1 } else { -1 })
+        })
+        .collect();
+    edges.sort_unstable_by_key(|e| e.0);
+    let mut out = Vec::new();
+    for run in edges.chunk_by(|a, b| a.0 == b.0) {
+        let net: i32 = run.iter().map(|e| e.1).sum();
+        let (lo, hi) = ((run[0].0 >> 32) as u32, run[0].0 as u32);
+        for _ in 0..net.unsigned_abs() {
+            out.push(if net > 0 { [lo, hi] } else { [hi, lo] });
+        }
+    }
+    out
+}
+
+/// Squared distance from p to the segment s.
+fn dist2_to_segment(p: [f64; 3], s: &[[f64; 3]; 2]) -> f64 {
+    let (d, w) = (sub(s[1], s[0]), sub(p, s[0]));
+    let l2 = dot(d, d);
+    let t = if l2 > 0.0 {
+        (dot(w, d) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let e = sub(w, d.map(|v| v * t));
+    dot(e, e)
 }
 
 /// 4π × the node's expanded winding number at q, with r = centre − q and d2 = |r|².
@@ -1281,13 +1473,13 @@ mod tests {
                 } else {
                     norm(sub(q, [0.5, 0.5, 0.0])) * 10f64.powf(rng.range(-3.0, -0.3))
                 };
-                let Some(s) = tree.spread(q, rq, 0.0, f64::INFINITY, 0.0) else {
+                let Some(s) = tree.spread(q, rq, 0.0, f64::INFINITY, 0.0, true) else {
                     continue;
                 };
                 // With small nodes bounded instead of summed: the interval still holds the
                 // exact sum (up to the expansions' error).
                 let bounded = tree
-                    .spread(q, rq, 0.0, f64::INFINITY, SMALL * 4.0 * PI)
+                    .spread(q, rq, 0.0, f64::INFINITY, SMALL * 4.0 * PI, true)
                     .expect("the same nodes come near");
                 checked += 1;
                 let at_q = exact(q);
