@@ -357,16 +357,30 @@ fn solid_impl(
             .iter()
             .map(|&p| snapped_world(grid, p))
             .collect();
+        // Degenerate caps (fans over collinear edges; many where the mesh has degenerate
+        // triangles) subtend nothing and their boundaries add nothing to the Biot–Savart field
+        // (a closed path along a line), so neither the tree nor the bound needs them. The
+        // crossing count has none either: they cover no column.
+        let live = |p: &[[f64; 3]]| -> Vec<[u32; 3]> {
+            caps.iter()
+                .filter(|t| norm(area_normal(&t.map(|i| p[i as usize]))) > 0.0)
+                .copied()
+                .collect()
+        };
+        let snapped_caps = live(&cap_positions);
         let (cap_tree, mesh_tree) = rayon::join(
-            || WindingTree::new(&cap_positions, &caps),
+            || WindingTree::new(&cap_positions, &snapped_caps),
             || WindingTree::new(mesh.positions(), mesh.triangles()),
         );
-        let boundary = chain_boundary(&caps);
-        let segments = |p: &[[f64; 3]]| {
-            let segs = boundary.iter().map(|e| e.map(|i| p[i as usize])).collect();
+        let segments = |p: &[[f64; 3]], caps: &[[u32; 3]]| {
+            let segs = chain_boundary(caps)
+                .iter()
+                .map(|e| e.map(|i| p[i as usize]))
+                .collect();
             EdgeTree::new(segs)
         };
-        let (cap_edges, mesh_edges) = (segments(&cap_positions), segments(closed.positions()));
+        let cap_edges = segments(&cap_positions, &snapped_caps);
+        let mesh_edges = segments(closed.positions(), &live(closed.positions()));
         let cert = Certifier {
             grid,
             caps: &cap_tree,
@@ -848,6 +862,8 @@ struct EdgeNode {
     centre: [f64; 3],
     radius: f64,
     length: f64,
+    /// Σ (end − start): nothing for closed cycles.
+    net: [f64; 3],
     /// As [`Node`]: a leaf's range, or `first` the left child and `right` the right one.
     first: u32,
     count: u32,
@@ -887,10 +903,15 @@ impl EdgeTree {
             .map(|&p| norm(sub(p, centre)))
             .fold(0.0, f64::max);
         let length = segs.iter().map(|s| norm(sub(s[1], s[0]))).sum();
+        let mut net = [0.0; 3];
+        for s in segs.iter() {
+            net = add3(net, sub(s[1], s[0]));
+        }
         self.nodes.push(EdgeNode {
             centre,
             radius,
             length,
+            net,
             first: offset,
             count: segs.len() as u32,
             right: 0,
@@ -925,7 +946,13 @@ impl EdgeTree {
             let d = norm(sub(n.centre, q));
             let g = d - n.radius - rq;
             if g > n.radius + rq {
-                sum += n.length / (g * g);
+                // Each point x of the node's segments is within its radius of the centre m, and
+                // K(x) = (x − q)/|x − q|³ has a Jacobian of norm ≤ 2/|x − q|³: so
+                // |Σ ∫ dl × K| ≤ |net|·|K(m)| + 2·radius·length/g³; or length/g² outright.
+                let near = d - rq;
+                let expanded =
+                    norm(n.net) / (near * near) + 2.0 * n.radius * n.length / (g * g * g);
+                sum += (n.length / (g * g)).min(expanded);
             } else if n.count > 0 {
                 let (s, e) = (n.first as usize, (n.first + n.count) as usize);
                 for seg in &self.segs[s..e] {
@@ -1193,6 +1220,9 @@ fn dist2_to_triangle(p: [f64; 3], t: &[[f64; 3]; 3]) -> f64 {
     d(at(vb * den, vc * den))
 }
 
+fn add3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
