@@ -2,7 +2,7 @@
 //! the mesh (the sum of the signed solid angles of its triangles over 4π; Barill et al. 2018).
 //! |w| rather than w, so that a mesh whose triangles all face inwards gives the same solid.
 //!
-//! Two parts make it fast without giving up the definition:
+//! Three parts make it fast without giving up the definition:
 //!
 //! 1. **Exact integer part.** The boundary of the mesh, taken as a chain (each edge counted +1 in
 //!    the direction a triangle uses it, −1 in the other, on positions merged by exact equality), is
@@ -10,18 +10,36 @@
 //!    mesh plus its caps is a closed chain, whose winding number at a voxel centre is an integer N:
 //!    the signed count of crossings of the ray towards −z, computed by the `solid` kernel with signs
 //!    (same lattice, same tie rules; [`crate::engine::cpu`]). The mesh's own winding number is
-//!    `w = N − w_caps`. Wherever a cheap bound proves |w_caps| < 0.45, |w| ≥ ½ ⇔ N ≠ 0, and nothing
-//!    more is computed. The bound is `Σ area / (distance − radius)²` over clusters of cap
-//!    triangles (a triangle's solid angle is at most its area over its squared distance), taken
-//!    first for 8×8×8 blocks of voxels and then per voxel. A watertight mesh has no caps: every
-//!    voxel is decided by N, exactly.
-//! 2. **Fast winding numbers where the caps are near.** The remaining voxels (near holes, or near
-//!    the caps that span them) get w of the mesh itself from Barill et al.'s hierarchy: a bounding
-//!    volume hierarchy over the triangles, each node carrying the Taylor expansion of its
-//!    triangles' dipole field about its area-weighted centre up to second order (the area-weighted
-//!    normal sum, the first moment matrix and the second moment tensor); a node is used through its
-//!    expansion when the query is farther than β = 2 node radii from its centre, and its triangles
-//!    are summed exactly (Van Oosterom–Strackee solid angles) otherwise.
+//!    `w = N − w_caps`. A watertight mesh has no caps: every voxel is decided by N, exactly.
+//! 2. **Intervals over blocks.** Blocks of 8×8×8 voxels (split into eight, down to single voxels,
+//!    where that fails) get an interval for w_caps: the hierarchy's value at the block's centre
+//!    plus a bound on how far w_caps can move over the block (below) and a margin of
+//!    `MARGIN` for the hierarchy's error. If it holds no half-integer, k − ½ < w_caps < k + ½
+//!    for one integer k and, N being an integer, |w| ≥ ½ ⇔ N ≠ k for every voxel of the block
+//!    (k = 0 where the cheap bound Σ area / (distance − radius)² alone proves |w_caps| < 0.45:
+//!    "exact"). A block that cuts a cap but misses the mesh's own triangles gets the same kind of
+//!    interval for w itself (from the hierarchy over the mesh); if it excludes ±½ the whole block
+//!    is inside or outside. The variation bounds: wherever a surface's winding number is smooth
+//!    (off its triangles), its gradient is the Biot–Savart field of its boundary over 4π, and
+//!    the mesh and its caps share one boundary chain, so |∇w| ≤ ∮ |dl| / 4πr² over the chain's
+//!    edges (`EdgeTree`: near segments by their exact field, summed as vectors so that the two
+//!    sides of a crack cancel; far clusters by a first-order expansion bound); where that is too
+//!    coarse, per triangle, |∇Ω| ≤ 2·area/r³ (`WindingTree::spread`).
+//! 3. **Fast winding numbers per voxel.** The voxels left (near a cap where the interval is
+//!    too wide: the rims of holes, and where w_caps is close to a half-integer) get w_caps from
+//!    Barill et al.'s hierarchy: a bounding volume hierarchy over the triangles, each node
+//!    carrying the Taylor expansion of its triangles' dipole field about its area-weighted centre
+//!    up to second order (the area-weighted normal sum, the first moment matrix and the second
+//!    moment tensor); a node is used through its expansion when the query is farther than β = 2
+//!    node radii from its centre, and its triangles are summed exactly (Van Oosterom–Strackee
+//!    solid angles) otherwise; nodes proven to subtend less than `SMALL` enter as ± that
+//!    bound (re-evaluated in full where that leaves the voxel open). A voxel within 1/100 voxel
+//!    of a cap triangle gets the mesh's own winding number.
+//!
+//! Decisions are kept per block (one code: N ≠ k, all in, all out, or per-voxel codes for that
+//! block only), so memory grows with the blocks near caps, not with the grid. A block's decision
+//! can differ from the exact winding number's only where the hierarchy's error at its centre
+//! exceeds the margin; a voxel's only where |w| is within the hierarchy's error of ½.
 //!
 //! Both parts run on the CPU; the signed counts use the same integer crossing rule as `solid`.
 
@@ -732,7 +750,7 @@ impl WindingTree {
     /// `small` 0 this is [`Self::winding_number`]) through its expansion at q ± its variation;
     /// any other is opened, nearer child first, and a leaf's triangles are taken one by one, the
     /// same way, with exact solid angles. Without `by_area`, nodes enter alone only when small (the
-    /// caller bounds the variation otherwise, by [`EdgeTree::bound`]).
+    /// caller bounds the variation otherwise, by `EdgeTree::bound`).
     fn spread(
         &self,
         q: [f64; 3],
@@ -933,7 +951,7 @@ impl EdgeTree {
 
     /// A bound on |∮ dl × (x − p)/|x − p|³| over the segments for every p in the ball (q, rq),
     /// or infinity when a segment meets the ball or the bound reaches `limit`. Clusters far away
-    /// enter by [`EdgeNode`]'s expansion bound (or length/g²); the segments of nearer leaves by
+    /// enter by an expansion bound (or length/g²); the segments of nearer leaves by
     /// their exact field at q, summed as vectors (opposite edges of a crack cancel), plus
     /// rq × the bound 2·length/g³ on its gradient.
     fn bound(&self, q: [f64; 3], rq: f64, limit: f64) -> f64 {
@@ -1420,6 +1438,9 @@ mod tests {
         }
     }
 
+    /// Positions and triangles.
+    type Soup = (Vec<[f64; 3]>, Vec<[u32; 3]>);
+
     /// xorshift64*: reproducible test inputs.
     struct Rng(u64);
     impl Rng {
@@ -1502,8 +1523,7 @@ mod tests {
         let mut rng = Rng(12345);
         let (p, t) = sheet(12);
         let one = vec![[0.2, 0.1, 0.0], [0.9, 0.3, 0.05], [0.4, 0.8, -0.1]];
-        let sets: [(Vec<[f64; 3]>, Vec<[u32; 3]>); 3] =
-            [(p.clone(), t.clone()), (one, vec![[0, 1, 2]]), sheet(3)];
+        let sets: [Soup; 3] = [(p.clone(), t.clone()), (one, vec![[0, 1, 2]]), sheet(3)];
         let (mut tightest, mut checked, mut worst_value): (f64, u32, f64) = (0.0, 0, 0.0);
         for (p, t) in &sets {
             let tree = WindingTree::new(p, t);
