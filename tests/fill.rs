@@ -204,7 +204,11 @@ fn winding_matches_the_exact_winding_number_on_meshes_with_holes() {
         let stats = stats.unwrap();
         assert!(stats.cap_triangles > 0);
         assert_eq!(
-            stats.exact_voxels + stats.cap_evaluated_voxels + stats.mesh_evaluated_voxels,
+            stats.exact_voxels
+                + stats.cap_block_voxels
+                + stats.mesh_block_voxels
+                + stats.cap_evaluated_voxels
+                + stats.mesh_evaluated_voxels,
             g.voxel_count()
         );
         let truth = exact_truth(&mesh, &g, all_voxels(dims), 0.01);
