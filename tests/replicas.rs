@@ -246,14 +246,14 @@ fn two_replicas_on_s3_and_redis_behind_nginx() {
         .lines()
         .filter(|l| {
             faces += l.starts_with("f ") as usize;
-            !(l.starts_with("f ") && faces % 50 == 0)
+            !(l.starts_with("f ") && faces % 5 == 0)
         })
         .map(|l| format!("{l}\n"))
         .collect();
     let r = req(
         &a.addr,
         "POST",
-        "/v1/voxelize?resolution=384&fill=winding",
+        "/v1/voxelize?resolution=192&fill=winding",
         "model/obj",
         holey.as_bytes(),
     );
@@ -279,6 +279,6 @@ fn two_replicas_on_s3_and_redis_behind_nginx() {
         &format!("/v1/volumes/{}/data", j["volume_id"].as_str().unwrap()),
     );
     assert_eq!(d.status, 200);
-    assert!(bits(&d.body) == library(&holey.into_bytes(), 384, Fill::Winding));
+    assert!(bits(&d.body) == library(&holey.into_bytes(), 192, Fill::Winding));
     assert_eq!(get(&lb.addr, "/readyz").status, 200);
 }
