@@ -244,10 +244,16 @@ impl FsStore {
     }
 
     fn note_write(&self, ok: bool) {
-        let mut i = self.lock();
-        i.last_write_failed = !ok;
+        self.lock().note_write(ok);
+    }
+}
+
+impl Inner {
+    /// What the health check reads: whether the last write failed, and when one last succeeded.
+    fn note_write(&mut self, ok: bool) {
+        self.last_write_failed = !ok;
         if ok {
-            i.last_ok_write = Some(Instant::now());
+            self.last_ok_write = Some(Instant::now());
         }
     }
 }
@@ -588,11 +594,7 @@ fn commit_volumes(dir: &Path, inner: &Mutex<Inner>, queued: &std::sync::mpsc::Re
         }
         let outcomes = commit_group(dir, &group);
         let mut i = lock(inner);
-        let ok = outcomes.iter().all(Result::is_ok);
-        i.last_write_failed = !ok;
-        if ok {
-            i.last_ok_write = Some(Instant::now());
-        }
+        i.note_write(outcomes.iter().all(Result::is_ok));
         let mut replies = Vec::with_capacity(group.len());
         for (p, outcome) in group.into_iter().zip(outcomes) {
             i.reserved -= p.need;
