@@ -539,14 +539,21 @@ up() {
     "-admin.port=${P[8]}" "-admin.port.grpc=${P[9]}" \
     "-filer.localSocket=$DIR/run/filer.sock" "-s3.localSocket=$DIR/run/s3.sock"
   start redis "$DIR/logs/redis.log" redis-server "${REDIS_ARGS[@]}"
-  # compose's health checks, plus a signed request with the replicas' keys: the bucket answers.
+  # compose's health checks, plus signed requests with the replicas' keys: the bucket lists and
+  # takes a write. A fresh `weed mini` lists its buckets well before its volume server takes
+  # data (PUTs answer 500 until then, for half a minute on a busy machine), and a replica whose
+  # start-up probe write fails exits, so readiness here is a write, as in tests/common/s3.rs.
   wait_for redis "$DIR/logs/redis.log" 30 redis-cli -h 127.0.0.1 -p "$redis" ping
   # shellcheck disable=SC2016
-  wait_for seaweedfs "$DIR/logs/seaweedfs.log" 120 bash -c '
+  wait_for seaweedfs "$DIR/logs/seaweedfs.log" 180 bash -c '
     curl -fsS -o /dev/null -m 3 "http://127.0.0.1:$1/healthz" &&
     curl -fsS -o /dev/null -m 3 "http://127.0.0.1:$2/buckets/$3/" &&
     curl -fsS -o /dev/null -m 5 --aws-sigv4 "aws:amz:$6:s3" --user "$4:$5" \
-      "http://127.0.0.1:$1/$3?list-type=2&max-keys=1"' _ "$s3" "$filer" "$BUCKET" "$AWS_KEY" "$AWS_SECRET" "$AWS_REGION_"
+      "http://127.0.0.1:$1/$3?list-type=2&max-keys=1" &&
+    printf ready | curl -fsS -o /dev/null -m 10 --aws-sigv4 "aws:amz:$6:s3" --user "$4:$5" \
+      -T - "http://127.0.0.1:$1/$3/local-sh-ready" &&
+    curl -fsS -o /dev/null -m 5 --aws-sigv4 "aws:amz:$6:s3" --user "$4:$5" \
+      -X DELETE "http://127.0.0.1:$1/$3/local-sh-ready"' _ "$s3" "$filer" "$BUCKET" "$AWS_KEY" "$AWS_SECRET" "$AWS_REGION_"
 
   # ---- the replicas, as the image runs them
   ln -sf "$bin" "$DIR/bin/voxd"
