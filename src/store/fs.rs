@@ -1,6 +1,6 @@
 //! The directory store: `volumes/{id}.vxl` (the native format) and `volumes/{id}.json`
-//! (metadata), `jobs/{id}.json` (job records). Every file is written atomically
-//! ([`super::atomic`]); the metadata is written last and is the commit point, so a process
+//! (metadata), `jobs/records.log` (job records, an append-only log: [`super::joblog`]). Every
+//! volume file is written atomically ([`super::atomic`]); the metadata is written last and is the commit point, so a process
 //! killed mid-write leaves either a whole volume or nothing that is listed (leftovers are removed
 //! at open).
 //!
@@ -29,6 +29,7 @@ use std::time::{Duration, Instant};
 use async_trait::async_trait;
 use bytes::Bytes;
 
+use super::joblog::JobLog;
 use super::{
     ByteStream, StoreError, Usage, VolumeMeta, VolumeStore, atomic, check, safe_id, verified,
 };
@@ -41,7 +42,8 @@ const HEALTH_TTL: Duration = Duration::from_secs(30);
 
 pub struct FsStore {
     volumes: PathBuf,
-    jobs: PathBuf,
+    /// The job records: `jobs/records.log`.
+    records: Arc<Mutex<JobLog>>,
     uploads: PathBuf,
     limit: u64,
     inner: Arc<Mutex<Inner>>,
@@ -162,6 +164,7 @@ impl FsStore {
                 let _ = std::fs::remove_file(&p);
             }
         }
+        let records = Arc::new(Mutex::new(JobLog::open(&jobs)?));
         tracing::info!(volumes = index.len(), dir = %volumes.display(), "store opened");
         let used = index.values().map(|e| e.stored).sum();
         let inner = Arc::new(Mutex::new(Inner {
@@ -179,7 +182,7 @@ impl FsStore {
             .spawn(move || commit_volumes(&dir, &shared, &queued))?;
         Ok(FsStore {
             volumes,
-            jobs,
+            records,
             uploads,
             limit,
             inner,
@@ -466,40 +469,15 @@ impl VolumeStore for FsStore {
         self.one_job_record(id, Some(record)).await
     }
 
-    /// A group commit: every record written (each file synced, side by side) and every
-    /// removal made, then the directory synced once for all of them.
+    /// A group commit: every change of the batch appended to the job record log in one write
+    /// and one `fdatasync` ([`super::joblog`]).
     async fn put_job_records(
         &self,
         batch: Vec<(String, Option<Bytes>)>,
     ) -> Vec<Result<(), StoreError>> {
-        let dir = self.jobs.clone();
+        let log = self.records.clone();
         let n = batch.len();
-        let r = blocking(move || {
-            let each = in_parallel(&batch, |(id, bytes)| {
-                let p = dir.join(format!("{id}.json"));
-                match bytes {
-                    // A removal of a job that cannot exist has nothing to do.
-                    None if !safe_id(id) => Ok(()),
-                    Some(_) if !safe_id(id) => {
-                        Err(StoreError::Corrupt(format!("bad job id {id:?}")))
-                    }
-                    Some(record) => atomic::replace_with(&p, |w| {
-                        fault::write(fault::Site::MidJobRecord, w, record)
-                    })
-                    .map_err(StoreError::from),
-                    None => match std::fs::remove_file(&p) {
-                        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e.into()),
-                        _ => Ok(()),
-                    },
-                }
-            });
-            // Nothing of the batch is durable before this: a failure fails every record.
-            match atomic::sync_dir(&dir) {
-                Ok(()) => Ok(each),
-                Err(e) => Err(StoreError::from(e)),
-            }
-        })
-        .await;
+        let r = blocking(move || Ok(lock(&log).append(&batch))).await;
         let r = match r {
             Ok(each) => each,
             Err(e) => (0..n)
@@ -515,23 +493,8 @@ impl VolumeStore for FsStore {
     }
 
     async fn job_records(&self) -> Result<Vec<Bytes>, StoreError> {
-        let dir = self.jobs.clone();
-        blocking(move || {
-            let mut out = vec![];
-            for e in std::fs::read_dir(&dir)? {
-                let p = e?.path();
-                if p.extension().is_some_and(|e| e == "json") {
-                    match std::fs::read(&p) {
-                        Ok(b) => out.push(Bytes::from(b)),
-                        Err(e) => {
-                            tracing::warn!(path = %p.display(), "unreadable job record: {e}")
-                        }
-                    }
-                }
-            }
-            Ok(out)
-        })
-        .await
+        let log = self.records.clone();
+        blocking(move || Ok(lock(&log).records())).await
     }
 
     async fn put_upload(&self, id: &str, bytes: Bytes) -> Result<(), StoreError> {
@@ -574,9 +537,10 @@ impl VolumeStore for FsStore {
     }
 }
 
-fn lock(inner: &Mutex<Inner>) -> std::sync::MutexGuard<'_, Inner> {
+fn lock<T>(inner: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     // A panic while holding the lock cannot leave the maps half-updated (each update is one
-    // statement), so a poisoned lock is still usable.
+    // statement; the job log changes its map only after a write is durable), so a poisoned
+    // lock is still usable.
     inner.lock().unwrap_or_else(|p| p.into_inner())
 }
 
@@ -719,7 +683,7 @@ fn commit_group(dir: &Path, group: &[Pending]) -> Vec<Result<(), StoreError>> {
 /// - `after-data` (alias `before-commit`): a put's `.vxl` is written and in place, its metadata
 ///   not;
 /// - `after-commit`: both files durable, the catalogue and the caller not told;
-/// - `mid-job-record`: inside a job record's write, half of it in the temporary file (the S3
+/// - `mid-job-record`: inside an append to the job record log, its last line half written (the S3
 ///   store: before the PUT, which is atomic).
 ///
 /// The S3 store (`super::s3`) stops at the same points.

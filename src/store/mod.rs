@@ -9,6 +9,7 @@
 
 pub mod atomic;
 pub mod fs;
+mod joblog;
 pub mod s3;
 
 use std::path::PathBuf;
