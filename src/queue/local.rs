@@ -312,13 +312,9 @@ impl Inner {
     }
 }
 
-#[async_trait]
-impl JobQueue for LocalQueue {
-    async fn admission(&self, owner: Option<&Owner>) -> Result<()> {
-        self.lock().admits(self.capacity, owner)
-    }
-
-    async fn submit(&self, job: NewJob) -> Result<JobRecord> {
+impl LocalQueue {
+    /// Queues a job; with `sync`, returns once its record is durable.
+    async fn queue_job(&self, job: NewJob, sync: bool) -> Result<JobRecord> {
         let (record, durable) = {
             let mut inner = self.lock();
             inner.admits(self.capacity, job.owner.as_ref())?;
@@ -344,8 +340,37 @@ impl JobQueue for LocalQueue {
             (v, durable)
         };
         self.ready.notify_one();
-        let _ = durable.await;
+        if sync {
+            let _ = durable.await;
+        }
         Ok(record)
+    }
+}
+
+#[async_trait]
+impl JobQueue for LocalQueue {
+    async fn admission(&self, owner: Option<&Owner>) -> Result<()> {
+        self.lock().admits(self.capacity, owner)
+    }
+
+    async fn submit(&self, job: NewJob) -> Result<JobRecord> {
+        self.queue_job(job, true).await
+    }
+
+    async fn submit_deferred(&self, job: NewJob) -> Result<JobRecord> {
+        self.queue_job(job, false).await
+    }
+
+    async fn persist(&self, id: &str) -> Result<()> {
+        let durable = {
+            let inner = self.lock();
+            let Some(v) = inner.view(id) else {
+                return Ok(());
+            };
+            self.record(&v)
+        };
+        let _ = durable.await;
+        Ok(())
     }
 
     async fn get(&self, id: &str) -> Result<Option<JobRecord>> {

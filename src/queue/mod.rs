@@ -190,6 +190,18 @@ pub trait JobQueue: Send + Sync {
     /// Queues a job; refused with `queue-full` (with a retry delay) or `shutting-down`. The job's
     /// record is durable when this returns.
     async fn submit(&self, job: NewJob) -> Result<JobRecord>;
+    /// [`JobQueue::submit`] for a caller that waits for the job before it answers (`wait`): the
+    /// record need be durable only once the job is final or [`JobQueue::persist`] returns,
+    /// which a caller that answers before the job is final calls first. A job that finishes
+    /// meanwhile has one record written instead of two. By default: `submit`.
+    async fn submit_deferred(&self, job: NewJob) -> Result<JobRecord> {
+        self.submit(job).await
+    }
+    /// Makes job `id`'s record as it is now durable (after [`JobQueue::submit_deferred`]). By
+    /// default there is nothing to do: records are durable when a change returns.
+    async fn persist(&self, _id: &str) -> Result<()> {
+        Ok(())
+    }
     /// A cheap look, before an upload is read and parsed, at whether a job would be refused
     /// now (`queue-full`, `shutting-down`, `too-many-jobs`): what [`JobQueue::submit`] would
     /// say. Not a promise either way; `submit` decides. By default: nothing to say.

@@ -153,18 +153,22 @@ pub async fn submit(
     let ingest = app.ingest.clone();
     let work = ops::on_pool(Some(&ingest), move || app::prepare(&req)).await?;
     let id = app::new_id();
-    let record = app
-        .queue
-        .submit(NewJob {
-            id: id.clone(),
-            work,
-            spec,
-            upload: body.bytes.clone(),
-            name: q.name,
-            owner,
-            created: app::rfc3339(std::time::SystemTime::now()),
-        })
-        .await?;
+    let job = NewJob {
+        id: id.clone(),
+        work,
+        spec,
+        upload: body.bytes.clone(),
+        name: q.name,
+        owner,
+        created: app::rfc3339(std::time::SystemTime::now()),
+    };
+    // With `wait`, the answer comes once the job is final (its final record durable), or else
+    // after `persist` below: the queued record need not be synced first.
+    let record = if q.wait > 0.0 {
+        app.queue.submit_deferred(job).await?
+    } else {
+        app.queue.submit(job).await?
+    };
     // The upload's bytes leave the in-flight budget once queued (a shared queue has stored
     // them by then).
     drop(body);
@@ -187,6 +191,8 @@ pub async fn submit(
             }
             _ => {}
         }
+        // Answered with the job's id before it is final: its record must survive a crash.
+        app.queue.persist(&id).await?;
         r
     } else {
         record
