@@ -319,13 +319,12 @@ impl Certifier<'_> {
             if (0..3).any(|a| sub[a] >= self.grid.dims[a]) {
                 continue;
             }
-            // The voxels of a 2³ block one by one, by the Taylor model about its centre (which
-            // decides more of them than an interval over the block would).
-            if size == 2 && self.blocks {
+            let decision = self.decide(sub, size);
+            // A 2³ block left open: its voxels one by one, by the Taylor model about its centre.
+            if decision.is_none() && size == 2 && self.blocks {
                 self.taylor_voxels(sub, size, &mut codes, col);
                 continue;
             }
-            let decision = self.decide(sub, size);
             let (code, how) = match decision {
                 Some(Decision::Ne(k, how)) => (k as i8, how),
                 Some(Decision::Is(inside)) => (
