@@ -208,7 +208,8 @@ fn winding_matches_the_exact_winding_number_on_meshes_with_holes() {
                 + stats.cap_block_voxels
                 + stats.mesh_block_voxels
                 + stats.cap_evaluated_voxels
-                + stats.mesh_evaluated_voxels,
+                + stats.mesh_evaluated_voxels
+                + stats.near_evaluated_voxels,
             g.voxel_count()
         );
         let truth = exact_truth(&mesh, &g, all_voxels(dims), 0.01);
@@ -221,7 +222,7 @@ fn winding_matches_the_exact_winding_number_on_meshes_with_holes() {
             &wrong[..wrong.len().min(5)]
         );
         total.0 += truth.len();
-        total.1 += stats.cap_evaluated_voxels;
+        total.1 += stats.cap_evaluated_voxels + stats.near_evaluated_voxels;
     }
     // Both parts of the evaluation were exercised.
     assert!(total.0 > 20_000 && total.1 > 2_000, "{total:?}");

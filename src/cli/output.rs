@@ -27,12 +27,13 @@ pub fn describe_fill(name: &str, f: &FillReport) -> String {
     s += &format!(", {} odd-parity columns", f.odd_parity_columns);
     if let Some(w) = &f.winding {
         s += &format!(
-            ", {} cap triangles; voxels decided by the exact crossing count {}, by it against the caps' winding number over blocks {}, by the mesh's winding number over blocks {}, by the crossing count minus the caps' winding number {}, by the mesh's winding number {}",
+            ", {} cap triangles; voxels decided by the exact crossing count {}, by it against the caps' winding number over blocks {}, by the mesh's winding number over blocks {}, by the crossing count minus the caps' winding number {} (of which summed exactly over the near caps {}), by the mesh's winding number {}",
             w.cap_triangles,
             w.exact_voxels,
             w.cap_block_voxels,
             w.mesh_block_voxels,
-            w.cap_evaluated_voxels,
+            w.cap_evaluated_voxels + w.near_evaluated_voxels,
+            w.near_evaluated_voxels,
             w.mesh_evaluated_voxels
         );
     }
