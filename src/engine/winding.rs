@@ -1772,6 +1772,35 @@ mod tests {
         [0, 1, 2].map(|k| a[k] + t * b[k])
     }
 
+    /// A random triangle in [-1, 1]³ (`None` when its area is below 10⁻³), its area and unit
+    /// normal, and a query point at a distance of `near`–1 times 1–100 from its centroid, along
+    /// the normal or in a random direction.
+    #[allow(clippy::type_complexity)]
+    fn triangle_and_query(
+        rng: &mut Rng,
+        along_normal: bool,
+        near: f64,
+    ) -> Option<([[f64; 3]; 3], f64, [f64; 3], [f64; 3])> {
+        let t = [0; 3].map(|_| rng.point(-1.0, 1.0));
+        let area = norm(area_normal(&t));
+        if area < 1e-3 {
+            return None;
+        }
+        let centroid = [0, 1, 2].map(|k| (t[0][k] + t[1][k] + t[2][k]) / 3.0);
+        let normal = area_normal(&t).map(|v| v / area);
+        let dir = if along_normal {
+            normal
+        } else {
+            rng.direction()
+        };
+        let q = add(
+            centroid,
+            dir,
+            rng.range(near, 1.0) * 10f64.powf(rng.range(0.0, 2.0)),
+        );
+        Some((t, area, normal, q))
+    }
+
     /// The gradient of `solid_angle` by central differences.
     fn gradient(t: &[[f64; 3]; 3], q: [f64; 3], h: f64) -> [f64; 3] {
         [0, 1, 2].map(|k| {
@@ -1786,24 +1815,11 @@ mod tests {
         let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
         let mut tightest: f64 = 0.0;
         for i in 0..4000 {
-            let t = [0; 3].map(|_| rng.point(-1.0, 1.0));
-            let area = norm(area_normal(&t));
-            if area < 1e-3 {
-                continue;
-            }
             // Near and far, from all sides; every fourth along the normal, where the bound is
             // attained in the limit.
-            let centroid = [0, 1, 2].map(|k| (t[0][k] + t[1][k] + t[2][k]) / 3.0);
-            let dir = if i % 4 == 0 {
-                area_normal(&t).map(|v| v / area)
-            } else {
-                rng.direction()
+            let Some((t, area, _, q)) = triangle_and_query(&mut rng, i % 4 == 0, 0.05) else {
+                continue;
             };
-            let q = add(
-                centroid,
-                dir,
-                rng.range(0.05, 1.0) * 10f64.powf(rng.range(0.0, 2.0)),
-            );
             let d = dist2_to_triangle(q, &t).sqrt();
             if d < 1e-2 {
                 continue;
@@ -1947,19 +1963,9 @@ mod tests {
         let mut rng = Rng(0xfeed_beef);
         let mut tightest: f64 = 0.0;
         for i in 0..6000 {
-            let t = [0; 3].map(|_| rng.point(-1.0, 1.0));
-            let area = norm(area_normal(&t));
-            if area < 1e-3 {
+            let Some((t, area, normal, q)) = triangle_and_query(&mut rng, i % 3 == 0, 0.1) else {
                 continue;
-            }
-            let centroid = [0, 1, 2].map(|k| (t[0][k] + t[1][k] + t[2][k]) / 3.0);
-            let normal = area_normal(&t).map(|v| v / area);
-            let dir = if i % 3 == 0 { normal } else { rng.direction() };
-            let q = add(
-                centroid,
-                dir,
-                rng.range(0.1, 1.0) * 10f64.powf(rng.range(0.0, 2.0)),
-            );
+            };
             let dist = dist2_to_triangle(q, &t).sqrt();
             let step = if i % 3 == 0 { normal } else { rng.direction() };
             let len = dist * rng.range(0.01, 0.5);
