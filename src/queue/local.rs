@@ -715,4 +715,49 @@ mod tests {
         );
         std::fs::remove_dir_all(&dir).unwrap();
     }
+
+    /// `submit_deferred` writes nothing before the job runs: a job that finishes before the
+    /// record writer gets to it is written once, in its final state (two writes after
+    /// `submit`), and `persist` makes the record durable before it returns. On one thread,
+    /// the writer runs only where the test awaits.
+    #[tokio::test]
+    async fn deferred_records_are_written_once_or_when_persisted() {
+        let dir = std::env::temp_dir().join(format!("voxd-localq-defer-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let store: Arc<dyn VolumeStore> =
+            Arc::new(crate::store::fs::FsStore::open(&dir, 1 << 20).unwrap());
+        let q = LocalQueue::open(4, store.clone()).await.unwrap();
+        let log = dir.join("jobs/records.log");
+        let lines = |id: &str| -> Vec<String> {
+            std::fs::read_to_string(&log)
+                .unwrap()
+                .lines()
+                .filter(|l| l.contains(&format!(" {id} ")))
+                .map(str::to_string)
+                .collect()
+        };
+        q.submit_deferred(tiny_job("d2")).await.unwrap();
+        let c = q.next().await.unwrap();
+        assert_eq!(c.id, "d2");
+        assert!(lines("d2").is_empty());
+        q.finish("d2", Ok("v2".into())).await;
+        let d2 = lines("d2");
+        assert_eq!(d2.len(), 1, "{d2:?}");
+        assert!(d2[0].contains("\"succeeded\""), "{d2:?}");
+        // The same with `submit`: the queued record first, then the final one.
+        q.submit(tiny_job("s3")).await.unwrap();
+        assert_eq!(lines("s3").len(), 1);
+        let c = q.next().await.unwrap();
+        q.finish(&c.id, Ok("v3".into())).await;
+        assert_eq!(lines("s3").len(), 2);
+        // Persisted: on disk when `persist` returns, still queued.
+        q.submit_deferred(tiny_job("p1")).await.unwrap();
+        assert!(lines("p1").is_empty());
+        q.persist("p1").await.unwrap();
+        let p1 = lines("p1");
+        assert_eq!(p1.len(), 1, "{p1:?}");
+        assert!(p1[0].contains("\"queued\""), "{p1:?}");
+        drop((q, store));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
