@@ -567,6 +567,15 @@ impl JobQueue for LocalQueue {
 mod tests {
     use super::*;
 
+    /// A fresh directory store of 1 MiB under the temporary directory (removed first if a
+    /// crashed run left it), and its path.
+    fn scratch_store(name: &str) -> (std::path::PathBuf, Arc<dyn VolumeStore>) {
+        let dir = std::env::temp_dir().join(format!("voxd-localq-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let store = Arc::new(crate::store::fs::FsStore::open(&dir, 1 << 20).unwrap());
+        (dir, store)
+    }
+
     fn tiny_job(id: &str) -> NewJob {
         crate::app::testing::tiny_job(id, 4)
     }
@@ -576,10 +585,7 @@ mod tests {
     /// removal writes), and every change is acknowledged only once its batch is on disk.
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn records_are_group_committed_newest_per_job() {
-        let dir = std::env::temp_dir().join(format!("voxd-localq-group-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        let store: Arc<dyn VolumeStore> =
-            Arc::new(crate::store::fs::FsStore::open(&dir, 1 << 20).unwrap());
+        let (dir, store) = scratch_store("group");
         let (tx, rx) = mpsc::unbounded_channel();
         let mut acks = Vec::new();
         // 10 jobs × 30 versions, queued before the writer starts: one batch of 256, then the
@@ -625,10 +631,7 @@ mod tests {
     /// forgotten, in memory and in the store; the newest stay.
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn old_finished_jobs_are_forgotten() {
-        let dir = std::env::temp_dir().join(format!("voxd-localq-keep-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        let store: Arc<dyn VolumeStore> =
-            Arc::new(crate::store::fs::FsStore::open(&dir, 1 << 20).unwrap());
+        let (dir, store) = scratch_store("keep");
         let q = LocalQueue::open(4, store.clone())
             .await
             .unwrap()
@@ -675,10 +678,7 @@ mod tests {
     /// clock: had `wait` sat out its timeout, virtual time would have moved by an hour).
     #[tokio::test(start_paused = true)]
     async fn waiting_on_a_finished_job_returns_at_once_and_records_persist() {
-        let dir = std::env::temp_dir().join(format!("voxd-localq-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        let store: Arc<dyn VolumeStore> =
-            Arc::new(crate::store::fs::FsStore::open(&dir, 1 << 20).unwrap());
+        let (dir, store) = scratch_store("wait");
         let q = LocalQueue::open(2, store.clone()).await.unwrap();
         q.submit(tiny_job("a1")).await.unwrap();
         q.submit(tiny_job("b2")).await.unwrap();
@@ -722,10 +722,7 @@ mod tests {
     /// the writer runs only where the test awaits.
     #[tokio::test]
     async fn deferred_records_are_written_once_or_when_persisted() {
-        let dir = std::env::temp_dir().join(format!("voxd-localq-defer-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        let store: Arc<dyn VolumeStore> =
-            Arc::new(crate::store::fs::FsStore::open(&dir, 1 << 20).unwrap());
+        let (dir, store) = scratch_store("defer");
         let q = LocalQueue::open(4, store.clone()).await.unwrap();
         let log = dir.join("jobs/records.log");
         let lines = |id: &str| -> Vec<String> {

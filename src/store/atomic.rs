@@ -13,7 +13,7 @@ pub fn write_with(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<File>) -> std::io::Result<()>,
 ) -> std::io::Result<()> {
-    replace_with(path, write)?;
+    stage_with(path, write)?.commit()?;
     sync_dir(parent(path))
 }
 
@@ -22,16 +22,6 @@ fn parent(path: &Path) -> &Path {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     }
-}
-
-/// [`write_with`] but for the last step: the file is complete and synced under its name, but
-/// the rename is durable only once the caller syncs the directory ([`sync_dir`]), which it may
-/// do once for several files (a group commit).
-pub fn replace_with(
-    path: &Path,
-    write: impl FnOnce(&mut BufWriter<File>) -> std::io::Result<()>,
-) -> std::io::Result<()> {
-    stage_with(path, write)?.commit()
 }
 
 /// A complete, synced temporary file beside `path` (`.NAME.PID.N.tmp`) that is not yet in

@@ -32,11 +32,12 @@ use std::fs::{File, OpenOptions};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use bytes::Bytes;
-use sha2::{Digest, Sha256};
-
 use super::fs::fault;
-use super::{StoreError, atomic, safe_id};
+use super::{StoreError, atomic, safe_id, sha256_hex};
+use bytes::Bytes;
+
+/// Hex digits of a line's hash: the first 8 bytes of the sha256.
+const HASH_HEX: usize = 16;
 
 /// The log's file name in the jobs directory.
 pub const LOG: &str = "records.log";
@@ -64,11 +65,8 @@ fn line(id: &str, record: Option<&[u8]>) -> Vec<u8> {
     body.extend_from_slice(id.as_bytes());
     body.push(b' ');
     body.extend_from_slice(payload);
-    let hash = Sha256::digest(&body);
-    let mut out = Vec::with_capacity(17 + body.len() + 1);
-    for b in &hash[..8] {
-        out.extend_from_slice(format!("{b:02x}").as_bytes());
-    }
+    let mut out = Vec::with_capacity(HASH_HEX + 1 + body.len() + 1);
+    out.extend_from_slice(&sha256_hex(&body).as_bytes()[..HASH_HEX]);
     out.push(b' ');
     out.extend_from_slice(&body);
     out.push(b'\n');
@@ -77,13 +75,8 @@ fn line(id: &str, record: Option<&[u8]>) -> Vec<u8> {
 
 /// A checked line (without its `\n`): the id and the record (`None`: removed).
 fn parse(l: &[u8]) -> Option<(&str, Option<&[u8]>)> {
-    let (hash, body) = (l.get(..16)?, l.get(17..)?);
-    if l[16] != b' ' {
-        return None;
-    }
-    let digest = Sha256::digest(body);
-    let want: String = digest[..8].iter().map(|b| format!("{b:02x}")).collect();
-    if hash != want.as_bytes() {
+    let (hash, body) = (l.get(..HASH_HEX)?, l.get(HASH_HEX + 1..)?);
+    if l[HASH_HEX] != b' ' || hash != &sha256_hex(body).as_bytes()[..HASH_HEX] {
         return None;
     }
     let sp = memchr::memchr(b' ', body)?;
@@ -184,12 +177,10 @@ impl JobLog {
 
     /// The newest record of every job.
     pub fn records(&self) -> Vec<Bytes> {
+        // A live line is `HASH ID RECORD\n`.
         self.live
-            .values()
-            .map(|l| {
-                let (_, record) = parse(&l[..l.len() - 1]).expect("live lines check");
-                Bytes::copy_from_slice(record.expect("live lines hold records"))
-            })
+            .iter()
+            .map(|(id, l)| l.slice(HASH_HEX + 1 + id.len() + 1..l.len() - 1))
             .collect()
     }
 
