@@ -60,10 +60,17 @@ fn serve(a: &cli::args::ServeArgs) -> Result<(), String> {
     let served = rt.block_on(voxd::service::serve(
         a.config(),
         shutdown_signal(),
-        |addr| {
-            println!("voxd listening on http://{addr}");
+        |addr, admin| {
+            // The service's line first (scripts and tests read the first line), then the
+            // admin listener's. A closed stdout (a reader that took its line and left) is not
+            // an error.
             use std::io::Write;
-            let _ = std::io::stdout().flush();
+            let mut out = std::io::stdout().lock();
+            let _ = writeln!(out, "voxd listening on http://{addr}");
+            if let Some(a) = admin {
+                let _ = writeln!(out, "voxd admin listening on http://{a}");
+            }
+            let _ = out.flush();
         },
     ));
     // Work still running after the shutdown timeout is left behind, not waited for.

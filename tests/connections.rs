@@ -222,3 +222,79 @@ fn refused_uploads_say_the_connection_closes() {
     assert_eq!(got.matches("HTTP/1.1 200").count(), 2, "{got}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// With every connection place of `--addr` taken by idle clients, a probe there waits in the
+/// kernel's backlog, while `--admin-addr` (places of its own) answers `/healthz`, `/readyz` and
+/// `/metrics` at once and nothing else; once the clients leave, the waiting probe is answered.
+#[test]
+fn probes_answer_on_the_admin_listener_while_clients_hold_every_place() {
+    use std::io::BufRead;
+    let dir = scratch("admin");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_voxd"))
+        .args([
+            "serve",
+            "--addr",
+            "127.0.0.1:0",
+            "--admin-addr",
+            "127.0.0.1:0",
+        ])
+        .args(["--data-dir", dir.to_str().unwrap(), "--engine", "cpu"])
+        .args(["--max-connections", "2", "--header-timeout", "30"])
+        .env("VOXD_LOG", "warn")
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut out = std::io::BufReader::new(child.stdout.take().unwrap());
+    let mut line = |prefix: &str| {
+        let mut l = String::new();
+        out.read_line(&mut l).unwrap();
+        l.trim()
+            .strip_prefix(prefix)
+            .unwrap_or_else(|| panic!("expected {prefix:?}, got {l:?}"))
+            .to_string()
+    };
+    let addr = line("voxd listening on http://");
+    let admin = line("voxd admin listening on http://");
+    // Two idle clients take both places of the service's listener.
+    let hold: Vec<TcpStream> = (0..2).map(|_| TcpStream::connect(&addr).unwrap()).collect();
+    std::thread::sleep(Duration::from_millis(300));
+    let mut waiting = TcpStream::connect(&addr).unwrap();
+    waiting
+        .write_all(b"GET /healthz HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
+        .unwrap();
+    waiting
+        .set_read_timeout(Some(Duration::from_secs(1)))
+        .unwrap();
+    let mut buf = [0u8; 1024];
+    let early = waiting.read(&mut buf);
+    assert!(
+        matches!(&early, Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut)),
+        "the service's listener answered with every place taken: {early:?}"
+    );
+    // The admin listener answers meanwhile.
+    for path in ["/healthz", "/readyz"] {
+        let (status, _, _) = http_exchange(&admin, "GET", path, &[], b"").unwrap();
+        assert_eq!(status, 200, "{path}");
+    }
+    let (status, _, body) = http_exchange(&admin, "GET", "/metrics", &[], b"").unwrap();
+    assert_eq!(status, 200);
+    assert!(String::from_utf8_lossy(&body).contains("voxd_"), "metrics");
+    // Nothing else: the API is not on the admin listener.
+    let (status, headers, body) = http_exchange(&admin, "GET", "/v1/volumes", &[], b"").unwrap();
+    assert_eq!(status, 404, "{}", String::from_utf8_lossy(&body));
+    assert_eq!(
+        headers.get("content-type").map(String::as_str),
+        Some("application/problem+json")
+    );
+    // The clients leave: the waiting probe gets its place and its answer.
+    drop(hold);
+    let got = read_until_closed(&mut waiting, Duration::from_secs(30)).expect("probe answered");
+    assert!(
+        got.starts_with(b"HTTP/1.1 200"),
+        "{}",
+        String::from_utf8_lossy(&got)
+    );
+    let _ = child.kill();
+    let _ = child.wait();
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -187,6 +187,11 @@ pub struct ServeArgs {
     /// Address to listen on (port 0 picks a free port; the bound address is printed).
     #[arg(long, env = "VOXD_ADDR", default_value = "127.0.0.1:8080")]
     pub addr: std::net::SocketAddr,
+    /// A second address that answers only /healthz, /readyz and /metrics, with connection
+    /// places of its own: probes and scrapes are answered while clients hold every place of
+    /// --addr (unset: none; the probes are on --addr as well either way).
+    #[arg(long, env = "VOXD_ADMIN_ADDR")]
+    pub admin_addr: Option<std::net::SocketAddr>,
     /// Where volumes and job records are stored.
     #[arg(long, env = "VOXD_DATA_DIR", default_value = "./voxd-data")]
     pub data_dir: PathBuf,
@@ -283,6 +288,7 @@ impl ServeArgs {
     pub fn config(&self) -> voxd::service::Config {
         voxd::service::Config {
             addr: self.addr,
+            admin_addr: self.admin_addr,
             data_dir: self.data_dir.clone(),
             store: self.store.clone(),
             engine: self.engine,

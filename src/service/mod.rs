@@ -25,12 +25,15 @@ use crate::store::fs::FsStore;
 use crate::store::s3::S3Store;
 use crate::store::{StoreSpec, VolumeStore};
 
-pub use routes::{ROUTES, router};
+pub use routes::{ROUTES, admin_router, router};
 
 /// Everything `voxd serve` can be told (each also as a `VOXD_*` variable).
 #[derive(Clone, Debug)]
 pub struct Config {
     pub addr: SocketAddr,
+    /// The probes' own listener (`--admin-addr`): `/healthz`, `/readyz` and `/metrics` only,
+    /// with [`server::ADMIN_CONNECTIONS`] places of its own.
+    pub admin_addr: Option<SocketAddr>,
     pub data_dir: PathBuf,
     /// Where volumes and job records live (`--store`); `None`: the directory `data_dir`.
     pub store: Option<StoreSpec>,
@@ -264,11 +267,12 @@ pub async fn open_store(config: &Config) -> Result<Arc<dyn VolumeStore>, String>
 }
 
 /// Serves until `shutdown` resolves; then refuses new jobs, fails queued ones explicitly,
-/// finishes the running ones and returns. `on_bound` hears the bound address (port 0 → real port).
+/// finishes the running ones and returns. `on_bound` hears the bound addresses (port 0 → real
+/// port): the service's and the admin listener's, if there is one.
 pub async fn serve(
     config: Config,
     shutdown: impl std::future::Future<Output = ()> + Send + 'static,
-    on_bound: impl FnOnce(SocketAddr),
+    on_bound: impl FnOnce(SocketAddr, Option<SocketAddr>),
 ) -> Result<(), String> {
     let app = open(&config).await?;
     let n = app.workers(config.workers);
@@ -286,10 +290,42 @@ pub async fn serve(
     let listener = tokio::net::TcpListener::bind(config.addr)
         .await
         .map_err(|e| format!("cannot listen on {}: {e}", config.addr))?;
-    on_bound(listener.local_addr().map_err(|e| e.to_string())?);
+    let admin = match config.admin_addr {
+        Some(a) => Some(
+            tokio::net::TcpListener::bind(a)
+                .await
+                .map_err(|e| format!("cannot listen on {a} (--admin-addr): {e}"))?,
+        ),
+        None => None,
+    };
+    on_bound(
+        listener.local_addr().map_err(|e| e.to_string())?,
+        admin
+            .as_ref()
+            .map(|l| l.local_addr().map_err(|e| e.to_string()))
+            .transpose()?,
+    );
+    // Shutdown stops both listeners; the admin one answers probes until then.
+    let (stopping, stopped) = tokio::sync::watch::channel(false);
+    let admin = admin.map(|l| {
+        let mut stopped = stopped.clone();
+        tokio::spawn(server::run(
+            l,
+            admin_router(app.clone()),
+            server::ConnectionLimits {
+                max_connections: server::ADMIN_CONNECTIONS,
+                ..config.connections
+            },
+            async move {
+                let _ = stopped.wait_for(|s| *s).await;
+            },
+            config.shutdown_timeout,
+        ))
+    });
     let queue = app.queue.clone();
     let stop = async move {
         shutdown.await;
+        let _ = stopping.send(true);
         let failed = queue
             .close(Error::new(
                 ErrorKind::ShuttingDown,
@@ -309,6 +345,9 @@ pub async fn serve(
         config.shutdown_timeout,
     )
     .await;
+    if let Some(a) = admin {
+        let _ = a.await;
+    }
     // Running jobs finish (their volumes are stored) unless they outlast the shutdown timeout;
     // then the process leaves them, and a restart shows them as interrupted.
     let finish = async {

@@ -23,6 +23,10 @@ use tokio::net::TcpListener;
 use tokio::sync::Semaphore;
 use tower::ServiceExt;
 
+/// Connection places of the admin listener (`--admin-addr`): probes and scrapes, a few at a
+/// time, each answered at once.
+pub const ADMIN_CONNECTIONS: usize = 64;
+
 /// Bounds on connections.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ConnectionLimits {

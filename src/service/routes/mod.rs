@@ -90,6 +90,30 @@ pub fn router(app: Arc<App>) -> Router {
         .with_state(app)
 }
 
+/// The admin listener's router (`--admin-addr`): the probes and the metrics only, with the
+/// same request handling (request ids, `--protect-metrics`) as on the service's listener.
+pub fn admin_router(app: Arc<App>) -> Router {
+    Router::new()
+        .route("/healthz", get(health::healthz))
+        .route("/readyz", get(health::readyz))
+        .route("/metrics", get(health::metrics))
+        .fallback(|| async {
+            Problem::new(
+                ErrorKind::NotFound,
+                "the admin listener answers /healthz, /readyz and /metrics only",
+            )
+        })
+        .method_not_allowed_fallback(|| async {
+            Problem::new(
+                ErrorKind::MethodNotAllowed,
+                "this route does not answer that method; see /openapi.yaml",
+            )
+        })
+        .layer(CompressionLayer::new().gzip(true).zstd(true))
+        .layer(middleware::from_fn_with_state(app.clone(), request_context))
+        .with_state(app)
+}
+
 /// Refuses a volume name that is too long (in characters, as openapi.yaml's `maxLength`
 /// counts) or holds control characters.
 fn check_name(name: &str, limits: &crate::app::Limits) -> crate::app::Result<()> {
