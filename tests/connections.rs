@@ -298,3 +298,86 @@ fn probes_answer_on_the_admin_listener_while_clients_hold_every_place() {
     let _ = child.wait();
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// After SIGTERM the service's listener closes at once, while the admin listener keeps
+/// answering as long as the server drains (here: a request whose body is still coming):
+/// `/healthz` 200, `/readyz` 503 `shutting-down`. Once that request is gone the process exits
+/// cleanly, and the admin listener is closed with it.
+#[test]
+fn the_admin_listener_answers_until_the_server_has_drained() {
+    use std::io::BufRead;
+    let dir = scratch("admin-drain");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_voxd"))
+        .args([
+            "serve",
+            "--addr",
+            "127.0.0.1:0",
+            "--admin-addr",
+            "127.0.0.1:0",
+        ])
+        .args(["--data-dir", dir.to_str().unwrap(), "--engine", "cpu"])
+        .args(["--shutdown-timeout", "60", "--body-timeout", "60"])
+        .env("VOXD_LOG", "warn")
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut out = std::io::BufReader::new(child.stdout.take().unwrap());
+    let mut line = |prefix: &str| {
+        let mut l = String::new();
+        out.read_line(&mut l).unwrap();
+        l.trim()
+            .strip_prefix(prefix)
+            .unwrap_or_else(|| panic!("expected {prefix:?}, got {l:?}"))
+            .to_string()
+    };
+    let addr = line("voxd listening on http://");
+    let admin = line("voxd admin listening on http://");
+    let (status, _, _) = http_exchange(&admin, "GET", "/readyz", &[], b"").unwrap();
+    assert_eq!(status, 200);
+    // A request in flight: its head and the start of its body.
+    let mut slow = TcpStream::connect(&addr).unwrap();
+    slow.write_all(b"POST /v1/voxelize?format=obj HTTP/1.1\r\nHost: x\r\nContent-Length: 100000\r\n\r\nv 0 0 0\n")
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    let term = std::process::Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(term.success());
+    // The service's listener closes (bounded wait)...
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while TcpStream::connect(&addr).is_ok() {
+        assert!(
+            Instant::now() < deadline,
+            "the service's listener still accepts"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // ...while the admin listener answers.
+    let (status, _, _) = http_exchange(&admin, "GET", "/healthz", &[], b"").unwrap();
+    assert_eq!(status, 200);
+    let (status, _, body) = http_exchange(&admin, "GET", "/readyz", &[], b"").unwrap();
+    assert_eq!(status, 503, "{}", String::from_utf8_lossy(&body));
+    let problem: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    assert_eq!(
+        problem["type"], "https://voxd.dev/problems/shutting-down",
+        "{problem}"
+    );
+    assert!(child.try_wait().unwrap().is_none(), "exited while draining");
+    // The request goes away: the server finishes and the admin listener closes with it.
+    drop(slow);
+    let deadline = Instant::now() + Duration::from_secs(60);
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        assert!(Instant::now() < deadline, "the server did not exit");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert!(status.success(), "{status:?}");
+    assert!(
+        TcpStream::connect(&admin).is_err(),
+        "admin listener still open"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

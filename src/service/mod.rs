@@ -80,6 +80,8 @@ pub struct App {
     /// never delays accepting (or refusing) the next one.
     ingest: Arc<rayon::ThreadPool>,
     metrics: metrics::Metrics,
+    /// Set when shutdown begins: `/readyz` says `shutting-down` from then on.
+    shutting_down: std::sync::atomic::AtomicBool,
 }
 
 impl App {
@@ -113,7 +115,14 @@ impl App {
             keys,
             inflight: Arc::new(tokio::sync::Semaphore::new(kib as usize)),
             ingest: Arc::new(ingest),
+            shutting_down: Default::default(),
         })
+    }
+
+    /// Whether shutdown has begun (the listener closed, queued jobs failed).
+    pub fn shutting_down(&self) -> bool {
+        self.shutting_down
+            .load(std::sync::atomic::Ordering::Relaxed)
     }
 
     /// Holds `bytes` of the in-memory budget (`http.max_inflight_bytes`, shared with request
@@ -305,7 +314,9 @@ pub async fn serve(
             .map(|l| l.local_addr().map_err(|e| e.to_string()))
             .transpose()?,
     );
-    // Shutdown stops both listeners; the admin one answers probes until then.
+    // Shutdown closes the service's listener at once; the admin one answers probes and scrapes
+    // until the process is done (requests drained, running jobs finished), `/readyz` with
+    // `shutting-down`.
     let (stopping, stopped) = tokio::sync::watch::channel(false);
     let admin = admin.map(|l| {
         let mut stopped = stopped.clone();
@@ -319,13 +330,18 @@ pub async fn serve(
             async move {
                 let _ = stopped.wait_for(|s| *s).await;
             },
-            config.shutdown_timeout,
+            // Probes only: nothing worth waiting for once the work is done.
+            config
+                .shutdown_timeout
+                .min(std::time::Duration::from_secs(2)),
         ))
     });
-    let queue = app.queue.clone();
+    let (queue, state) = (app.queue.clone(), app.clone());
     let stop = async move {
         shutdown.await;
-        let _ = stopping.send(true);
+        state
+            .shutting_down
+            .store(true, std::sync::atomic::Ordering::Relaxed);
         let failed = queue
             .close(Error::new(
                 ErrorKind::ShuttingDown,
@@ -345,9 +361,6 @@ pub async fn serve(
         config.shutdown_timeout,
     )
     .await;
-    if let Some(a) = admin {
-        let _ = a.await;
-    }
     // Running jobs finish (their volumes are stored) unless they outlast the shutdown timeout;
     // then the process leaves them, and a restart shows them as interrupted.
     let finish = async {
@@ -363,6 +376,10 @@ pub async fn serve(
             "jobs still running after the shutdown timeout ({} s); leaving them",
             config.shutdown_timeout.as_secs()
         );
+    }
+    let _ = stopping.send(true);
+    if let Some(a) = admin {
+        let _ = a.await;
     }
     tracing::info!("stopped");
     Ok(())

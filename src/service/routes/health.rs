@@ -17,6 +17,14 @@ pub async fn healthz() -> Response {
 }
 
 pub async fn readyz(axum::extract::State(app): AppState) -> Result<Response, Problem> {
+    // Draining: no new work here (answered on the admin listener, which outlives the service's).
+    if app.shutting_down() {
+        return Err(Error::new(
+            ErrorKind::ShuttingDown,
+            "the server is shutting down: finishing its running jobs, taking no new ones",
+        )
+        .into());
+    }
     app.store.health().await.map_err(|e| {
         Error::new(
             ErrorKind::StorageUnavailable,
