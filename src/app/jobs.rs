@@ -12,7 +12,7 @@ use super::metadata::{self, Origin};
 use super::ops::blocking;
 use crate::cancel::Canceled;
 use crate::engine::Engine;
-use crate::queue::{Claim, JobQueue};
+use crate::queue::{Claim, CommitGuard, JobQueue};
 use crate::store::{VolumeMeta, VolumeStore};
 
 /// Runs a claimed job on `engine` under its control and stores its volume (under the claim's
@@ -25,7 +25,13 @@ pub async fn run(
     claim: &Claim,
 ) -> Result<VolumeMeta> {
     let built = build(engine, claim).await?;
-    keep(store, claim, built).await
+    keep(
+        store,
+        claim.volume_id.as_deref(),
+        claim.guard.as_deref(),
+        built,
+    )
+    .await
 }
 
 /// The engine's part of [`run`]: the volume and its metadata, not yet stored.
@@ -67,16 +73,18 @@ async fn build(engine: Arc<dyn Engine>, claim: &Claim) -> Result<metadata::Built
     built
 }
 
-/// The store's part of [`run`]: the volume under its id, once the claim's guard agrees.
+/// The store's part of [`run`]: the volume under the claim's volume id (if it has one), once
+/// the claim's guard (if any) agrees.
 async fn keep(
     store: &dyn VolumeStore,
-    claim: &Claim,
+    volume_id: Option<&str>,
+    guard: Option<&dyn CommitGuard>,
     mut built: metadata::Built,
 ) -> Result<VolumeMeta> {
-    if let Some(id) = &claim.volume_id {
-        built.meta.id = id.clone();
+    if let Some(id) = volume_id {
+        built.meta.id = id.to_string();
     }
-    if let Some(guard) = &claim.guard {
+    if let Some(guard) = guard {
         guard.confirm().await?;
     }
     store
@@ -170,6 +178,9 @@ async fn work_with(
         span.in_scope(|| tracing::info!("job started"));
         let t = Instant::now();
         let built = build(engine.clone(), &claim).instrument(span.clone()).await;
+        // Only what storing needs from here on: the mesh (the claim's `work`, which the queue
+        // no longer holds either) is freed now, not when the store is done with the volume.
+        let (id, volume_id, guard) = (claim.id, claim.volume_id, claim.guard);
         // The volume's share of the byte budget (the whole of it for one larger than that),
         // before the next job is taken: this worker's volumes waiting on the store stay within
         // the budget, plus the one just built.
@@ -184,7 +195,7 @@ async fn work_with(
         let (queue, store, observer) = (queue.clone(), store.clone(), observer.clone());
         let end = async move {
             let result = match built {
-                Ok(built) => keep(&*store, &claim, built).await,
+                Ok(built) => keep(&*store, volume_id.as_deref(), guard.as_deref(), built).await,
                 Err(e) => Err(e),
             };
             let secs = t.elapsed().as_secs_f64();
@@ -193,7 +204,7 @@ async fn work_with(
                 Err(e) => tracing::warn!(problem = %e.detail, secs, "job failed"),
             }
             observer.job_done(secs, &result);
-            queue.finish(&claim.id, result.map(|m| m.id)).await;
+            queue.finish(&id, result.map(|m| m.id)).await;
             drop((place, bytes));
         };
         storing.spawn(end.instrument(span));

@@ -442,7 +442,8 @@ impl JobQueue for LocalQueue {
                     }
                     job.done.send_replace(State::Running);
                     return Some(Claim {
-                        work: job.work.clone().expect("queued work"),
+                        // The worker's alone: the mesh is freed as soon as its job is built.
+                        work: job.work.take().expect("queued work"),
                         name: job.record.name.clone(),
                         control: job.control.clone(),
                         timeout: self.job_timeout,
@@ -672,6 +673,23 @@ mod tests {
         let again = crate::store::fs::FsStore::open(&dir, 1 << 20).unwrap();
         assert_eq!(again.job_records().await.unwrap().len(), known.len());
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// The queue lets go of a job's mesh when a worker takes the job: the claim holds the only
+    /// reference, so the worker frees it once the job is built (many jobs may wait on the store
+    /// after that, and their meshes must not).
+    #[tokio::test]
+    async fn a_claimed_jobs_mesh_is_held_by_the_claim_alone() {
+        let (dir, store) = scratch_store("claimed");
+        let q = LocalQueue::open(2, store.clone()).await.unwrap();
+        q.submit(tiny_job("m1")).await.unwrap();
+        let claim = q.next().await.unwrap();
+        assert_eq!(Arc::strong_count(&claim.work), 1);
+        let mesh = Arc::downgrade(&claim.work);
+        drop(claim);
+        assert!(mesh.upgrade().is_none(), "the mesh outlived its claim");
+        q.finish("m1", Ok("vol".into())).await;
+        let _ = std::fs::remove_dir_all(dir);
     }
 
     /// A job that finished before anyone waited is seen as finished at once (on a paused
