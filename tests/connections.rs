@@ -223,13 +223,9 @@ fn refused_uploads_say_the_connection_closes() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// With every connection place of `--addr` taken by idle clients, a probe there waits in the
-/// kernel's backlog, while `--admin-addr` (places of its own) answers `/healthz`, `/readyz` and
-/// `/metrics` at once and nothing else; once the clients leave, the waiting probe is answered.
-#[test]
-fn probes_answer_on_the_admin_listener_while_clients_hold_every_place() {
+/// `voxd serve` with `--admin-addr` on free ports, and the two addresses it prints.
+fn with_admin(dir: &std::path::Path, extra: &[&str]) -> (std::process::Child, String, String) {
     use std::io::BufRead;
-    let dir = scratch("admin");
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_voxd"))
         .args([
             "serve",
@@ -239,7 +235,7 @@ fn probes_answer_on_the_admin_listener_while_clients_hold_every_place() {
             "127.0.0.1:0",
         ])
         .args(["--data-dir", dir.to_str().unwrap(), "--engine", "cpu"])
-        .args(["--max-connections", "2", "--header-timeout", "30"])
+        .args(extra)
         .env("VOXD_LOG", "warn")
         .stdout(std::process::Stdio::piped())
         .spawn()
@@ -255,6 +251,17 @@ fn probes_answer_on_the_admin_listener_while_clients_hold_every_place() {
     };
     let addr = line("voxd listening on http://");
     let admin = line("voxd admin listening on http://");
+    (child, addr, admin)
+}
+
+/// With every connection place of `--addr` taken by idle clients, a probe there waits in the
+/// kernel's backlog, while `--admin-addr` (places of its own) answers `/healthz`, `/readyz` and
+/// `/metrics` at once and nothing else; once the clients leave, the waiting probe is answered.
+#[test]
+fn probes_answer_on_the_admin_listener_while_clients_hold_every_place() {
+    let dir = scratch("admin");
+    let (mut child, addr, admin) =
+        with_admin(&dir, &["--max-connections", "2", "--header-timeout", "30"]);
     // Two idle clients take both places of the service's listener.
     let hold: Vec<TcpStream> = (0..2).map(|_| TcpStream::connect(&addr).unwrap()).collect();
     std::thread::sleep(Duration::from_millis(300));
@@ -305,33 +312,9 @@ fn probes_answer_on_the_admin_listener_while_clients_hold_every_place() {
 /// cleanly, and the admin listener is closed with it.
 #[test]
 fn the_admin_listener_answers_until_the_server_has_drained() {
-    use std::io::BufRead;
     let dir = scratch("admin-drain");
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_voxd"))
-        .args([
-            "serve",
-            "--addr",
-            "127.0.0.1:0",
-            "--admin-addr",
-            "127.0.0.1:0",
-        ])
-        .args(["--data-dir", dir.to_str().unwrap(), "--engine", "cpu"])
-        .args(["--shutdown-timeout", "60", "--body-timeout", "60"])
-        .env("VOXD_LOG", "warn")
-        .stdout(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut out = std::io::BufReader::new(child.stdout.take().unwrap());
-    let mut line = |prefix: &str| {
-        let mut l = String::new();
-        out.read_line(&mut l).unwrap();
-        l.trim()
-            .strip_prefix(prefix)
-            .unwrap_or_else(|| panic!("expected {prefix:?}, got {l:?}"))
-            .to_string()
-    };
-    let addr = line("voxd listening on http://");
-    let admin = line("voxd admin listening on http://");
+    let (mut child, addr, admin) =
+        with_admin(&dir, &["--shutdown-timeout", "60", "--body-timeout", "60"]);
     let (status, _, _) = http_exchange(&admin, "GET", "/readyz", &[], b"").unwrap();
     assert_eq!(status, 200);
     // A request in flight: its head and the start of its body.
