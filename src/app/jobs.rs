@@ -125,7 +125,7 @@ pub const JOBS_PER_WORKER: usize = 16;
 /// mean many large volumes in memory: a volume larger than this waits for the whole budget,
 /// i.e. until the worker's other volumes are stored.
 pub const STORE_BYTES_PER_WORKER: usize = 256 << 20;
-/// The budget is counted in KiB (a semaphore holds at most u32::MAX >> 3 permits).
+/// The budget is counted in KiB: a semaphore's `acquire_many` takes a u32 count.
 const BUDGET_UNIT: usize = 1 << 10;
 
 /// Takes jobs from `queue` and runs them until the queue is closed and drained. One job at a time
@@ -179,8 +179,10 @@ async fn work_with(
         let t = Instant::now();
         let built = build(engine.clone(), &claim).instrument(span.clone()).await;
         // Only what storing needs from here on: the mesh (the claim's `work`, which the queue
-        // no longer holds either) is freed now, not when the store is done with the volume.
+        // no longer holds either) is freed now, before the wait for the byte budget below, not
+        // when the store is done with the volume.
         let (id, volume_id, guard) = (claim.id, claim.volume_id, claim.guard);
+        drop(claim.work);
         // The volume's share of the byte budget (the whole of it for one larger than that),
         // before the next job is taken: this worker's volumes waiting on the store stay within
         // the budget, plus the one just built.
@@ -262,18 +264,24 @@ mod tests {
         }
     }
 
+    /// A fresh directory store (removed when the guard drops).
+    fn open_store(name: &str) -> (Dir, Arc<dyn VolumeStore>) {
+        let dir = std::env::temp_dir().join(format!("voxd-jobs-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let store: Arc<dyn VolumeStore> = Arc::new(FsStore::open(&dir, 1 << 24).unwrap());
+        (Dir(dir), store)
+    }
+
     async fn open(
         name: &str,
         timeout: Option<Duration>,
     ) -> (Dir, Arc<dyn VolumeStore>, LocalQueue) {
-        let dir = std::env::temp_dir().join(format!("voxd-jobs-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        let store: Arc<dyn VolumeStore> = Arc::new(FsStore::open(&dir, 1 << 24).unwrap());
+        let (dir, store) = open_store(name);
         let q = LocalQueue::open(4, store.clone())
             .await
             .unwrap()
             .with_job_timeout(timeout);
-        (Dir(dir), store, q)
+        (dir, store, q)
     }
 
     async fn stored(store: &dyn VolumeStore) -> usize {
@@ -442,7 +450,7 @@ mod tests {
             ("budget", 16, 3 * units * BUDGET_UNIT, 3),
             ("places", 2, 1 << 30, 2),
         ] {
-            let (_dir, inner, _) = open(&format!("pipeline-{name}"), None).await;
+            let (_dir, inner) = open_store(&format!("pipeline-{name}"));
             // Room for every job at once.
             let q = LocalQueue::open(16, inner.clone()).await.unwrap();
             let gate = Arc::new(tokio::sync::Semaphore::new(0));

@@ -71,19 +71,12 @@ pub fn router(app: Arc<App>) -> Router {
         .route("/v1/volumes/{id}/query", post(volumes::query))
         .route("/v1/volumes/{id}/normals", get(volumes::normals))
         .route("/v1/volumes/{id}/preview.png", get(volumes::preview))
-        .route("/healthz", get(health::healthz))
-        .route("/readyz", get(health::readyz))
-        .route("/metrics", get(health::metrics))
+        .merge(probes())
         .route("/openapi.yaml", get(health::openapi))
         .fallback(|| async {
             Problem::new(ErrorKind::NotFound, "no such route; see /openapi.yaml")
         })
-        .method_not_allowed_fallback(|| async {
-            Problem::new(
-                ErrorKind::MethodNotAllowed,
-                "this route does not answer that method; see /openapi.yaml",
-            )
-        })
+        .method_not_allowed_fallback(method_not_allowed)
         .layer(compress)
         .layer(middleware::map_response(volumes::etag_per_coding))
         .layer(middleware::from_fn_with_state(app.clone(), request_context))
@@ -93,25 +86,32 @@ pub fn router(app: Arc<App>) -> Router {
 /// The admin listener's router (`--admin-addr`): the probes and the metrics only, with the
 /// same request handling (request ids, `--protect-metrics`) as on the service's listener.
 pub fn admin_router(app: Arc<App>) -> Router {
-    Router::new()
-        .route("/healthz", get(health::healthz))
-        .route("/readyz", get(health::readyz))
-        .route("/metrics", get(health::metrics))
+    probes()
         .fallback(|| async {
             Problem::new(
                 ErrorKind::NotFound,
                 "the admin listener answers /healthz, /readyz and /metrics only",
             )
         })
-        .method_not_allowed_fallback(|| async {
-            Problem::new(
-                ErrorKind::MethodNotAllowed,
-                "this route does not answer that method; see /openapi.yaml",
-            )
-        })
+        .method_not_allowed_fallback(method_not_allowed)
         .layer(CompressionLayer::new().gzip(true).zstd(true))
         .layer(middleware::from_fn_with_state(app.clone(), request_context))
         .with_state(app)
+}
+
+/// The probes and the metrics: on the service's listener and on the admin one.
+fn probes() -> Router<Arc<App>> {
+    Router::new()
+        .route("/healthz", get(health::healthz))
+        .route("/readyz", get(health::readyz))
+        .route("/metrics", get(health::metrics))
+}
+
+async fn method_not_allowed() -> Problem {
+    Problem::new(
+        ErrorKind::MethodNotAllowed,
+        "this route does not answer that method; see /openapi.yaml",
+    )
 }
 
 /// Refuses a volume name that is too long (in characters, as openapi.yaml's `maxLength`
