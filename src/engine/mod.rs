@@ -7,6 +7,7 @@ pub mod cpu;
 pub mod density;
 pub mod fill;
 pub mod gpu;
+mod lanes;
 mod snap;
 pub mod winding;
 

@@ -56,6 +56,7 @@ use std::f64::consts::PI;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use super::lanes::{self, LANES};
 use super::snap::snapped_world;
 use super::{EngineError, GridMesh};
 use crate::cancel::{Canceled, Control};
@@ -67,6 +68,7 @@ use crate::volume::BitVolume;
 pub const BETA: f64 = 2.0;
 /// Leaves hold at most this many triangles.
 const LEAF: usize = 8;
+const _: () = assert!(LEAF <= LANES, "a leaf's triangles fit the lanes");
 /// Voxels are decided by the integer part where |w_caps| is proven below this.
 const CAP_LIMIT: f64 = 0.45;
 /// Edge of the voxel blocks certified at once.
@@ -400,35 +402,57 @@ impl Certifier<'_> {
                 }
                 Some((t, grad, error))
             });
+        // The block's voxels (up to eight: fewer at the grid's end), and the near caps' exact
+        // sums at all of them at once; where a cap's plane passes close to a voxel, the sum is
+        // taken again with the tie rule.
+        let mut voxels = [[0u32; 3]; LANES];
+        let mut count = 0;
         for x in lo[0]..hi[0] {
             for y in lo[1]..hi[1] {
                 for z in lo[2]..hi[2] {
-                    let v = [x, y, z];
-                    let decided = model.and_then(|(t, grad, error)| {
-                        let q = g.world_of(v.map(|i| i as f64 + 0.5));
-                        let d = sub(q, c);
-                        let dd = dot(d, d);
-                        let w = (self.caps.near_sum(&near, q, TIE * s)? + t.value + dot(grad, d))
-                            / four_pi;
-                        let e = (3.0 * dd * t.hessian + error * dd.sqrt() + t.left_out) / four_pi;
-                        let k = w.round();
-                        ((w - k).abs() + e + MARGIN < 0.5 && k.abs() <= K_MAX).then_some(k as i8)
-                    });
-                    let (code, how) = match decided {
-                        Some(k) => (k, NEAR_EVAL),
-                        None => match self.decide(v, 1).expect("a voxel is decided") {
-                            Decision::Ne(k, how) => (k as i8, how),
-                            Decision::Is(inside) => (if inside { V_IN } else { V_OUT }, CAP_EVAL),
-                            Decision::Tie => {
-                                col.ties.push(v);
-                                (V_TIE, MESH_EVAL)
-                            }
-                        },
-                    };
-                    col.counts[how] += 1;
-                    codes[local(v)] = code;
+                    voxels[count] = [x, y, z];
+                    count += 1;
                 }
             }
+        }
+        for i in count..LANES {
+            voxels[i] = voxels[0];
+        }
+        let points = voxels.map(|v| g.world_of(v.map(|i| i as f64 + 0.5)));
+        let sums = model.map(|_| {
+            let q = [0, 1, 2].map(|a| points.map(|p| p[a]));
+            lanes::point_sums(&self.caps.tris, &near, &q, TIE * s)
+        });
+        for (i, &v) in voxels[..count].iter().enumerate() {
+            let decided = model
+                .zip(sums)
+                .and_then(|((t, grad, error), (sum, close))| {
+                    let q = points[i];
+                    let near_sum = if close[i] {
+                        self.caps.near_sum(&near, q, TIE * s)?
+                    } else {
+                        sum[i]
+                    };
+                    let d = sub(q, c);
+                    let dd = dot(d, d);
+                    let w = (near_sum + t.value + dot(grad, d)) / four_pi;
+                    let e = (3.0 * dd * t.hessian + error * dd.sqrt() + t.left_out) / four_pi;
+                    let k = w.round();
+                    ((w - k).abs() + e + MARGIN < 0.5 && k.abs() <= K_MAX).then_some(k as i8)
+                });
+            let (code, how) = match decided {
+                Some(k) => (k, NEAR_EVAL),
+                None => match self.decide(v, 1).expect("a voxel is decided") {
+                    Decision::Ne(k, how) => (k as i8, how),
+                    Decision::Is(inside) => (if inside { V_IN } else { V_OUT }, CAP_EVAL),
+                    Decision::Tie => {
+                        col.ties.push(v);
+                        (V_TIE, MESH_EVAL)
+                    }
+                },
+            };
+            col.counts[how] += 1;
+            codes[local(v)] = code;
         }
     }
 }
@@ -752,6 +776,8 @@ pub struct WindingTree {
     tris: Vec<[[f64; 3]; 3]>,
     /// Their areas.
     areas: Vec<f64>,
+    /// Each leaf's triangles lane by lane (a leaf node's `right`).
+    leaves: Vec<lanes::Leaf>,
 }
 
 #[derive(Clone, Debug)]
@@ -762,17 +788,68 @@ struct Node {
     radius: f64,
     /// Σ triangle areas.
     area: f64,
+    /// Leaf: triangle range; inner node: `first` is the left child, `count` 0 and `right` the
+    /// right child.
+    first: u32,
+    count: u32,
+    right: u32,
+    /// The moments as [`far_field`] uses them.
+    far: Far,
+}
+
+/// A node's moments about its centre, kept while the tree is built (a parent's are its
+/// children's, moved).
+#[derive(Clone, Debug, Default)]
+struct Moments {
     /// Σ area·normal.
     n1: [f64; 3],
     /// Σ_t (area·normal)_i (centroid − centre)_j.
     m: [[f64; 3]; 3],
     /// Σ_t normal_i ∫_t (x − centre)_j (x − centre)_k dA, (j, k) in order xx yy zz xy xz yz.
     c: [[f64; 6]; 3],
-    /// Leaf: triangle range; inner node: `first` is the left child, `count` 0 and `right` the
-    /// right child.
-    first: u32,
-    count: u32,
-    right: u32,
+}
+
+/// A node's expansion folded for evaluation (see [`far_field`]): with r the query's offset and
+/// d = |r|, Ω ≈ (n1·r + tr)/d³ − (rᵀ M r + w·r)/d⁵ + Σ_i r_i (rᵀ C_i r)/d⁷.
+#[derive(Clone, Copy, Debug, Default)]
+struct Far {
+    n1: [f64; 3],
+    /// The first moment's trace.
+    tr: f64,
+    /// 3 × the first moment's symmetric part, xx yy zz and the doubled xy xz yz.
+    m: [f64; 6],
+    /// 1.5 × (2 Σ_i C_i,ik + Σ_j C_k,jj), by k.
+    w: [f64; 3],
+    /// 7.5 × the second moments, xx yy zz and the doubled xy xz yz.
+    c: [[f64; 6]; 3],
+}
+
+impl Far {
+    #[allow(clippy::needless_range_loop)] // index notation of the moment formulas
+    fn new(moments: &Moments) -> Far {
+        let Moments { n1, m, c } = moments;
+        let n1 = *n1;
+        let mut far = Far {
+            n1,
+            tr: m[0][0] + m[1][1] + m[2][2],
+            ..Far::default()
+        };
+        for (e, &(i, j)) in SYM.iter().enumerate() {
+            let sym = if i == j { m[i][i] } else { m[i][j] + m[j][i] };
+            far.m[e] = 3.0 * sym;
+        }
+        for i in 0..3 {
+            let full = sym_full(&c[i]);
+            for k in 0..3 {
+                far.w[k] += 1.5 * (2.0 * full[i][k]);
+            }
+            far.w[i] += 1.5 * (full[0][0] + full[1][1] + full[2][2]);
+            for e in 0..6 {
+                far.c[i][e] = 7.5 * if e < 3 { c[i][e] } else { 2.0 * c[i][e] };
+            }
+        }
+        far
+    }
 }
 
 const SYM: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
@@ -785,10 +862,22 @@ impl WindingTree {
             .collect();
         let mut nodes = Vec::with_capacity(2 * tris.len() / LEAF + 2);
         if !tris.is_empty() {
-            build(&mut nodes, &mut tris, 0);
+            build(&mut nodes, &mut Vec::new(), &mut tris, 0);
         }
         let areas = tris.iter().map(|t| norm(area_normal(t))).collect();
-        WindingTree { nodes, tris, areas }
+        let mut leaves = Vec::new();
+        for n in nodes.iter_mut().filter(|n| n.count > 0) {
+            n.right = leaves.len() as u32;
+            leaves.push(lanes::Leaf::new(
+                &tris[n.first as usize..(n.first + n.count) as usize],
+            ));
+        }
+        WindingTree {
+            nodes,
+            tris,
+            areas,
+            leaves,
+        }
     }
 
     /// The generalised winding number at q, exact near q and expanded far from it.
@@ -817,18 +906,12 @@ impl WindingTree {
             if d2 > (BETA * n.radius).powi(2) {
                 sum += far_field(n, r, d2);
             } else if n.count > 0 {
-                let (s, e) = (n.first as usize, (n.first + n.count) as usize);
-                for t in &self.tris[s..e] {
-                    if eps >= 0.0 {
-                        let [a, b, c] = t.map(|v| sub(v, q));
-                        let twice_area = norm(cross(sub(b, a), sub(c, a)));
-                        if dot(a, cross(b, c)).abs() <= eps * twice_area
-                            && dist2_to_triangle(q, t) <= eps * eps
-                        {
-                            return None;
-                        }
+                let (angles, dist2) = lanes::leaf(&self.leaves[n.right as usize], q);
+                for j in 0..n.count as usize {
+                    if eps >= 0.0 && dist2[j] <= eps * eps {
+                        return None;
                     }
-                    sum += solid_angle(t, q);
+                    sum += angles[j];
                 }
             } else {
                 stack[top] = n.first;
@@ -879,8 +962,9 @@ impl WindingTree {
             let d2 = dot(r, r);
             let g = d2.sqrt() - n.radius - rq;
             if g > gap {
-                let magnitude = n.area / (g * g);
-                let variation = rq * 2.0 * n.area / (g * g * g);
+                let ig = 1.0 / g;
+                let magnitude = n.area * ig * ig;
+                let variation = rq * 2.0 * magnitude * ig;
                 let expanded = d2 > (BETA * n.radius).powi(2);
                 // Wherever in the ball, the node adds at most ±magnitude: that alone, when small
                 // (out of a budget) or when tighter than the gradient bound.
@@ -908,17 +992,20 @@ impl WindingTree {
             }
             if n.count > 0 {
                 let (s, e) = (n.first as usize, (n.first + n.count) as usize);
-                for (t, &area) in self.tris[s..e].iter().zip(&self.areas[s..e]) {
+                let (angles, dist2) = lanes::leaf(&self.leaves[n.right as usize], q);
+                for (j, &area) in self.areas[s..e].iter().enumerate() {
                     // A degenerate triangle (of a fan over collinear edges) subtends nothing.
                     if area == 0.0 {
                         continue;
                     }
-                    let g = dist2_to_triangle(q, t).sqrt() - rq;
+                    let g = dist2[j].sqrt() - rq;
                     if g.is_nan() || g <= gap {
                         return None;
                     }
-                    let magnitude = (area / (g * g)).min(2.0 * PI);
-                    let variation = rq * 2.0 * area / (g * g * g);
+                    let ig = 1.0 / g;
+                    let by_distance = area * ig * ig;
+                    let magnitude = by_distance.min(2.0 * PI);
+                    let variation = rq * 2.0 * by_distance * ig;
                     if (magnitude <= small && magnitude <= budget)
                         || (by_area && variation >= magnitude)
                     {
@@ -928,7 +1015,7 @@ impl WindingTree {
                         out.spread += magnitude;
                         out.left_out += magnitude;
                     } else {
-                        out.value += solid_angle(t, q);
+                        out.value += angles[j];
                         out.spread += variation;
                     }
                     out.crude += magnitude;
@@ -980,34 +1067,35 @@ impl WindingTree {
             let d2 = dot(r, r);
             let g = d2.sqrt() - n.radius - rq;
             if g > near_dist {
-                let g2 = g * g;
+                let ig2 = 1.0 / (g * g);
                 // Within the ball, a node adds at most area/g² (at c in particular).
-                let magnitude = n.area / g2;
+                let magnitude = n.area * ig2;
                 if magnitude <= small && magnitude <= budget {
                     budget -= magnitude;
                     out.left_out += magnitude;
-                    out.hessian += magnitude / g2;
+                    out.hessian += magnitude * ig2;
                     continue;
                 }
                 if d2 > (BETA * n.radius).powi(2) {
                     out.value += far_field(n, r, d2);
-                    out.hessian += magnitude / g2;
+                    out.hessian += magnitude * ig2;
                     continue;
                 }
             }
             if n.count > 0 {
-                for i in n.first..n.first + n.count {
-                    let (t, area) = (&self.tris[i as usize], self.areas[i as usize]);
+                let (angles, dist2) = lanes::leaf(&self.leaves[n.right as usize], c);
+                for (j, i) in (n.first..n.first + n.count).enumerate() {
+                    let area = self.areas[i as usize];
                     if area == 0.0 {
                         continue;
                     }
-                    let dist = dist2_to_triangle(c, t).sqrt();
+                    let dist = dist2[j].sqrt();
                     if dist.is_nan() || dist <= gap {
                         return None;
                     }
                     let g = dist - rq;
                     if g > near_dist {
-                        out.value += solid_angle(t, c);
+                        out.value += angles[j];
                         out.hessian += area / (g * g * g * g);
                     } else {
                         near.push((i, 2.0 * area));
@@ -1039,7 +1127,7 @@ impl WindingTree {
             }
             let (la, lb, lc) = (norm(a), norm(b), norm(c));
             let den = la * lb * lc + dot(a, b) * lc + dot(b, c) * la + dot(c, a) * lb;
-            sum += 2.0 * det.atan2(den);
+            sum += 2.0 * lanes::atan2(det, den);
         }
         Some(sum)
     }
@@ -1098,6 +1186,8 @@ struct EdgeNode {
     net: [f64; 3],
     /// Σ ∫ dl ⊗ (x − centre) = Σ (end − start) ⊗ (midpoint − centre).
     moment: [[f64; 3]; 3],
+    /// Its antisymmetric part as a vector: (M₁₂ − M₂₁, M₂₀ − M₀₂, M₀₁ − M₁₀).
+    anti: [f64; 3],
     /// As [`Node`]: a leaf's range, or `first` the left child and `right` the right one.
     first: u32,
     count: u32,
@@ -1156,6 +1246,11 @@ impl EdgeTree {
             length,
             net,
             moment,
+            anti: [
+                moment[1][2] - moment[2][1],
+                moment[2][0] - moment[0][2],
+                moment[0][1] - moment[1][0],
+            ],
             first: offset,
             count: segs.len() as u32,
             right: 0,
@@ -1249,17 +1344,16 @@ impl EdgeTree {
             let d = norm(r);
             let g = d - n.radius;
             if g > FIELD_OPEN * n.radius {
-                // r = m − q; K(m) = r/d³, J_cj = δ_cj/d³ − 3 r_c r_j/d⁵.
-                let (i3, i5) = (1.0 / (d * d * d), 1.0 / (d * d * d * d * d));
+                // r = m − q; K(m) = r/d³, J_cj = δ_cj/d³ − 3 r_c r_j/d⁵, so
+                // (M Jᵀ)_bc = M_bc/d³ − 3 (M r)_b r_c/d⁵, whose ε-contraction is
+                // anti/d³ − 3 (M r) × r/d⁵ (anti: the moment's antisymmetric part).
+                let id2 = 1.0 / (d * d);
+                let i3 = d * id2 * id2;
+                let i5 = i3 * id2;
                 let k = r.map(|v| v * i3);
-                let mut p = [[0.0; 3]; 3];
-                for (b, row) in p.iter_mut().enumerate() {
-                    let mr = dot(n.moment[b], r);
-                    for (c, v) in row.iter_mut().enumerate() {
-                        *v = n.moment[b][c] * i3 - 3.0 * mr * r[c] * i5;
-                    }
-                }
-                let first = [p[1][2] - p[2][1], p[2][0] - p[0][2], p[0][1] - p[1][0]];
+                let mr = n.moment.map(|row| dot(row, r));
+                let turn = cross(mr, r);
+                let first = [0, 1, 2].map(|a| n.anti[a] * i3 - 3.0 * turn[a] * i5);
                 field = add3(field, add3(cross(n.net, k), first));
                 error += 3.0 * n.radius * n.radius * n.length / (g * g * g * g);
             } else if n.count > 0 {
@@ -1335,7 +1429,7 @@ fn chain_boundary(tris: &[[u32; 3]]) -> Vec<[u32; 2]> {
 }
 
 /// Squared distance from p to the segment s.
-fn dist2_to_segment(p: [f64; 3], s: &[[f64; 3]; 2]) -> f64 {
+pub(crate) fn dist2_to_segment(p: [f64; 3], s: &[[f64; 3]; 2]) -> f64 {
     let (d, w) = (sub(s[1], s[0]), sub(p, s[0]));
     let l2 = dot(d, d);
     let t = if l2 > 0.0 {
@@ -1350,37 +1444,22 @@ fn dist2_to_segment(p: [f64; 3], s: &[[f64; 3]; 2]) -> f64 {
 /// 4π × the node's expanded winding number at q, with r = centre − q and d2 = |r|².
 #[allow(clippy::needless_range_loop)] // index notation of the moment formulas
 fn far_field(n: &Node, r: [f64; 3], d2: f64) -> f64 {
-    let d = d2.sqrt();
-    let (i3, i5) = (1.0 / (d2 * d), 1.0 / (d2 * d2 * d));
-    let i7 = i5 / d2;
-    // Order 0 (dipoles at the centre).
-    let t1 = dot(n.n1, r) * i3;
+    // Order 0 (dipoles at the centre): n1·r/d³.
     // Order 1: Σ M_ij ∂_j K_i with ∂_j K_i = δ_ij/d³ − 3 r_i r_j/d⁵.
-    let tr = n.m[0][0] + n.m[1][1] + n.m[2][2];
-    let mut rmr = 0.0;
-    for i in 0..3 {
-        for j in 0..3 {
-            rmr += r[i] * n.m[i][j] * r[j];
-        }
-    }
-    let t2 = tr * i3 - 3.0 * rmr * i5;
     // Order 2: ½ Σ C_ijk ∂_j ∂_k K_i with
     // ∂_j ∂_k K_i = −3 (δ_ij r_k + δ_ik r_j + δ_jk r_i)/d⁵ + 15 r_i r_j r_k/d⁷.
-    let (mut a, mut b, mut rrr) = (0.0, 0.0, 0.0);
-    for i in 0..3 {
-        let full = sym_full(&n.c[i]);
-        for k in 0..3 {
-            a += full[i][k] * r[k];
-        }
-        b += (full[0][0] + full[1][1] + full[2][2]) * r[i];
-        for j in 0..3 {
-            for k in 0..3 {
-                rrr += full[j][k] * r[i] * r[j] * r[k];
-            }
-        }
-    }
-    let t3 = 0.5 * (-3.0 * (2.0 * a + b) * i5 + 15.0 * rrr * i7);
-    t1 + t2 + t3
+    // Collected by power of d (the factors folded into `Far`).
+    let f = &n.far;
+    let id2 = 1.0 / d2;
+    let i3 = d2.sqrt() * id2 * id2;
+    let (i5, i7) = (i3 * id2, i3 * id2 * id2);
+    let [x, y, z] = r;
+    let rr = [x * x, y * y, z * z, x * y, x * z, y * z];
+    let form = |c: &[f64; 6]| {
+        c[0] * rr[0] + c[1] * rr[1] + c[2] * rr[2] + c[3] * rr[3] + c[4] * rr[4] + c[5] * rr[5]
+    };
+    let rrr = x * form(&f.c[0]) + y * form(&f.c[1]) + z * form(&f.c[2]);
+    (dot(f.n1, r) + f.tr) * i3 - (form(&f.m) + dot(f.w, r)) * i5 + rrr * i7
 }
 
 fn sym_full(c: &[f64; 6]) -> [[f64; 3]; 3] {
@@ -1389,10 +1468,19 @@ fn sym_full(c: &[f64; 6]) -> [[f64; 3]; 3] {
 
 /// Builds the subtree over `tris` (which it reorders), its triangles starting at `offset`;
 /// returns the node's index.
-fn build(nodes: &mut Vec<Node>, tris: &mut [[[f64; 3]; 3]], offset: u32) -> u32 {
+/// Builds the subtree over `tris` (their first index `offset`) into `nodes`, with each node's
+/// moments at the same index of `moments`; returns its root's index.
+fn build(
+    nodes: &mut Vec<Node>,
+    moments: &mut Vec<Moments>,
+    tris: &mut [[[f64; 3]; 3]],
+    offset: u32,
+) -> u32 {
     let index = nodes.len() as u32;
     if tris.len() <= LEAF {
-        nodes.push(leaf(tris, offset));
+        let (node, m) = leaf(tris, offset);
+        nodes.push(node);
+        moments.push(m);
         return index;
     }
     // Median split of the centroids along the longest axis of their box.
@@ -1410,17 +1498,26 @@ fn build(nodes: &mut Vec<Node>, tris: &mut [[[f64; 3]; 3]], offset: u32) -> u32 
         .unwrap_or(0);
     let mid = tris.len() / 2;
     tris.select_nth_unstable_by(mid, |a, b| cen(a)[axis].total_cmp(&cen(b)[axis]));
-    nodes.push(leaf(&[], 0)); // placeholder, filled below
+    // Placeholders, filled below.
+    let (node, m) = leaf(&[], 0);
+    nodes.push(node);
+    moments.push(m);
     let (left, right) = tris.split_at_mut(mid);
-    let l = build(nodes, left, offset);
-    let r = build(nodes, right, offset + mid as u32);
-    let node = combine(&nodes[l as usize], &nodes[r as usize], l, r);
+    let l = build(nodes, moments, left, offset);
+    let r = build(nodes, moments, right, offset + mid as u32);
+    let (li, ri) = (l as usize, r as usize);
+    let (node, m) = combine(
+        [(&nodes[li], &moments[li]), (&nodes[ri], &moments[ri])],
+        l,
+        r,
+    );
     nodes[index as usize] = node;
+    moments[index as usize] = m;
     index
 }
 
 #[allow(clippy::needless_range_loop)] // index notation of the moment formulas
-fn leaf(tris: &[[[f64; 3]; 3]], offset: u32) -> Node {
+fn leaf(tris: &[[[f64; 3]; 3]], offset: u32) -> (Node, Moments) {
     let mut area = 0.0;
     let mut n1 = [0.0; 3];
     let mut weighted = [0.0; 3];
@@ -1462,55 +1559,56 @@ fn leaf(tris: &[[[f64; 3]; 3]], offset: u32) -> Node {
             }
         }
     }
-    Node {
+    let moments = Moments { n1, m, c };
+    let node = Node {
         centre,
         radius,
         area,
-        n1,
-        m,
-        c,
         first: offset,
         count: tris.len() as u32,
         right: 0,
-    }
+        far: Far::new(&moments),
+    };
+    (node, moments)
 }
 
 /// The parent of two nodes: moments moved to the parent's centre (d = child centre − centre):
 /// M += n1 ⊗ d, C_ijk += d_j M_ik + d_k M_ij + d_j d_k n1_i.
 #[allow(clippy::needless_range_loop)] // index notation of the moment formulas
-fn combine(l: &Node, r: &Node, li: u32, ri: u32) -> Node {
+fn combine(children: [(&Node, &Moments); 2], li: u32, ri: u32) -> (Node, Moments) {
+    let [(l, _), (r, _)] = children;
     let area = l.area + r.area;
     let centre = if area > 0.0 {
         [0, 1, 2].map(|k| (l.centre[k] * l.area + r.centre[k] * r.area) / area)
     } else {
         [0, 1, 2].map(|k| 0.5 * (l.centre[k] + r.centre[k]))
     };
-    let mut out = Node {
-        centre,
-        radius: 0.0,
-        area,
-        n1: [0.0; 3],
-        m: [[0.0; 3]; 3],
-        c: [[0.0; 6]; 3],
-        first: li,
-        count: 0,
-        right: ri,
-    };
-    for ch in [l, r] {
+    let mut radius: f64 = 0.0;
+    let mut out = Moments::default();
+    for (ch, chm) in children {
         let d = sub(ch.centre, centre);
-        out.radius = out.radius.max(norm(d) + ch.radius);
+        radius = radius.max(norm(d) + ch.radius);
         for i in 0..3 {
-            out.n1[i] += ch.n1[i];
+            out.n1[i] += chm.n1[i];
             for j in 0..3 {
-                out.m[i][j] += ch.m[i][j] + ch.n1[i] * d[j];
+                out.m[i][j] += chm.m[i][j] + chm.n1[i] * d[j];
             }
             for (e, &(j, k)) in SYM.iter().enumerate() {
                 out.c[i][e] +=
-                    ch.c[i][e] + d[j] * ch.m[i][k] + d[k] * ch.m[i][j] + d[j] * d[k] * ch.n1[i];
+                    chm.c[i][e] + d[j] * chm.m[i][k] + d[k] * chm.m[i][j] + d[j] * d[k] * chm.n1[i];
             }
         }
     }
-    out
+    let node = Node {
+        centre,
+        radius,
+        area,
+        first: li,
+        count: 0,
+        right: ri,
+        far: Far::new(&out),
+    };
+    (node, out)
 }
 
 /// Area × unit normal (half the cross product).
@@ -1519,7 +1617,7 @@ fn area_normal(t: &[[f64; 3]; 3]) -> [f64; 3] {
 }
 
 /// Squared distance from p to a triangle (Ericson, *Real-Time Collision Detection*, 5.1.5).
-fn dist2_to_triangle(p: [f64; 3], t: &[[f64; 3]; 3]) -> f64 {
+pub(crate) fn dist2_to_triangle(p: [f64; 3], t: &[[f64; 3]; 3]) -> f64 {
     let [a, b, c] = *t;
     let at = |u: f64, v: f64| [0, 1, 2].map(|i| a[i] + u * (b[i] - a[i]) + v * (c[i] - a[i]));
     let d = |q: [f64; 3]| dot(sub(p, q), sub(p, q));
@@ -1673,7 +1771,7 @@ mod tests {
         let tris: Vec<_> = t.iter().map(|t| t.map(|i| p[i as usize])).collect();
         let mut all = tris.clone();
         let mut nodes = Vec::new();
-        build(&mut nodes, &mut all, 0);
+        build(&mut nodes, &mut Vec::new(), &mut all, 0);
         let root = &nodes[0];
         let mut errs = Vec::new();
         for d in [4.0, 8.0, 16.0] {

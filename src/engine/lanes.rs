@@ -1,0 +1,512 @@
+//! The winding fill's inner loops, eight at a time: solid angles and squared distances of up to
+//! eight triangles seen from one point (a leaf of the hierarchy), and the solid angles of a list
+//! of triangles seen from eight points (the voxels of a 2×2×2 block).
+//!
+//! The same code is compiled three times, for AVX-512, for AVX2 and for the baseline target,
+//! and the widest the processor has is chosen at run time. Every path does the same IEEE
+//! operations in the same order (no fused multiply-adds: Rust never contracts `a * b + c`), so
+//! all three give the same bits; `atan2` is Cephes' (as Go's `math.Atan`), written without
+//! branches so that it vectorizes, within a few ulps of the C library's.
+
+use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
+
+/// Lanes per call.
+pub const LANES: usize = 8;
+
+/// Up to [`LANES`] triangles, coordinate by coordinate, with what the distance needs. Lanes past
+/// the leaf's triangles repeat its last one (their results are not read).
+#[derive(Clone, Debug)]
+pub struct Leaf {
+    /// Vertex k's coordinate a is `v[3 * k + a]`.
+    v: [[f64; LANES]; 9],
+    /// The edges' reciprocal squared lengths (ab, bc, ca), 0 for a zero-length edge.
+    inv_len2: [[f64; LANES]; 3],
+    /// The (unnormalised) normal (b − a) × (c − a) and the reciprocal of its squared length.
+    n: [[f64; LANES]; 3],
+    inv_n2: [f64; LANES],
+}
+
+impl Leaf {
+    /// The leaf of `tris` (1 to [`LANES`] of them).
+    #[allow(clippy::needless_range_loop)] // coordinate by coordinate, lane by lane
+    pub fn new(tris: &[[[f64; 3]; 3]]) -> Leaf {
+        assert!(
+            !tris.is_empty() && tris.len() <= LANES,
+            "a leaf holds 1 to 8 triangles"
+        );
+        let mut l = Leaf {
+            v: [[0.0; LANES]; 9],
+            inv_len2: [[0.0; LANES]; 3],
+            n: [[0.0; LANES]; 3],
+            inv_n2: [0.0; LANES],
+        };
+        for i in 0..LANES {
+            let t = tris[i.min(tris.len() - 1)];
+            for (k, p) in t.iter().enumerate() {
+                for a in 0..3 {
+                    l.v[3 * k + a][i] = p[a];
+                }
+            }
+            for e in 0..3 {
+                let d = sub(t[(e + 1) % 3], t[e]);
+                let len2 = dot(d, d);
+                l.inv_len2[e][i] = if len2 > 0.0 { 1.0 / len2 } else { 0.0 };
+            }
+            let n = cross(sub(t[1], t[0]), sub(t[2], t[0]));
+            for a in 0..3 {
+                l.n[a][i] = n[a];
+            }
+            let n2 = dot(n, n);
+            l.inv_n2[i] = if n2 > 0.0 { 1.0 / n2 } else { 0.0 };
+        }
+        l
+    }
+}
+
+/// For each lane's triangle: its solid angle seen from q (as [`super::winding::solid_angle`])
+/// and q's squared distance to it (of a degenerate triangle: to its edges).
+pub fn leaf(l: &Leaf, q: [f64; 3]) -> ([f64; LANES], [f64; LANES]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the processor has AVX-512F.
+            return unsafe { leaf_avx512(l, q) };
+        }
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor has AVX2.
+            return unsafe { leaf_avx2(l, q) };
+        }
+    }
+    leaf_body(l, q)
+}
+
+/// For each of eight points q (`q[a][lane]`): Σ over `tris` of their solid angles seen from it,
+/// and whether some triangle's plane passes within `2 · gap` of it (by twice its area, `det`
+/// against `2 · gap · twice_area`; NaN counts as near). Where it does, the caller decides
+/// whether that is a tie.
+pub fn point_sums(
+    tris: &[[[f64; 3]; 3]],
+    near: &[(u32, f64)],
+    q: &[[f64; LANES]; 3],
+    gap: f64,
+) -> ([f64; LANES], [bool; LANES]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the processor has AVX-512F.
+            return unsafe { point_sums_avx512(tris, near, q, gap) };
+        }
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor has AVX2.
+            return unsafe { point_sums_avx2(tris, near, q, gap) };
+        }
+    }
+    point_sums_body(tris, near, q, gap)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn leaf_avx512(l: &Leaf, q: [f64; 3]) -> ([f64; LANES], [f64; LANES]) {
+    leaf_body(l, q)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn leaf_avx2(l: &Leaf, q: [f64; 3]) -> ([f64; LANES], [f64; LANES]) {
+    leaf_body(l, q)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn point_sums_avx512(
+    tris: &[[[f64; 3]; 3]],
+    near: &[(u32, f64)],
+    q: &[[f64; LANES]; 3],
+    gap: f64,
+) -> ([f64; LANES], [bool; LANES]) {
+    point_sums_body(tris, near, q, gap)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn point_sums_avx2(
+    tris: &[[[f64; 3]; 3]],
+    near: &[(u32, f64)],
+    q: &[[f64; LANES]; 3],
+    gap: f64,
+) -> ([f64; LANES], [bool; LANES]) {
+    point_sums_body(tris, near, q, gap)
+}
+
+#[inline(always)]
+fn leaf_body(l: &Leaf, q: [f64; 3]) -> ([f64; LANES], [f64; LANES]) {
+    let mut angle = [0.0; LANES];
+    let mut dist2 = [0.0; LANES];
+    // Written lane by lane with plain locals (no closures), so that the loop vectorizes.
+    for i in 0..LANES {
+        let a = [l.v[0][i] - q[0], l.v[1][i] - q[1], l.v[2][i] - q[2]];
+        let b = [l.v[3][i] - q[0], l.v[4][i] - q[1], l.v[5][i] - q[2]];
+        let c = [l.v[6][i] - q[0], l.v[7][i] - q[1], l.v[8][i] - q[2]];
+        angle[i] = solid_angle_of(a, b, c);
+        // Off the triangle's prism: the nearest of its edges; on it: the plane.
+        let ab = edge_dist2(a, b, l.inv_len2[0][i]);
+        let bc = edge_dist2(b, c, l.inv_len2[1][i]);
+        let ca = edge_dist2(c, a, l.inv_len2[2][i]);
+        let best = min(min(ab, bc), ca);
+        let n = [l.n[0][i], l.n[1][i], l.n[2][i]];
+        // q inside the prism over the triangle: on the inner side of each edge's plane along n.
+        let inside = (dot(cross(sub(b, a), a), n) <= 0.0)
+            & (dot(cross(sub(c, b), b), n) <= 0.0)
+            & (dot(cross(sub(a, c), c), n) <= 0.0);
+        let h = dot(a, n);
+        let plane = h * h * l.inv_n2[i];
+        dist2[i] = if inside & (l.inv_n2[i] > 0.0) & (plane < best) {
+            plane
+        } else {
+            best
+        };
+    }
+    (angle, dist2)
+}
+
+/// The squared distance from the origin to the segment s–t (`inv_len2` = 1/|t − s|², or 0).
+#[inline(always)]
+fn edge_dist2(s: [f64; 3], t: [f64; 3], inv_len2: f64) -> f64 {
+    let d = sub(t, s);
+    let u = -dot(s, d) * inv_len2;
+    let u = if u < 0.0 { 0.0 } else { u };
+    let u = if u > 1.0 { 1.0 } else { u };
+    let r = [s[0] + u * d[0], s[1] + u * d[1], s[2] + u * d[2]];
+    dot(r, r)
+}
+
+#[inline(always)]
+fn min(a: f64, b: f64) -> f64 {
+    if a < b { a } else { b }
+}
+
+#[inline(always)]
+fn point_sums_body(
+    tris: &[[[f64; 3]; 3]],
+    near: &[(u32, f64)],
+    q: &[[f64; LANES]; 3],
+    gap: f64,
+) -> ([f64; LANES], [bool; LANES]) {
+    let mut sum = [0.0; LANES];
+    let mut close = [false; LANES];
+    for &(t, twice_area) in near {
+        let [ta, tb, tc] = tris[t as usize];
+        let bound = 2.0 * gap * twice_area;
+        for i in 0..LANES {
+            let p = [q[0][i], q[1][i], q[2][i]];
+            let (a, b, c) = (sub(ta, p), sub(tb, p), sub(tc, p));
+            let det = dot(a, cross(b, c));
+            // NaN: close.
+            close[i] |= det.abs() <= bound || det.is_nan();
+            let (la, lb, lc) = (norm(a), norm(b), norm(c));
+            let den = la * lb * lc + dot(a, b) * lc + dot(b, c) * la + dot(c, a) * lb;
+            sum[i] += 2.0 * atan2(det, den);
+        }
+    }
+    (sum, close)
+}
+
+/// Van Oosterom & Strackee's solid angle of the triangle (a, b, c) seen from the origin.
+#[inline(always)]
+fn solid_angle_of(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
+    let (la, lb, lc) = (norm(a), norm(b), norm(c));
+    let det = dot(a, cross(b, c));
+    let den = la * lb * lc + dot(a, b) * lc + dot(b, c) * la + dot(c, a) * lb;
+    2.0 * atan2(det, den)
+}
+
+/// atan(x) for 0 ≤ x ≤ 0.66 (Cephes' rational approximation, relative error ~1e-16).
+#[inline(always)]
+fn atan_small(x: f64) -> f64 {
+    const P: [f64; 5] = [
+        -8.750_608_600_031_904e-1,
+        -1.615_753_718_733_365e1,
+        -7.500_855_792_314_705e1,
+        -1.228_866_684_490_136_2e2,
+        -6.485_021_904_942_025e1,
+    ];
+    const Q: [f64; 5] = [
+        2.485_846_490_142_306_3e1,
+        1.650_270_098_316_988_6e2,
+        4.328_810_604_912_903e2,
+        4.853_903_996_359_137e2,
+        1.945_506_571_482_614e2,
+    ];
+    let z = x * x;
+    let p = (((P[0] * z + P[1]) * z + P[2]) * z + P[3]) * z + P[4];
+    let r = ((((z + Q[0]) * z + Q[1]) * z + Q[2]) * z + Q[3]) * z + Q[4];
+    x * (z * p / r) + x
+}
+
+/// atan2(y, x) without branches (each `if` a select), as Cephes reduces it: |y/x| above
+/// tan(3π/8) through π/2 − atan(x/y), above 0.66 through π/4 + atan((y − x)/(y + x)).
+#[inline(always)]
+pub fn atan2(y: f64, x: f64) -> f64 {
+    let (ay, ax) = (y.abs(), x.abs());
+    let big = ay > 2.414_213_562_373_095 * ax;
+    let mid = ay > 0.66 * ax;
+    let num = if big {
+        -ax
+    } else if mid {
+        ay - ax
+    } else {
+        ay
+    };
+    let den = if big {
+        ay
+    } else if mid {
+        ay + ax
+    } else {
+        ax
+    };
+    let base = if big {
+        FRAC_PI_2
+    } else if mid {
+        FRAC_PI_4
+    } else {
+        0.0
+    };
+    let r = base + atan_small(num / den);
+    // 0/0 (y = x = 0) is NaN here; the C library gives 0 or ±π. Either way the point lies on
+    // the triangle's plane, which every caller treats as a tie beforehand.
+    let r = if x < 0.0 { PI - r } else { r };
+    if y.is_sign_negative() { -r } else { r }
+}
+
+#[inline(always)]
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+#[inline(always)]
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+#[inline(always)]
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+#[inline(always)]
+fn norm(a: [f64; 3]) -> f64 {
+    dot(a, a).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::engine::winding::{dist2_to_segment, dist2_to_triangle, solid_angle};
+
+    /// xorshift, so that the cases are the same every run.
+    struct Rng(u64);
+    impl Rng {
+        fn next(&mut self) -> f64 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        }
+        fn point(&mut self, scale: f64) -> [f64; 3] {
+            [0, 1, 2].map(|_| (self.next() * 2.0 - 1.0) * scale)
+        }
+    }
+
+    /// Random triangles, with degenerate ones among them: collinear, a repeated vertex, a
+    /// point, slivers, and ones far larger or smaller than their distance to the query.
+    fn triangle(rng: &mut Rng, i: usize) -> [[f64; 3]; 3] {
+        let [a, b, c] = [rng.point(1.0), rng.point(1.0), rng.point(1.0)];
+        match i % 7 {
+            0 => [a, b, [0, 1, 2].map(|k| a[k] + 0.37 * (b[k] - a[k]))],
+            1 => [a, a, c],
+            2 => [a, a, a],
+            3 => [
+                a,
+                b,
+                [0, 1, 2].map(|k| a[k] + 0.5 * (b[k] - a[k]) + 1e-9 * c[k]),
+            ],
+            4 => [a, b, c].map(|p| p.map(|v| v * 1e-3)),
+            5 => [a, b, c].map(|p| p.map(|v| v * 1e3)),
+            _ => [a, b, c],
+        }
+    }
+
+    #[test]
+    fn atan2_matches_the_c_library() {
+        let mut rng = Rng(7);
+        let mut worst: f64 = 0.0;
+        let specials = [
+            0.0,
+            -0.0,
+            1e-300,
+            -1e-300,
+            1.0,
+            -1.0,
+            0.66,
+            2.414_213_562_373_095,
+        ];
+        for &y in &specials {
+            for &x in &specials {
+                if y == 0.0 && x == 0.0 {
+                    continue;
+                }
+                let (ours, libm) = (atan2(y, x), y.atan2(x));
+                if y == 0.0 || x == 0.0 {
+                    // The axes, signs of zero included: exactly.
+                    assert_eq!(ours.to_bits(), libm.to_bits(), "atan2({y}, {x})");
+                } else {
+                    assert!((ours - libm).abs() <= 4e-16 * libm.abs(), "atan2({y}, {x})");
+                }
+            }
+        }
+        for _ in 0..200_000 {
+            let (y, x) = (rng.next() * 2.0 - 1.0, rng.next() * 2.0 - 1.0);
+            let scale = 10f64.powi((rng.next() * 12.0) as i32 - 6);
+            let (ours, libm) = (atan2(y * scale, x), (y * scale).atan2(x));
+            worst = worst.max((ours - libm).abs() / libm.abs().max(1e-300));
+        }
+        assert!(worst < 4e-16, "relative error {worst:e}");
+    }
+
+    #[test]
+    fn leaves_match_the_scalar_solid_angle_and_distance() {
+        let mut rng = Rng(11);
+        let mut checked = 0;
+        for case in 0..4000 {
+            let count = 1 + case % LANES;
+            let tris: Vec<_> = (0..count).map(|i| triangle(&mut rng, case + i)).collect();
+            let leaf_ = Leaf::new(&tris);
+            let q = rng.point(if case % 3 == 0 { 0.3 } else { 3.0 });
+            let (angles, dist2) = leaf(&leaf_, q);
+            for (j, t) in tris.iter().enumerate() {
+                // Ericson's distance, but never more than the edges' (which it can exceed, or
+                // be NaN, for a triangle whose area is lost to rounding or zero).
+                let edges = (0..3)
+                    .map(|e| dist2_to_segment(q, &[t[e], t[(e + 1) % 3]]))
+                    .fold(f64::INFINITY, f64::min);
+                let d = dist2_to_triangle(q, t).min(edges);
+                let a = solid_angle(t, q);
+                assert!(
+                    (angles[j] - a).abs() <= 1e-12,
+                    "case {case} lane {j}: solid angle {} against {a}",
+                    angles[j]
+                );
+                assert!(
+                    (dist2[j] - d).abs() <= 1e-12 * d.max(1e-12),
+                    "case {case} lane {j}: squared distance {} against {d}",
+                    dist2[j]
+                );
+                checked += 1;
+            }
+        }
+        assert!(checked > 10_000);
+    }
+
+    #[test]
+    fn point_sums_match_the_scalar_sum() {
+        let mut rng = Rng(13);
+        let tris: Vec<_> = (0..40).map(|i| triangle(&mut rng, i)).collect();
+        let twice_area = |t: &[[f64; 3]; 3]| norm(cross(sub(t[1], t[0]), sub(t[2], t[0])));
+        let near: Vec<(u32, f64)> = (0..tris.len() as u32)
+            .map(|i| (i, twice_area(&tris[i as usize])))
+            .filter(|&(_, a)| a > 0.0)
+            .collect();
+        let mut saw_close = false;
+        for case in 0..500 {
+            let points: [[f64; 3]; LANES] = std::array::from_fn(|_| rng.point(2.0));
+            // Some queries on a triangle's plane.
+            let mut points = points;
+            if case % 5 == 0 {
+                let t = tris[case % tris.len()];
+                points[1] = [0, 1, 2].map(|k| 0.25 * t[0][k] + 0.25 * t[1][k] + 0.5 * t[2][k]);
+            }
+            let q = [0, 1, 2].map(|a| points.map(|p| p[a]));
+            let gap = 1e-6;
+            let (sums, close) = point_sums(&tris, &near, &q, gap);
+            for (i, p) in points.iter().enumerate() {
+                let exact: f64 = near
+                    .iter()
+                    .map(|&(t, _)| solid_angle(&tris[t as usize], *p))
+                    .sum();
+                let any_close = near.iter().any(|&(t, ta)| {
+                    let [a, b, c] = tris[t as usize].map(|v| sub(v, *p));
+                    let det = dot(a, cross(b, c));
+                    det.abs() <= 2.0 * gap * ta || det.is_nan()
+                });
+                assert_eq!(close[i], any_close, "case {case} point {i}");
+                saw_close |= any_close;
+                if !any_close {
+                    assert!(
+                        (sums[i] - exact).abs() < 1e-10,
+                        "case {case}: {} against {exact}",
+                        sums[i]
+                    );
+                }
+            }
+        }
+        assert!(saw_close, "no query came close to a plane");
+    }
+
+    #[test]
+    fn every_instruction_set_gives_the_same_bits() {
+        let mut rng = Rng(17);
+        let tris: Vec<_> = (0..LANES).map(|i| triangle(&mut rng, i)).collect();
+        let leaf_ = Leaf::new(&tris);
+        let near: Vec<(u32, f64)> = (0..LANES as u32).map(|i| (i, 1.0)).collect();
+        let mut compared = 0;
+        for _ in 0..200 {
+            let q = rng.point(2.0);
+            let qs = [0, 1, 2].map(|_| std::array::from_fn(|_| rng.next() * 2.0 - 1.0));
+            let plain = (
+                leaf_body(&leaf_, q),
+                point_sums_body(&tris, &near, &qs, 1e-9),
+            );
+            type Results = (([f64; LANES], [f64; LANES]), ([f64; LANES], [bool; LANES]));
+            let bits = |((a, d), (s, c)): Results| {
+                (
+                    a.map(f64::to_bits),
+                    d.map(f64::to_bits),
+                    s.map(f64::to_bits),
+                    c,
+                )
+            };
+            #[cfg(target_arch = "x86_64")]
+            {
+                if std::arch::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the processor has AVX2.
+                    let wide = unsafe {
+                        (
+                            leaf_avx2(&leaf_, q),
+                            point_sums_avx2(&tris, &near, &qs, 1e-9),
+                        )
+                    };
+                    assert_eq!(bits(plain), bits(wide), "AVX2");
+                    compared += 1;
+                }
+                if std::arch::is_x86_feature_detected!("avx512f") {
+                    // SAFETY: the processor has AVX-512F.
+                    let wide = unsafe {
+                        (
+                            leaf_avx512(&leaf_, q),
+                            point_sums_avx512(&tris, &near, &qs, 1e-9),
+                        )
+                    };
+                    assert_eq!(bits(plain), bits(wide), "AVX-512");
+                    compared += 1;
+                }
+            }
+        }
+        if compared == 0 {
+            eprintln!("NOTICE: no AVX2 or AVX-512 here; only the baseline path ran");
+        }
+    }
+}
