@@ -8,6 +8,9 @@
 //! all three give the same bits; `atan2` is Cephes' (as Go's `math.Atan`), written without
 //! branches so that it vectorizes, within a few ulps of the C library's.
 
+// Loops run over lane indices on purpose: that is the shape that vectorizes.
+#![allow(clippy::needless_range_loop)]
+
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 
 /// Lanes per call.
@@ -28,7 +31,6 @@ pub struct Leaf {
 
 impl Leaf {
     /// The leaf of `tris` (1 to [`LANES`] of them).
-    #[allow(clippy::needless_range_loop)] // coordinate by coordinate, lane by lane
     pub fn new(tris: &[[[f64; 3]; 3]]) -> Leaf {
         assert!(
             !tris.is_empty() && tris.len() <= LANES,
@@ -102,6 +104,193 @@ pub fn point_sums(
         }
     }
     point_sums_body(tris, near, q, gap)
+}
+
+/// A hierarchy node's expansion folded for evaluation: with r the offset from the query to the
+/// node's centre and d = |r|, 4π × its winding number is about
+/// (n1·r + tr)/d³ − (rᵀ M r + w·r)/d⁵ + Σ_i r_i (rᵀ C_i r)/d⁷ (see `winding::folded`).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Far {
+    pub n1: [f64; 3],
+    /// The first moment's trace.
+    pub tr: f64,
+    /// 3 × the first moment's symmetric part, xx yy zz and the doubled xy xz yz.
+    pub m: [f64; 6],
+    /// 1.5 × (2 Σ_i C_i,ik + Σ_j C_k,jj), by k.
+    pub w: [f64; 3],
+    /// 7.5 × the second moments, xx yy zz and the doubled xy xz yz.
+    pub c: [[f64; 6]; 3],
+}
+
+/// One node's expansion at offset r (|r|² = d2).
+#[inline(always)]
+pub fn far_one(f: &Far, r: [f64; 3], d2: f64) -> f64 {
+    // Order 0 (dipoles at the centre): n1·r/d³.
+    // Order 1: Σ M_ij ∂_j K_i with ∂_j K_i = δ_ij/d³ − 3 r_i r_j/d⁵.
+    // Order 2: ½ Σ C_ijk ∂_j ∂_k K_i with
+    // ∂_j ∂_k K_i = −3 (δ_ij r_k + δ_ik r_j + δ_jk r_i)/d⁵ + 15 r_i r_j r_k/d⁷.
+    // Collected by power of d (the factors folded into `Far`).
+    let id2 = 1.0 / d2;
+    let i3 = d2.sqrt() * id2 * id2;
+    let (i5, i7) = (i3 * id2, i3 * id2 * id2);
+    let [x, y, z] = r;
+    let rr = [x * x, y * y, z * z, x * y, x * z, y * z];
+    let rrr = x * form(&f.c[0], &rr) + y * form(&f.c[1], &rr) + z * form(&f.c[2], &rr);
+    (dot(f.n1, r) + f.tr) * i3 - (form(&f.m, &rr) + dot(f.w, r)) * i5 + rrr * i7
+}
+
+#[inline(always)]
+fn form(c: &[f64; 6], rr: &[f64; 6]) -> f64 {
+    c[0] * rr[0] + c[1] * rr[1] + c[2] * rr[2] + c[3] * rr[3] + c[4] * rr[4] + c[5] * rr[5]
+}
+
+/// One node seen from eight points q: the offsets centre − q, their squared lengths, and the
+/// node's expansion at each (as [`far_one`]).
+pub fn node(f: &Far, centre: [f64; 3], q: &[[f64; LANES]; 3]) -> NodeLanes {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the processor has AVX-512F.
+            return unsafe { node_avx512(f, centre, q) };
+        }
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor has AVX2.
+            return unsafe { node_avx2(f, centre, q) };
+        }
+    }
+    node_body(f, centre, q)
+}
+
+/// See [`node`].
+#[derive(Clone, Copy, Debug)]
+pub struct NodeLanes {
+    pub r: [[f64; LANES]; 3],
+    pub d2: [f64; LANES],
+    pub far: [f64; LANES],
+}
+
+#[inline(always)]
+fn node_body(f: &Far, centre: [f64; 3], q: &[[f64; LANES]; 3]) -> NodeLanes {
+    let mut out = NodeLanes {
+        r: [[0.0; LANES]; 3],
+        d2: [0.0; LANES],
+        far: [0.0; LANES],
+    };
+    for i in 0..LANES {
+        let r = [
+            centre[0] - q[0][i],
+            centre[1] - q[1][i],
+            centre[2] - q[2][i],
+        ];
+        let d2 = dot(r, r);
+        out.r[0][i] = r[0];
+        out.r[1][i] = r[1];
+        out.r[2][i] = r[2];
+        out.d2[i] = d2;
+        out.far[i] = far_one(f, r, d2);
+    }
+    out
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn node_avx512(f: &Far, centre: [f64; 3], q: &[[f64; LANES]; 3]) -> NodeLanes {
+    node_body(f, centre, q)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn node_avx2(f: &Far, centre: [f64; 3], q: &[[f64; LANES]; 3]) -> NodeLanes {
+    node_body(f, centre, q)
+}
+
+/// One cluster of the boundary chain seen from eight points q: the distances from q to its
+/// centre m, and the first-order expansion of its Biot–Savart field at each
+/// (`net × K + anti/d³ − 3 (M r) × r/d⁵`, r = m − q, K = r/d³; see `winding::EdgeTree::field`).
+pub fn edge_node(
+    centre: [f64; 3],
+    net: [f64; 3],
+    moment: &[[f64; 3]; 3],
+    anti: [f64; 3],
+    q: &[[f64; LANES]; 3],
+) -> EdgeLanes {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the processor has AVX-512F.
+            return unsafe { edge_node_avx512(centre, net, moment, anti, q) };
+        }
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor has AVX2.
+            return unsafe { edge_node_avx2(centre, net, moment, anti, q) };
+        }
+    }
+    edge_node_body(centre, net, moment, anti, q)
+}
+
+/// See [`edge_node`].
+#[derive(Clone, Copy, Debug)]
+pub struct EdgeLanes {
+    pub d: [f64; LANES],
+    pub field: [[f64; LANES]; 3],
+}
+
+#[inline(always)]
+fn edge_node_body(
+    centre: [f64; 3],
+    net: [f64; 3],
+    moment: &[[f64; 3]; 3],
+    anti: [f64; 3],
+    q: &[[f64; LANES]; 3],
+) -> EdgeLanes {
+    let mut out = EdgeLanes {
+        d: [0.0; LANES],
+        field: [[0.0; LANES]; 3],
+    };
+    for i in 0..LANES {
+        let r = [
+            centre[0] - q[0][i],
+            centre[1] - q[1][i],
+            centre[2] - q[2][i],
+        ];
+        let d = norm(r);
+        let id2 = 1.0 / (d * d);
+        let i3 = d * id2 * id2;
+        let i5 = i3 * id2;
+        let k = [r[0] * i3, r[1] * i3, r[2] * i3];
+        let mr = [dot(moment[0], r), dot(moment[1], r), dot(moment[2], r)];
+        let turn = cross(mr, r);
+        let nk = cross(net, k);
+        out.d[i] = d;
+        for a in 0..3 {
+            out.field[a][i] = nk[a] + (anti[a] * i3 - 3.0 * turn[a] * i5);
+        }
+    }
+    out
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn edge_node_avx512(
+    centre: [f64; 3],
+    net: [f64; 3],
+    moment: &[[f64; 3]; 3],
+    anti: [f64; 3],
+    q: &[[f64; LANES]; 3],
+) -> EdgeLanes {
+    edge_node_body(centre, net, moment, anti, q)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn edge_node_avx2(
+    centre: [f64; 3],
+    net: [f64; 3],
+    moment: &[[f64; 3]; 3],
+    anti: [f64; 3],
+    q: &[[f64; LANES]; 3],
+) -> EdgeLanes {
+    edge_node_body(centre, net, moment, anti, q)
 }
 
 #[cfg(target_arch = "x86_64")]

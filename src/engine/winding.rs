@@ -56,7 +56,7 @@ use std::f64::consts::PI;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::lanes::{self, LANES};
+use super::lanes::{self, Far, LANES};
 use super::snap::snapped_world;
 use super::{EngineError, GridMesh};
 use crate::cancel::{Canceled, Control};
@@ -298,6 +298,47 @@ impl Certifier<'_> {
         ((v - 0.5).abs() > e && (v + 0.5).abs() > e).then_some(Decision::Is(v.abs() >= 0.5))
     }
 
+    /// [`Self::decide`] for the eight 2³ blocks of the 4³ block at `lo` (inside the grid, with
+    /// `blocks` on), by the caps' intervals of all eight from one traversal
+    /// ([`WindingTree::spread_lanes`]).
+    fn decide_lanes(&self, lo: [u32; 3]) -> [Option<Decision>; LANES] {
+        let g = self.grid;
+        let s = g.voxel_size;
+        let four_pi = 4.0 * PI;
+        let limit = (0.5 - MARGIN) * four_pi;
+        // As `decide` computes them for a whole 2³ block.
+        let rb = 0.5 * s * 3f64.sqrt();
+        let subs: [[u32; 3]; LANES] =
+            std::array::from_fn(|d| [0, 1, 2].map(|a| lo[a] + ((d as u32 >> a) & 1) * 2));
+        let centres = subs.map(|b| g.world_of(b.map(|v| v as f64 + 1.0)));
+        let bs = centres.map(|c| rb * self.cap_edges.bound(c, rb, limit / rb));
+        let by_edges = bs.map(|b| b < limit);
+        let limits = by_edges.map(|e| if e { f64::INFINITY } else { limit });
+        let spreads = self.caps.spread_lanes(
+            &centres,
+            rb,
+            TIE * s,
+            &limits,
+            SMALL * four_pi,
+            &by_edges.map(|e| !e),
+        );
+        std::array::from_fn(|i| {
+            let t = spreads[i]?;
+            if t.crude < CAP_LIMIT * four_pi {
+                return Some(Decision::Ne(0, EXACT));
+            }
+            let e = if by_edges[i] {
+                t.spread.min(t.left_out + bs[i])
+            } else {
+                t.spread
+            };
+            let (v, e) = (t.value / four_pi, e / four_pi + MARGIN);
+            let k = v.round();
+            ((v - k).abs() + e < 0.5 && k.abs() <= K_MAX)
+                .then_some(Decision::Ne(k as i32, CAP_BLOCK))
+        })
+    }
+
     /// Decides the block at block coordinates `b` into `col`.
     fn block(&self, b: [u32; 3], col: &mut Column) {
         let lo = b.map(|v| v * BLOCK);
@@ -320,16 +361,17 @@ impl Certifier<'_> {
             Some(Decision::Tie) | None => {}
         }
         let mut codes: Codes = [V_OUT; (BLOCK * BLOCK * BLOCK) as usize];
-        let mut stack: Vec<([u32; 3], u32)> = Vec::with_capacity(32);
+        // Sub-blocks still to decide, with their decision where it was made for eight at once.
+        let mut stack: Vec<([u32; 3], u32, Option<Option<Decision>>)> = Vec::with_capacity(32);
         let h = BLOCK / 2;
         for d in 0..8u32 {
-            stack.push(([0, 1, 2].map(|a| lo[a] + ((d >> a) & 1) * h), h));
+            stack.push(([0, 1, 2].map(|a| lo[a] + ((d >> a) & 1) * h), h, None));
         }
-        while let Some((sub, size)) = stack.pop() {
+        while let Some((sub, size, made)) = stack.pop() {
             if (0..3).any(|a| sub[a] >= self.grid.dims[a]) {
                 continue;
             }
-            let decision = self.decide(sub, size);
+            let decision = made.unwrap_or_else(|| self.decide(sub, size));
             // A 2³ block left open: its voxels one by one, by the Taylor model about its centre.
             if decision.is_none() && size == 2 && self.blocks {
                 self.taylor_voxels(sub, size, &mut codes, col);
@@ -344,8 +386,27 @@ impl Certifier<'_> {
                 Some(Decision::Tie) => (V_TIE, MESH_EVAL),
                 None => {
                     let h = size / 2;
-                    for d in 0..8u32 {
-                        stack.push(([0, 1, 2].map(|a| sub[a] + ((d >> a) & 1) * h), h));
+                    // A 4³ block wholly inside the grid: its eight 2³ blocks' intervals at once.
+                    let whole = (0..3).all(|a| sub[a] + size <= self.grid.dims[a]);
+                    if size == 4 && self.blocks && whole {
+                        // ... and the models of those they leave open, at once too.
+                        let made = self.decide_lanes(sub);
+                        let mut open = Vec::with_capacity(LANES);
+                        for (d, &decision) in made.iter().enumerate() {
+                            let child = [0, 1, 2].map(|a| sub[a] + ((d as u32 >> a) & 1) * h);
+                            match decision {
+                                None => open.push(child),
+                                Some(decision) => stack.push((child, h, Some(Some(decision)))),
+                            }
+                        }
+                        if !open.is_empty() {
+                            self.taylor_lanes(&open, &mut codes, col);
+                        }
+                    } else {
+                        for d in 0..8u32 {
+                            let child = [0, 1, 2].map(|a| sub[a] + ((d >> a) & 1) * h);
+                            stack.push((child, h, None));
+                        }
                     }
                     continue;
                 }
@@ -393,15 +454,64 @@ impl Certifier<'_> {
         let model = self
             .caps
             .taylor(c, rb, TAYLOR_NEAR * rb, TIE * s, SMALL * four_pi, &mut near)
-            .and_then(|t| {
-                let (field, error) = self.cap_edges.field(c)?;
-                // The rest's gradient: the whole chain's field less the near triangles'.
-                let mut grad = field.map(|v| GRADIENT_SIGN * v);
-                for &(i, _) in &near {
-                    grad = sub(grad, solid_angle_gradient(&self.caps.tris[i as usize], c));
-                }
-                Some((t, grad, error))
-            });
+            .and_then(|t| Some((t, self.cap_edges.field(c)?)));
+        self.model_voxels(lo, size, c, model, &near, codes, col);
+    }
+
+    /// [`Self::taylor_voxels`] for several whole 2³ blocks (`subs`, at most eight) at once: their
+    /// models from one traversal of the caps' tree and one of the chain's.
+    fn taylor_lanes(&self, subs: &[[u32; 3]], codes: &mut Codes, col: &mut Column) {
+        let g = self.grid;
+        let s = g.voxel_size;
+        let rb = 0.5 * s * 3f64.sqrt();
+        let mut centres = [[0.0; 3]; LANES];
+        for (i, c) in centres.iter_mut().enumerate() {
+            *c = g.world_of(subs[i.min(subs.len() - 1)].map(|v| v as f64 + 1.0));
+        }
+        let lanes = (1u32 << subs.len()) - 1;
+        let mut near: [Vec<(u32, f64)>; LANES] = Default::default();
+        let models = self.caps.taylor_lanes(
+            &centres,
+            lanes,
+            rb,
+            TAYLOR_NEAR * rb,
+            TIE * s,
+            SMALL * 4.0 * PI,
+            &mut near,
+        );
+        let fields = self.cap_edges.field_lanes(&centres, lanes);
+        for (i, &sub) in subs.iter().enumerate() {
+            let model = models[i].zip(fields[i]);
+            self.model_voxels(sub, 2, centres[i], model, &near[i], codes, col);
+        }
+    }
+
+    /// The voxels of the sub-block `lo..lo + size` by the model about its centre c (the rest's
+    /// Taylor data, the chain's field at c and its error; the near triangles in `near`), those
+    /// it leaves open by [`Self::decide`]. See [`Self::taylor_voxels`].
+    #[allow(clippy::too_many_arguments)]
+    fn model_voxels(
+        &self,
+        lo: [u32; 3],
+        size: u32,
+        c: [f64; 3],
+        model: Option<(Taylor, ([f64; 3], f64))>,
+        near: &[(u32, f64)],
+        codes: &mut Codes,
+        col: &mut Column,
+    ) {
+        let g = self.grid;
+        let s = g.voxel_size;
+        let four_pi = 4.0 * PI;
+        let hi = [0, 1, 2].map(|a| (lo[a] + size).min(g.dims[a]));
+        let model = model.map(|(t, (field, error))| {
+            // The rest's gradient: the whole chain's field less the near triangles'.
+            let mut grad = field.map(|v| GRADIENT_SIGN * v);
+            for &(i, _) in near {
+                grad = sub(grad, solid_angle_gradient(&self.caps.tris[i as usize], c));
+            }
+            (t, grad, error)
+        });
         // The block's voxels (up to eight: fewer at the grid's end), and the near caps' exact
         // sums at all of them at once; where a cap's plane passes close to a voxel, the sum is
         // taken again with the tie rule.
@@ -421,7 +531,7 @@ impl Certifier<'_> {
         let points = voxels.map(|v| g.world_of(v.map(|i| i as f64 + 0.5)));
         let sums = model.map(|_| {
             let q = [0, 1, 2].map(|a| points.map(|p| p[a]));
-            lanes::point_sums(&self.caps.tris, &near, &q, TIE * s)
+            lanes::point_sums(&self.caps.tris, near, &q, TIE * s)
         });
         for (i, &v) in voxels[..count].iter().enumerate() {
             let decided = model
@@ -429,7 +539,7 @@ impl Certifier<'_> {
                 .and_then(|((t, grad, error), (sum, close))| {
                     let q = points[i];
                     let near_sum = if close[i] {
-                        self.caps.near_sum(&near, q, TIE * s)?
+                        self.caps.near_sum(near, q, TIE * s)?
                     } else {
                         sum[i]
                     };
@@ -809,47 +919,31 @@ struct Moments {
     c: [[f64; 6]; 3],
 }
 
-/// A node's expansion folded for evaluation (see [`far_field`]): with r the query's offset and
-/// d = |r|, Ω ≈ (n1·r + tr)/d³ − (rᵀ M r + w·r)/d⁵ + Σ_i r_i (rᵀ C_i r)/d⁷.
-#[derive(Clone, Copy, Debug, Default)]
-struct Far {
-    n1: [f64; 3],
-    /// The first moment's trace.
-    tr: f64,
-    /// 3 × the first moment's symmetric part, xx yy zz and the doubled xy xz yz.
-    m: [f64; 6],
-    /// 1.5 × (2 Σ_i C_i,ik + Σ_j C_k,jj), by k.
-    w: [f64; 3],
-    /// 7.5 × the second moments, xx yy zz and the doubled xy xz yz.
-    c: [[f64; 6]; 3],
-}
-
-impl Far {
-    #[allow(clippy::needless_range_loop)] // index notation of the moment formulas
-    fn new(moments: &Moments) -> Far {
-        let Moments { n1, m, c } = moments;
-        let n1 = *n1;
-        let mut far = Far {
-            n1,
-            tr: m[0][0] + m[1][1] + m[2][2],
-            ..Far::default()
-        };
-        for (e, &(i, j)) in SYM.iter().enumerate() {
-            let sym = if i == j { m[i][i] } else { m[i][j] + m[j][i] };
-            far.m[e] = 3.0 * sym;
-        }
-        for i in 0..3 {
-            let full = sym_full(&c[i]);
-            for k in 0..3 {
-                far.w[k] += 1.5 * (2.0 * full[i][k]);
-            }
-            far.w[i] += 1.5 * (full[0][0] + full[1][1] + full[2][2]);
-            for e in 0..6 {
-                far.c[i][e] = 7.5 * if e < 3 { c[i][e] } else { 2.0 * c[i][e] };
-            }
-        }
-        far
+/// A node's moments folded for evaluation ([`lanes::Far`]).
+#[allow(clippy::needless_range_loop)] // index notation of the moment formulas
+fn folded(moments: &Moments) -> Far {
+    let Moments { n1, m, c } = moments;
+    let n1 = *n1;
+    let mut far = Far {
+        n1,
+        tr: m[0][0] + m[1][1] + m[2][2],
+        ..Far::default()
+    };
+    for (e, &(i, j)) in SYM.iter().enumerate() {
+        let sym = if i == j { m[i][i] } else { m[i][j] + m[j][i] };
+        far.m[e] = 3.0 * sym;
     }
+    for i in 0..3 {
+        let full = sym_full(&c[i]);
+        for k in 0..3 {
+            far.w[k] += 1.5 * (2.0 * full[i][k]);
+        }
+        far.w[i] += 1.5 * (full[0][0] + full[1][1] + full[2][2]);
+        for e in 0..6 {
+            far.c[i][e] = 7.5 * if e < 3 { c[i][e] } else { 2.0 * c[i][e] };
+        }
+    }
+    far
 }
 
 const SYM: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
@@ -1030,6 +1124,130 @@ impl WindingTree {
         Some(out)
     }
 
+    /// [`Self::spread`] over eight balls of radius `rq` at once (centres `qs`, each with its own
+    /// `limit` and `by_area`), in one traversal: a node is opened for the balls that need it
+    /// opened, and the others take it as `spread` would. A ball for which some other ball's need
+    /// opens a node takes the node's children instead, which bound it as well; and the nodes
+    /// left out as small are a different set, within the same budget. So each ball's result is a
+    /// bound of the same kind, though not always the same numbers as its own traversal's.
+    #[allow(clippy::too_many_arguments)]
+    fn spread_lanes(
+        &self,
+        qs: &[[f64; 3]; LANES],
+        rq: f64,
+        gap: f64,
+        limit: &[f64; LANES],
+        small: f64,
+        by_area: &[bool; LANES],
+    ) -> [Option<Spread>; LANES] {
+        let mut out = [Spread::default(); LANES];
+        if self.nodes.is_empty() {
+            return out.map(Some);
+        }
+        let q = [0, 1, 2].map(|a| qs.map(|p| p[a]));
+        // Children are taken nearer to the balls' mean centre first.
+        let mean = [0, 1, 2].map(|a| q[a].iter().sum::<f64>() / LANES as f64);
+        let mut budget = [SMALL_BUDGET * 4.0 * PI; LANES];
+        let all = (1u32 << LANES) - 1;
+        let mut alive = all;
+        let mut stack = [(0u32, 0u32); 64];
+        stack[0] = (0, all);
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let (index, mask) = stack[top];
+            let mask = mask & alive;
+            if mask == 0 {
+                continue;
+            }
+            let n = &self.nodes[index as usize];
+            let at = lanes::node(&n.far, n.centre, &q);
+            let mut open = 0;
+            for i in (0..LANES).filter(|i| mask >> i & 1 == 1) {
+                let o = &mut out[i];
+                let d2 = at.d2[i];
+                let g = d2.sqrt() - n.radius - rq;
+                if g > gap {
+                    let ig = 1.0 / g;
+                    let magnitude = n.area * ig * ig;
+                    let variation = rq * 2.0 * magnitude * ig;
+                    let expanded = d2 > (BETA * n.radius).powi(2);
+                    let alone = if magnitude <= small && magnitude <= budget[i] {
+                        budget[i] -= magnitude;
+                        true
+                    } else {
+                        by_area[i] && expanded && variation >= magnitude
+                    };
+                    if alone {
+                        o.spread += magnitude;
+                        o.left_out += magnitude;
+                        o.crude += magnitude;
+                        continue;
+                    }
+                    if expanded {
+                        o.value += at.far[i];
+                        o.spread += variation;
+                        o.crude += magnitude;
+                        continue;
+                    }
+                }
+                open |= 1 << i;
+            }
+            if open != 0 && n.count > 0 {
+                let (s, e) = (n.first as usize, (n.first + n.count) as usize);
+                for i in (0..LANES).filter(|i| open >> i & 1 == 1) {
+                    let o = &mut out[i];
+                    let (angles, dist2) = lanes::leaf(&self.leaves[n.right as usize], qs[i]);
+                    for (j, &area) in self.areas[s..e].iter().enumerate() {
+                        if area == 0.0 {
+                            continue;
+                        }
+                        let g = dist2[j].sqrt() - rq;
+                        if g.is_nan() || g <= gap {
+                            alive &= !(1 << i);
+                            break;
+                        }
+                        let ig = 1.0 / g;
+                        let by_distance = area * ig * ig;
+                        let magnitude = by_distance.min(2.0 * PI);
+                        let variation = rq * 2.0 * by_distance * ig;
+                        let small_enough = magnitude <= small && magnitude <= budget[i];
+                        if small_enough || (by_area[i] && variation >= magnitude) {
+                            if small_enough {
+                                budget[i] -= magnitude;
+                            }
+                            o.spread += magnitude;
+                            o.left_out += magnitude;
+                        } else {
+                            o.value += angles[j];
+                            o.spread += variation;
+                        }
+                        o.crude += magnitude;
+                    }
+                }
+            } else if open != 0 {
+                let (a, b) = (n.first, n.right);
+                let dist2 = |c: u32| {
+                    let v = sub(self.nodes[c as usize].centre, mean);
+                    dot(v, v)
+                };
+                let (near, far) = if dist2(a) <= dist2(b) { (a, b) } else { (b, a) };
+                stack[top] = (far, open);
+                stack[top + 1] = (near, open);
+                top += 2;
+            }
+            for (i, o) in out.iter().enumerate() {
+                if mask >> i & 1 == 1 && o.spread >= limit[i] {
+                    alive &= !(1 << i);
+                }
+            }
+            if alive == 0 {
+                break;
+            }
+        }
+        std::array::from_fn(|i| (alive >> i & 1 == 1).then_some(out[i]))
+    }
+
     /// A first-order model of the caps' solid angle over the ball (c, rq), less the triangles
     /// that come within `near_dist` of the ball, which go to `near` (with twice their areas):
     /// the rest's value at c (the hierarchy's, less the nodes left out as small) and Σ area/g⁴
@@ -1106,6 +1324,107 @@ impl WindingTree {
             }
         }
         Some(out)
+    }
+
+    /// [`Self::taylor`] for the balls of radius `rq` about `qs[i]`, for the lanes i in `lanes`,
+    /// in one traversal (as [`Self::spread_lanes`]: a node opened for one ball is taken through
+    /// its children by the others, which model them as well).
+    #[allow(clippy::too_many_arguments)]
+    fn taylor_lanes(
+        &self,
+        qs: &[[f64; 3]; LANES],
+        lanes: u32,
+        rq: f64,
+        near_dist: f64,
+        gap: f64,
+        small: f64,
+        near: &mut [Vec<(u32, f64)>; LANES],
+    ) -> [Option<Taylor>; LANES] {
+        let mut out = [Taylor::default(); LANES];
+        if self.nodes.is_empty() {
+            return std::array::from_fn(|i| (lanes >> i & 1 == 1).then_some(out[i]));
+        }
+        let q = [0, 1, 2].map(|a| qs.map(|p| p[a]));
+        let mean = [0, 1, 2].map(|a| {
+            (0..LANES)
+                .filter(|i| lanes >> i & 1 == 1)
+                .map(|i| q[a][i])
+                .sum::<f64>()
+                / lanes.count_ones() as f64
+        });
+        let near_dist = near_dist.max(gap);
+        let mut budget = [SMALL_BUDGET * 4.0 * PI; LANES];
+        let mut alive = lanes;
+        let mut stack = [(0u32, 0u32); 64];
+        stack[0] = (0, lanes);
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let (index, mask) = stack[top];
+            let mask = mask & alive;
+            if mask == 0 {
+                continue;
+            }
+            let n = &self.nodes[index as usize];
+            let at = lanes::node(&n.far, n.centre, &q);
+            let mut open = 0;
+            for i in (0..LANES).filter(|i| mask >> i & 1 == 1) {
+                let o = &mut out[i];
+                let d2 = at.d2[i];
+                let g = d2.sqrt() - n.radius - rq;
+                if g > near_dist {
+                    let ig2 = 1.0 / (g * g);
+                    let magnitude = n.area * ig2;
+                    if magnitude <= small && magnitude <= budget[i] {
+                        budget[i] -= magnitude;
+                        o.left_out += magnitude;
+                        o.hessian += magnitude * ig2;
+                        continue;
+                    }
+                    if d2 > (BETA * n.radius).powi(2) {
+                        o.value += at.far[i];
+                        o.hessian += magnitude * ig2;
+                        continue;
+                    }
+                }
+                open |= 1 << i;
+            }
+            if open != 0 && n.count > 0 {
+                for i in (0..LANES).filter(|i| open >> i & 1 == 1) {
+                    let o = &mut out[i];
+                    let (angles, dist2) = lanes::leaf(&self.leaves[n.right as usize], qs[i]);
+                    for (j, t) in (n.first..n.first + n.count).enumerate() {
+                        let area = self.areas[t as usize];
+                        if area == 0.0 {
+                            continue;
+                        }
+                        let dist = dist2[j].sqrt();
+                        if dist.is_nan() || dist <= gap {
+                            alive &= !(1 << i);
+                            break;
+                        }
+                        let g = dist - rq;
+                        if g > near_dist {
+                            o.value += angles[j];
+                            o.hessian += area / (g * g * g * g);
+                        } else {
+                            near[i].push((t, 2.0 * area));
+                        }
+                    }
+                }
+            } else if open != 0 {
+                let (a, b) = (n.first, n.right);
+                let dist2 = |c: u32| {
+                    let v = sub(self.nodes[c as usize].centre, mean);
+                    dot(v, v)
+                };
+                let (nearer, farther) = if dist2(a) <= dist2(b) { (a, b) } else { (b, a) };
+                stack[top] = (farther, open);
+                stack[top + 1] = (nearer, open);
+                top += 2;
+            }
+        }
+        std::array::from_fn(|i| (alive >> i & 1 == 1).then_some(out[i]))
     }
 
     /// Σ exact solid angles at q of the triangles `near` (with twice their areas), or `None`
@@ -1369,6 +1688,61 @@ impl EdgeTree {
         }
         Some((field, error))
     }
+
+    /// [`Self::field`] at `qs[i]` for the lanes i in `lanes`, in one traversal (a cluster far
+    /// enough from some points and not from others is opened for all of them, whose sums over
+    /// its children are as exact).
+    fn field_lanes(&self, qs: &[[f64; 3]; LANES], lanes: u32) -> [Option<([f64; 3], f64)>; LANES] {
+        let mut out = [([0.0; 3], 0.0); LANES];
+        if self.nodes.is_empty() {
+            return std::array::from_fn(|i| (lanes >> i & 1 == 1).then_some(out[i]));
+        }
+        let q = [0, 1, 2].map(|a| qs.map(|p| p[a]));
+        let mut alive = lanes;
+        let mut stack = [(0u32, 0u32); 64];
+        stack[0] = (0, lanes);
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let (index, mask) = stack[top];
+            let mask = mask & alive;
+            if mask == 0 {
+                continue;
+            }
+            let n = &self.nodes[index as usize];
+            let at = lanes::edge_node(n.centre, n.net, &n.moment, n.anti, &q);
+            let mut open = 0;
+            for i in (0..LANES).filter(|i| mask >> i & 1 == 1) {
+                let g = at.d[i] - n.radius;
+                if g > FIELD_OPEN * n.radius {
+                    let (field, error) = &mut out[i];
+                    *field = add3(*field, [at.field[0][i], at.field[1][i], at.field[2][i]]);
+                    *error += 3.0 * n.radius * n.radius * n.length / (g * g * g * g);
+                } else {
+                    open |= 1 << i;
+                }
+            }
+            if open != 0 && n.count > 0 {
+                let (s, e) = (n.first as usize, (n.first + n.count) as usize);
+                for i in (0..LANES).filter(|i| open >> i & 1 == 1) {
+                    for seg in &self.segs[s..e] {
+                        match segment_field_off(seg, qs[i]) {
+                            Some(f) => out[i].0 = add3(out[i].0, f),
+                            None => {
+                                alive &= !(1 << i);
+                                break;
+                            }
+                        }
+                    }
+                }
+            } else if open != 0 {
+                stack[top] = (n.first, open);
+                stack[top + 1] = (n.right, open);
+                top += 2;
+            }
+        }
+        std::array::from_fn(|i| (alive >> i & 1 == 1).then_some(out[i]))
+    }
 }
 
 /// The gradient of [`solid_angle`] at q: the Biot–Savart field of the triangle's boundary.
@@ -1444,22 +1818,7 @@ pub(crate) fn dist2_to_segment(p: [f64; 3], s: &[[f64; 3]; 2]) -> f64 {
 /// 4π × the node's expanded winding number at q, with r = centre − q and d2 = |r|².
 #[allow(clippy::needless_range_loop)] // index notation of the moment formulas
 fn far_field(n: &Node, r: [f64; 3], d2: f64) -> f64 {
-    // Order 0 (dipoles at the centre): n1·r/d³.
-    // Order 1: Σ M_ij ∂_j K_i with ∂_j K_i = δ_ij/d³ − 3 r_i r_j/d⁵.
-    // Order 2: ½ Σ C_ijk ∂_j ∂_k K_i with
-    // ∂_j ∂_k K_i = −3 (δ_ij r_k + δ_ik r_j + δ_jk r_i)/d⁵ + 15 r_i r_j r_k/d⁷.
-    // Collected by power of d (the factors folded into `Far`).
-    let f = &n.far;
-    let id2 = 1.0 / d2;
-    let i3 = d2.sqrt() * id2 * id2;
-    let (i5, i7) = (i3 * id2, i3 * id2 * id2);
-    let [x, y, z] = r;
-    let rr = [x * x, y * y, z * z, x * y, x * z, y * z];
-    let form = |c: &[f64; 6]| {
-        c[0] * rr[0] + c[1] * rr[1] + c[2] * rr[2] + c[3] * rr[3] + c[4] * rr[4] + c[5] * rr[5]
-    };
-    let rrr = x * form(&f.c[0]) + y * form(&f.c[1]) + z * form(&f.c[2]);
-    (dot(f.n1, r) + f.tr) * i3 - (form(&f.m) + dot(f.w, r)) * i5 + rrr * i7
+    lanes::far_one(&n.far, r, d2)
 }
 
 fn sym_full(c: &[f64; 6]) -> [[f64; 3]; 3] {
@@ -1567,7 +1926,7 @@ fn leaf(tris: &[[[f64; 3]; 3]], offset: u32) -> (Node, Moments) {
         first: offset,
         count: tris.len() as u32,
         right: 0,
-        far: Far::new(&moments),
+        far: folded(&moments),
     };
     (node, moments)
 }
@@ -1606,7 +1965,7 @@ fn combine(children: [(&Node, &Moments); 2], li: u32, ri: u32) -> (Node, Moments
         first: li,
         count: 0,
         right: ri,
-        far: Far::new(&out),
+        far: folded(&out),
     };
     (node, out)
 }
@@ -2080,6 +2439,107 @@ mod tests {
         }
         eprintln!("tightest {tightest}");
         assert!(tightest > 0.5, "{tightest}");
+    }
+
+    #[test]
+    fn lane_traversals_bound_as_one_ball_at_a_time_does() {
+        // Eight balls at the centres of a 4³ block's 2³ blocks, near a bumpy sheet (the caps):
+        // each lane's interval (`spread_lanes`) must hold the exact sum over its ball, its model
+        // (`taylor_lanes`, `field_lanes`) the exact sum at each point, as the one-ball versions.
+        let (p, t) = sheet(30);
+        let tree = WindingTree::new(&p, &t);
+        let tris: Vec<_> = t.iter().map(|t| t.map(|i| p[i as usize])).collect();
+        let segs: Vec<[[f64; 3]; 2]> = chain_boundary(&t)
+            .iter()
+            .map(|e| e.map(|i| p[i as usize]))
+            .collect();
+        let edges = EdgeTree::new(segs);
+        let exact = |q: [f64; 3]| tris.iter().map(|t| solid_angle(t, q)).sum::<f64>();
+        let mut rng = Rng(31415);
+        let (mut intervals, mut models, mut near_lanes) = (0u32, 0u32, 0u32);
+        for case in 0..120 {
+            let centre = add(
+                [0.5, 0.5, 0.0],
+                rng.direction(),
+                10f64.powf(rng.range(-1.3, 0.3)),
+            );
+            let step = 10f64.powf(rng.range(-2.5, -1.3));
+            let rq = 0.5 * step * 3f64.sqrt();
+            let qs: [[f64; 3]; LANES] = std::array::from_fn(|d| {
+                [0, 1, 2].map(|a| centre[a] + step * (((d >> a) & 1) as f64 - 0.5))
+            });
+            let by_area: [bool; LANES] = std::array::from_fn(|i| (i + case) % 3 != 0);
+            let small = SMALL * 4.0 * PI;
+            let spreads =
+                tree.spread_lanes(&qs, rq, 1e-9, &[f64::INFINITY; LANES], small, &by_area);
+            // Some lanes only: the others' traversal must not be disturbed by them.
+            let lanes = if case % 4 == 0 { 0b1010_0110 } else { 0xff };
+            let mut near: [Vec<(u32, f64)>; LANES] = Default::default();
+            let ts = tree.taylor_lanes(&qs, lanes, rq, 10.0 * rq, 1e-9, small, &mut near);
+            let fields = edges.field_lanes(&qs, lanes);
+            for (i, &c) in qs.iter().enumerate() {
+                let points: Vec<[f64; 3]> = (0..6)
+                    .map(|_| add(c, rng.direction(), rq * rng.next().sqrt()))
+                    .collect();
+                if let Some(sp) = spreads[i] {
+                    intervals += 1;
+                    for &x in &points {
+                        let off = (exact(x) - sp.value).abs();
+                        assert!(
+                            off <= sp.spread + 1e-3 * 4.0 * PI,
+                            "case {case} lane {i}: {off} > {}",
+                            sp.spread
+                        );
+                        let magnitude: f64 = tris.iter().map(|t| solid_angle(t, x).abs()).sum();
+                        assert!(magnitude <= sp.crude * (1.0 + 1e-9) + 1e-12);
+                    }
+                }
+                if lanes >> i & 1 == 0 {
+                    assert!(ts[i].is_none() && fields[i].is_none() && near[i].is_empty());
+                    continue;
+                }
+                let (Some(m), Some((field, error))) = (ts[i], fields[i]) else {
+                    continue;
+                };
+                // The field as the one-point traversal finds it, within both error bounds.
+                let (one, one_error) = edges.field(c).expect("no segment at the centre");
+                assert!(
+                    norm(sub(field, one)) <= error + one_error + 1e-9,
+                    "case {case} lane {i}"
+                );
+                let mut grad = field.map(|v| GRADIENT_SIGN * v);
+                for &(t, _) in &near[i] {
+                    grad = sub(grad, solid_angle_gradient(&tree.tris[t as usize], c));
+                }
+                near_lanes += u32::from(!near[i].is_empty());
+                let Some(near_c) = tree.near_sum(&near[i], c, 1e-9) else {
+                    continue;
+                };
+                let rest_c = exact(c) - near_c;
+                assert!((m.value - rest_c).abs() <= m.left_out + 2e-3 * 4.0 * PI);
+                for &x in &points {
+                    let Some(n) = tree.near_sum(&near[i], x, 1e-9) else {
+                        continue;
+                    };
+                    let d = sub(x, c);
+                    let dd = dot(d, d);
+                    let bound = 3.0 * dd * m.hessian + error * dd.sqrt();
+                    let off = (exact(x) - (n + rest_c + dot(grad, d))).abs();
+                    assert!(
+                        off <= bound * (1.0 + 1e-6) + 1e-11,
+                        "case {case} lane {i}: {off} > {bound}"
+                    );
+                    models += 1;
+                }
+            }
+        }
+        eprintln!(
+            "intervals {intervals}, model points {models}, lanes with near caps {near_lanes}"
+        );
+        assert!(
+            intervals > 500 && models > 2000 && near_lanes > 100,
+            "{intervals} {models} {near_lanes}"
+        );
     }
 
     #[test]
