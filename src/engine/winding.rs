@@ -49,6 +49,13 @@
 //! can differ from the exact winding number's only where the hierarchy's error at its centre
 //! exceeds the margin; a voxel's only where |w| is within the hierarchy's error of ½.
 //!
+//! The eight 2³ blocks of a 4³ block left open are taken together: one traversal of the caps'
+//! tree gives all eight intervals (`WindingTree::spread_lanes`), one more the Taylor models of
+//! those still open (`WindingTree::taylor_lanes`), one of the chain their fields
+//! (`EdgeTree::field_lanes`); a node is opened for the balls that need it and taken through
+//! its children by the others, which bounds them as well. The solid angles, distances and
+//! expansions inside are computed eight at a time ([`super::lanes`]).
+//!
 //! Both parts run on the CPU; the signed counts use the same integer crossing rule as `solid`.
 
 use std::f64::consts::PI;
