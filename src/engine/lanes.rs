@@ -13,6 +13,41 @@
 
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 
+/// `pub fn NAME(args) -> R` that runs `BODY` compiled for AVX-512 (as `AVX512`), for AVX2 (as
+/// `AVX2`) or for the baseline target, the widest the processor has.
+macro_rules! dispatch {
+    ($(#[$m:meta])* pub fn $name:ident($($arg:ident: $ty:ty),* $(,)?) -> $ret:ty
+        = $body:ident, $avx512:ident, $avx2:ident;) => {
+        $(#[$m])*
+        pub fn $name($($arg: $ty),*) -> $ret {
+            #[cfg(target_arch = "x86_64")]
+            {
+                if std::arch::is_x86_feature_detected!("avx512f") {
+                    // SAFETY: the processor has AVX-512F.
+                    return unsafe { $avx512($($arg),*) };
+                }
+                if std::arch::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the processor has AVX2.
+                    return unsafe { $avx2($($arg),*) };
+                }
+            }
+            $body($($arg),*)
+        }
+
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx512f")]
+        fn $avx512($($arg: $ty),*) -> $ret {
+            $body($($arg),*)
+        }
+
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx2")]
+        fn $avx2($($arg: $ty),*) -> $ret {
+            $body($($arg),*)
+        }
+    };
+}
+
 /// Lanes per call.
 pub const LANES: usize = 8;
 
@@ -65,45 +100,28 @@ impl Leaf {
     }
 }
 
-/// For each lane's triangle: its solid angle seen from q (as [`super::winding::solid_angle`])
-/// and q's squared distance to it (of a degenerate triangle: to its edges).
-pub fn leaf(l: &Leaf, q: [f64; 3]) -> ([f64; LANES], [f64; LANES]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the processor has AVX-512F.
-            return unsafe { leaf_avx512(l, q) };
-        }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the processor has AVX2.
-            return unsafe { leaf_avx2(l, q) };
-        }
-    }
-    leaf_body(l, q)
+dispatch! {
+    /// For each lane's triangle: its solid angle seen from q (as [`super::winding::solid_angle`])
+    /// and q's squared distance to it (of a degenerate triangle: to its edges).
+    pub fn leaf(
+        l: &Leaf,
+        q: [f64; 3],
+    ) -> ([f64; LANES], [f64; LANES])
+        = leaf_body, leaf_avx512, leaf_avx2;
 }
 
-/// For each of eight points q (`q[a][lane]`): Σ over `tris` of their solid angles seen from it,
-/// and whether some triangle's plane passes within `2 · gap` of it (by twice its area, `det`
-/// against `2 · gap · twice_area`; NaN counts as near). Where it does, the caller decides
-/// whether that is a tie.
-pub fn point_sums(
-    tris: &[[[f64; 3]; 3]],
-    near: &[(u32, f64)],
-    q: &[[f64; LANES]; 3],
-    gap: f64,
-) -> ([f64; LANES], [bool; LANES]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the processor has AVX-512F.
-            return unsafe { point_sums_avx512(tris, near, q, gap) };
-        }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the processor has AVX2.
-            return unsafe { point_sums_avx2(tris, near, q, gap) };
-        }
-    }
-    point_sums_body(tris, near, q, gap)
+dispatch! {
+    /// For each of eight points q (`q[a][lane]`): Σ over `tris` of their solid angles seen from it,
+    /// and whether some triangle's plane passes within `2 · gap` of it (by twice its area, `det`
+    /// against `2 · gap · twice_area`; NaN counts as near). Where it does, the caller decides
+    /// whether that is a tie.
+    pub fn point_sums(
+        tris: &[[[f64; 3]; 3]],
+        near: &[(u32, f64)],
+        q: &[[f64; LANES]; 3],
+        gap: f64,
+    ) -> ([f64; LANES], [bool; LANES])
+        = point_sums_body, point_sums_avx512, point_sums_avx2;
 }
 
 /// A hierarchy node's expansion folded for evaluation: with r the offset from the query to the
@@ -144,21 +162,15 @@ fn form(c: &[f64; 6], rr: &[f64; 6]) -> f64 {
     c[0] * rr[0] + c[1] * rr[1] + c[2] * rr[2] + c[3] * rr[3] + c[4] * rr[4] + c[5] * rr[5]
 }
 
-/// One node seen from eight points q: the offsets centre − q, their squared lengths, and the
-/// node's expansion at each (as [`far_one`]).
-pub fn node(f: &Far, centre: [f64; 3], q: &[[f64; LANES]; 3]) -> NodeLanes {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the processor has AVX-512F.
-            return unsafe { node_avx512(f, centre, q) };
-        }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the processor has AVX2.
-            return unsafe { node_avx2(f, centre, q) };
-        }
-    }
-    node_body(f, centre, q)
+dispatch! {
+    /// One node seen from eight points q: the offsets centre − q, their squared lengths, and the
+    /// node's expansion at each (as [`far_one`]).
+    pub fn node(
+        f: &Far,
+        centre: [f64; 3],
+        q: &[[f64; LANES]; 3],
+    ) -> NodeLanes
+        = node_body, node_avx512, node_avx2;
 }
 
 /// See [`node`].
@@ -192,40 +204,18 @@ fn node_body(f: &Far, centre: [f64; 3], q: &[[f64; LANES]; 3]) -> NodeLanes {
     out
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-fn node_avx512(f: &Far, centre: [f64; 3], q: &[[f64; LANES]; 3]) -> NodeLanes {
-    node_body(f, centre, q)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn node_avx2(f: &Far, centre: [f64; 3], q: &[[f64; LANES]; 3]) -> NodeLanes {
-    node_body(f, centre, q)
-}
-
-/// One cluster of the boundary chain seen from eight points q: the distances from q to its
-/// centre m, and the first-order expansion of its Biot–Savart field at each
-/// (`net × K + anti/d³ − 3 (M r) × r/d⁵`, r = m − q, K = r/d³; see `winding::EdgeTree::field`).
-pub fn edge_node(
-    centre: [f64; 3],
-    net: [f64; 3],
-    moment: &[[f64; 3]; 3],
-    anti: [f64; 3],
-    q: &[[f64; LANES]; 3],
-) -> EdgeLanes {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the processor has AVX-512F.
-            return unsafe { edge_node_avx512(centre, net, moment, anti, q) };
-        }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the processor has AVX2.
-            return unsafe { edge_node_avx2(centre, net, moment, anti, q) };
-        }
-    }
-    edge_node_body(centre, net, moment, anti, q)
+dispatch! {
+    /// One cluster of the boundary chain seen from eight points q: the distances from q to its
+    /// centre m, and the first-order expansion of its Biot–Savart field at each
+    /// (`net × K + anti/d³ − 3 (M r) × r/d⁵`, r = m − q, K = r/d³; see `winding::EdgeTree::field`).
+    pub fn edge_node(
+        centre: [f64; 3],
+        net: [f64; 3],
+        moment: &[[f64; 3]; 3],
+        anti: [f64; 3],
+        q: &[[f64; LANES]; 3],
+    ) -> EdgeLanes
+        = edge_node_body, edge_node_avx512, edge_node_avx2;
 }
 
 /// See [`edge_node`].
@@ -267,64 +257,6 @@ fn edge_node_body(
         }
     }
     out
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-fn edge_node_avx512(
-    centre: [f64; 3],
-    net: [f64; 3],
-    moment: &[[f64; 3]; 3],
-    anti: [f64; 3],
-    q: &[[f64; LANES]; 3],
-) -> EdgeLanes {
-    edge_node_body(centre, net, moment, anti, q)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn edge_node_avx2(
-    centre: [f64; 3],
-    net: [f64; 3],
-    moment: &[[f64; 3]; 3],
-    anti: [f64; 3],
-    q: &[[f64; LANES]; 3],
-) -> EdgeLanes {
-    edge_node_body(centre, net, moment, anti, q)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-fn leaf_avx512(l: &Leaf, q: [f64; 3]) -> ([f64; LANES], [f64; LANES]) {
-    leaf_body(l, q)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn leaf_avx2(l: &Leaf, q: [f64; 3]) -> ([f64; LANES], [f64; LANES]) {
-    leaf_body(l, q)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-fn point_sums_avx512(
-    tris: &[[[f64; 3]; 3]],
-    near: &[(u32, f64)],
-    q: &[[f64; LANES]; 3],
-    gap: f64,
-) -> ([f64; LANES], [bool; LANES]) {
-    point_sums_body(tris, near, q, gap)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn point_sums_avx2(
-    tris: &[[[f64; 3]; 3]],
-    near: &[(u32, f64)],
-    q: &[[f64; LANES]; 3],
-    gap: f64,
-) -> ([f64; LANES], [bool; LANES]) {
-    point_sums_body(tris, near, q, gap)
 }
 
 #[inline(always)]
