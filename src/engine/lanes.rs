@@ -320,12 +320,9 @@ fn point_sums_body(
         let bound = 2.0 * gap * twice_area;
         for i in 0..LANES {
             let p = [q[0][i], q[1][i], q[2][i]];
-            let (a, b, c) = (sub(ta, p), sub(tb, p), sub(tc, p));
-            let det = dot(a, cross(b, c));
+            let (det, den) = det_den(sub(ta, p), sub(tb, p), sub(tc, p));
             // NaN: close.
             close[i] |= det.abs() <= bound || det.is_nan();
-            let (la, lb, lc) = (norm(a), norm(b), norm(c));
-            let den = la * lb * lc + dot(a, b) * lc + dot(b, c) * la + dot(c, a) * lb;
             sum[i] += 2.0 * atan2(det, den);
         }
     }
@@ -335,10 +332,18 @@ fn point_sums_body(
 /// Van Oosterom & Strackee's solid angle of the triangle (a, b, c) seen from the origin.
 #[inline(always)]
 fn solid_angle_of(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
-    let (la, lb, lc) = (norm(a), norm(b), norm(c));
-    let det = dot(a, cross(b, c));
-    let den = la * lb * lc + dot(a, b) * lc + dot(b, c) * la + dot(c, a) * lb;
+    let (det, den) = det_den(a, b, c);
     2.0 * atan2(det, den)
+}
+
+/// The solid angle of (a, b, c) seen from the origin is 2 atan2(det, den): det = a·(b × c)
+/// (twice the area times the signed distance to the plane), den as Van Oosterom & Strackee.
+#[inline(always)]
+pub fn det_den(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> (f64, f64) {
+    let det = dot(a, cross(b, c));
+    let (la, lb, lc) = (norm(a), norm(b), norm(c));
+    let den = la * lb * lc + dot(a, b) * lc + dot(b, c) * la + dot(c, a) * lb;
+    (det, den)
 }
 
 /// atan(x) for 0 ≤ x ≤ 0.66 (Cephes' rational approximation, relative error ~1e-16).
@@ -583,51 +588,70 @@ mod tests {
         let tris: Vec<_> = (0..LANES).map(|i| triangle(&mut rng, i)).collect();
         let leaf_ = Leaf::new(&tris);
         let near: Vec<(u32, f64)> = (0..LANES as u32).map(|i| (i, 1.0)).collect();
-        let mut compared = 0;
+        let far = Far {
+            n1: rng.point(1.0),
+            tr: rng.next(),
+            m: std::array::from_fn(|_| rng.next() - 0.5),
+            w: rng.point(1.0),
+            c: std::array::from_fn(|_| std::array::from_fn(|_| rng.next() - 0.5)),
+        };
+        let moment = [rng.point(1.0), rng.point(1.0), rng.point(1.0)];
+        let (net, anti, centre) = (rng.point(1.0), rng.point(1.0), rng.point(3.0));
+        // Every kernel's outputs by one instruction set (0 the baseline, 1 AVX2, 2 AVX-512), as
+        // bits.
+        let outputs = |path: u32, q: [f64; 3], qs: &[[f64; LANES]; 3]| -> Vec<u64> {
+            // SAFETY: each path is run only where the processor has its instructions (below).
+            let (l, p, n, e) = unsafe {
+                match path {
+                    #[cfg(target_arch = "x86_64")]
+                    1 => (
+                        leaf_avx2(&leaf_, q),
+                        point_sums_avx2(&tris, &near, qs, 1e-9),
+                        node_avx2(&far, centre, qs),
+                        edge_node_avx2(centre, net, &moment, anti, qs),
+                    ),
+                    #[cfg(target_arch = "x86_64")]
+                    2 => (
+                        leaf_avx512(&leaf_, q),
+                        point_sums_avx512(&tris, &near, qs, 1e-9),
+                        node_avx512(&far, centre, qs),
+                        edge_node_avx512(centre, net, &moment, anti, qs),
+                    ),
+                    _ => (
+                        leaf_body(&leaf_, q),
+                        point_sums_body(&tris, &near, qs, 1e-9),
+                        node_body(&far, centre, qs),
+                        edge_node_body(centre, net, &moment, anti, qs),
+                    ),
+                }
+            };
+            let values = [l.0, l.1, p.0, n.r[0], n.r[1], n.r[2], n.d2, n.far]
+                .into_iter()
+                .chain([e.d, e.field[0], e.field[1], e.field[2]]);
+            let mut bits: Vec<u64> = values.flat_map(|v| v.map(f64::to_bits)).collect();
+            bits.extend(p.1.map(u64::from));
+            bits
+        };
+        let mut paths = Vec::new();
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                paths.push((1, "AVX2"));
+            }
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                paths.push((2, "AVX-512"));
+            }
+        }
+        if paths.is_empty() {
+            eprintln!("NOTICE: no AVX2 or AVX-512 here; only the baseline path ran");
+        }
         for _ in 0..200 {
             let q = rng.point(2.0);
             let qs = [0, 1, 2].map(|_| std::array::from_fn(|_| rng.next() * 2.0 - 1.0));
-            let plain = (
-                leaf_body(&leaf_, q),
-                point_sums_body(&tris, &near, &qs, 1e-9),
-            );
-            type Results = (([f64; LANES], [f64; LANES]), ([f64; LANES], [bool; LANES]));
-            let bits = |((a, d), (s, c)): Results| {
-                (
-                    a.map(f64::to_bits),
-                    d.map(f64::to_bits),
-                    s.map(f64::to_bits),
-                    c,
-                )
-            };
-            #[cfg(target_arch = "x86_64")]
-            {
-                if std::arch::is_x86_feature_detected!("avx2") {
-                    // SAFETY: the processor has AVX2.
-                    let wide = unsafe {
-                        (
-                            leaf_avx2(&leaf_, q),
-                            point_sums_avx2(&tris, &near, &qs, 1e-9),
-                        )
-                    };
-                    assert_eq!(bits(plain), bits(wide), "AVX2");
-                    compared += 1;
-                }
-                if std::arch::is_x86_feature_detected!("avx512f") {
-                    // SAFETY: the processor has AVX-512F.
-                    let wide = unsafe {
-                        (
-                            leaf_avx512(&leaf_, q),
-                            point_sums_avx512(&tris, &near, &qs, 1e-9),
-                        )
-                    };
-                    assert_eq!(bits(plain), bits(wide), "AVX-512");
-                    compared += 1;
-                }
+            let plain = outputs(0, q, &qs);
+            for &(path, name) in &paths {
+                assert_eq!(plain, outputs(path, q, &qs), "{name}");
             }
-        }
-        if compared == 0 {
-            eprintln!("NOTICE: no AVX2 or AVX-512 here; only the baseline path ran");
         }
     }
 }

@@ -486,7 +486,11 @@ impl Certifier<'_> {
             SMALL * 4.0 * PI,
             &mut near,
         );
-        let fields = self.cap_edges.field_lanes(&centres, lanes);
+        // The fields only where there is a model.
+        let modelled = (0..subs.len())
+            .filter(|&i| models[i].is_some())
+            .fold(0, |m, i| m | 1 << i);
+        let fields = self.cap_edges.field_lanes(&centres, modelled);
         for (i, &sub) in subs.iter().enumerate() {
             let model = models[i].zip(fields[i]);
             self.model_voxels(sub, 2, centres[i], model, &near[i], codes, col);
@@ -1441,7 +1445,7 @@ impl WindingTree {
         for &(i, twice_area) in near {
             let t = &self.tris[i as usize];
             let [a, b, c] = t.map(|v| sub(v, q));
-            let det = dot(a, cross(b, c));
+            let (det, den) = lanes::det_den(a, b, c);
             // det = twice the area × the signed distance from q to the triangle's plane, which
             // is at most the distance to the triangle: beyond twice gap (a factor 2 for
             // rounding), no tie. A NaN is a tie, as in `spread`.
@@ -1451,8 +1455,6 @@ impl WindingTree {
                     return None;
                 }
             }
-            let (la, lb, lc) = (norm(a), norm(b), norm(c));
-            let den = la * lb * lc + dot(a, b) * lc + dot(b, c) * la + dot(c, a) * lb;
             sum += 2.0 * lanes::atan2(det, den);
         }
         Some(sum)
