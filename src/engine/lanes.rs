@@ -62,23 +62,28 @@ pub struct Leaf {
     /// The (unnormalised) normal (b − a) × (c − a) and the reciprocal of its squared length.
     n: [[f64; LANES]; 3],
     inv_n2: [f64; LANES],
+    /// The triangles' areas (as the hierarchy holds them), for the bounds of [`leaf_spread`]
+    /// and [`leaf_taylor`].
+    area: [f64; LANES],
 }
 
 impl Leaf {
-    /// The leaf of `tris` (1 to [`LANES`] of them).
-    pub fn new(tris: &[[[f64; 3]; 3]]) -> Leaf {
+    /// The leaf of `tris` (1 to [`LANES`] of them), of areas `areas`.
+    pub fn new(tris: &[[[f64; 3]; 3]], areas: &[f64]) -> Leaf {
         assert!(
-            !tris.is_empty() && tris.len() <= LANES,
-            "a leaf holds 1 to 8 triangles"
+            !tris.is_empty() && tris.len() <= LANES && areas.len() == tris.len(),
+            "a leaf holds 1 to 8 triangles, each with its area"
         );
         let mut l = Leaf {
             v: [[0.0; LANES]; 9],
             inv_len2: [[0.0; LANES]; 3],
             n: [[0.0; LANES]; 3],
             inv_n2: [0.0; LANES],
+            area: [0.0; LANES],
         };
         for i in 0..LANES {
             let t = tris[i.min(tris.len() - 1)];
+            l.area[i] = areas[i.min(tris.len() - 1)];
             for (k, p) in t.iter().enumerate() {
                 for a in 0..3 {
                     l.v[3 * k + a][i] = p[a];
@@ -108,6 +113,46 @@ dispatch! {
         q: [f64; 3],
     ) -> ([f64; LANES], [f64; LANES])
         = leaf_body, leaf_avx512, leaf_avx2;
+}
+
+dispatch! {
+    /// [`leaf`] with `spread`'s bounds over the ball (q, rq): for each lane's triangle of area
+    /// A, g = its distance − rq, by_distance = A/g², magnitude = min(by_distance, 2π) and
+    /// variation = 2 rq · by_distance/g.
+    pub fn leaf_spread(
+        l: &Leaf,
+        q: [f64; 3],
+        rq: f64,
+    ) -> LeafSpread
+        = leaf_spread_body, leaf_spread_avx512, leaf_spread_avx2;
+}
+
+/// See [`leaf_spread`].
+#[derive(Clone, Copy, Debug)]
+pub struct LeafSpread {
+    pub angle: [f64; LANES],
+    pub g: [f64; LANES],
+    pub magnitude: [f64; LANES],
+    pub variation: [f64; LANES],
+}
+
+dispatch! {
+    /// [`leaf`] with `taylor`'s bounds over the ball (q, rq): for each lane's triangle of area
+    /// A, its distance and A/g⁴, g = the distance − rq.
+    pub fn leaf_taylor(
+        l: &Leaf,
+        q: [f64; 3],
+        rq: f64,
+    ) -> LeafTaylor
+        = leaf_taylor_body, leaf_taylor_avx512, leaf_taylor_avx2;
+}
+
+/// See [`leaf_taylor`].
+#[derive(Clone, Copy, Debug)]
+pub struct LeafTaylor {
+    pub angle: [f64; LANES],
+    pub dist: [f64; LANES],
+    pub hessian: [f64; LANES],
 }
 
 dispatch! {
@@ -163,30 +208,59 @@ fn form(c: &[f64; 6], rr: &[f64; 6]) -> f64 {
 }
 
 dispatch! {
-    /// One node seen from eight points q: the offsets centre − q, their squared lengths, and the
-    /// node's expansion at each (as [`far_one`]).
-    pub fn node(
+    /// One node (centre, radius, area) seen from eight points q, for `spread` over the balls of
+    /// radius `rq` about them: d² = |centre − q|², the node's expansion at q (as [`far_one`]),
+    /// g = d − radius − rq, magnitude = area/g² and extra = the variation 2 rq · magnitude/g.
+    pub fn node_spread(
         f: &Far,
         centre: [f64; 3],
+        radius: f64,
+        area: f64,
+        rq: f64,
         q: &[[f64; LANES]; 3],
     ) -> NodeLanes
-        = node_body, node_avx512, node_avx2;
+        = node_spread_body, node_spread_avx512, node_spread_avx2;
 }
 
-/// See [`node`].
+dispatch! {
+    /// [`node_spread`] for `taylor`: magnitude = area/g² and extra = area/g⁴, by 1/g² as
+    /// `taylor` takes them.
+    pub fn node_taylor(
+        f: &Far,
+        centre: [f64; 3],
+        radius: f64,
+        area: f64,
+        rq: f64,
+        q: &[[f64; LANES]; 3],
+    ) -> NodeLanes
+        = node_taylor_body, node_taylor_avx512, node_taylor_avx2;
+}
+
+/// See [`node_spread`].
 #[derive(Clone, Copy, Debug)]
 pub struct NodeLanes {
-    pub r: [[f64; LANES]; 3],
     pub d2: [f64; LANES],
     pub far: [f64; LANES],
+    pub g: [f64; LANES],
+    pub magnitude: [f64; LANES],
+    pub extra: [f64; LANES],
 }
 
 #[inline(always)]
-fn node_body(f: &Far, centre: [f64; 3], q: &[[f64; LANES]; 3]) -> NodeLanes {
+fn node_body<const SPREAD: bool>(
+    f: &Far,
+    centre: [f64; 3],
+    radius: f64,
+    area: f64,
+    rq: f64,
+    q: &[[f64; LANES]; 3],
+) -> NodeLanes {
     let mut out = NodeLanes {
-        r: [[0.0; LANES]; 3],
         d2: [0.0; LANES],
         far: [0.0; LANES],
+        g: [0.0; LANES],
+        magnitude: [0.0; LANES],
+        extra: [0.0; LANES],
     };
     for i in 0..LANES {
         let r = [
@@ -195,13 +269,47 @@ fn node_body(f: &Far, centre: [f64; 3], q: &[[f64; LANES]; 3]) -> NodeLanes {
             centre[2] - q[2][i],
         ];
         let d2 = dot(r, r);
-        out.r[0][i] = r[0];
-        out.r[1][i] = r[1];
-        out.r[2][i] = r[2];
         out.d2[i] = d2;
         out.far[i] = far_one(f, r, d2);
+        let g = d2.sqrt() - radius - rq;
+        out.g[i] = g;
+        if SPREAD {
+            let ig = 1.0 / g;
+            let magnitude = area * ig * ig;
+            out.magnitude[i] = magnitude;
+            out.extra[i] = rq * 2.0 * magnitude * ig;
+        } else {
+            let ig2 = 1.0 / (g * g);
+            let magnitude = area * ig2;
+            out.magnitude[i] = magnitude;
+            out.extra[i] = magnitude * ig2;
+        }
     }
     out
+}
+
+#[inline(always)]
+fn node_spread_body(
+    f: &Far,
+    centre: [f64; 3],
+    radius: f64,
+    area: f64,
+    rq: f64,
+    q: &[[f64; LANES]; 3],
+) -> NodeLanes {
+    node_body::<true>(f, centre, radius, area, rq, q)
+}
+
+#[inline(always)]
+fn node_taylor_body(
+    f: &Far,
+    centre: [f64; 3],
+    radius: f64,
+    area: f64,
+    rq: f64,
+    q: &[[f64; LANES]; 3],
+) -> NodeLanes {
+    node_body::<false>(f, centre, radius, area, rq, q)
 }
 
 dispatch! {
@@ -223,6 +331,44 @@ dispatch! {
 pub struct EdgeLanes {
     pub d: [f64; LANES],
     pub field: [[f64; LANES]; 3],
+}
+
+dispatch! {
+    /// The segments `segs` of a leaf of the boundary chain's hierarchy, seen from eight points q:
+    /// `acc` plus their Biot–Savart fields ∫ dl × (x − q)/|x − q|³ (as `winding::segment_field`,
+    /// added one by one in order), and whether q lies on one of them (where the field is
+    /// infinite; NaN counts as on), lane by lane.
+    pub fn edge_leaf(
+        segs: &[[[f64; 3]; 2]],
+        q: &[[f64; LANES]; 3],
+        acc: [[f64; LANES]; 3],
+    ) -> ([[f64; LANES]; 3], [bool; LANES])
+        = edge_leaf_body, edge_leaf_avx512, edge_leaf_avx2;
+}
+
+#[inline(always)]
+fn edge_leaf_body(
+    segs: &[[[f64; 3]; 2]],
+    q: &[[f64; LANES]; 3],
+    mut acc: [[f64; LANES]; 3],
+) -> ([[f64; LANES]; 3], [bool; LANES]) {
+    let mut on = [false; LANES];
+    for [s, t] in segs {
+        for i in 0..LANES {
+            let r1 = [s[0] - q[0][i], s[1] - q[1][i], s[2] - q[2][i]];
+            let r2 = [t[0] - q[0][i], t[1] - q[1][i], t[2] - q[2][i]];
+            let (l1, l2) = (norm(r1), norm(r2));
+            let den = l1 * l2 * (l1 * l2 + dot(r1, r2));
+            // Not positive, or NaN: on.
+            on[i] |= (den <= 0.0) | den.is_nan();
+            let f = (l1 + l2) / den;
+            let c = cross(r2, r1);
+            for a in 0..3 {
+                acc[a][i] += c[a] * f;
+            }
+        }
+    }
+    (acc, on)
 }
 
 #[inline(always)]
@@ -263,30 +409,76 @@ fn edge_node_body(
 fn leaf_body(l: &Leaf, q: [f64; 3]) -> ([f64; LANES], [f64; LANES]) {
     let mut angle = [0.0; LANES];
     let mut dist2 = [0.0; LANES];
-    // Written lane by lane with plain locals (no closures), so that the loop vectorizes.
     for i in 0..LANES {
-        let a = [l.v[0][i] - q[0], l.v[1][i] - q[1], l.v[2][i] - q[2]];
-        let b = [l.v[3][i] - q[0], l.v[4][i] - q[1], l.v[5][i] - q[2]];
-        let c = [l.v[6][i] - q[0], l.v[7][i] - q[1], l.v[8][i] - q[2]];
-        angle[i] = solid_angle_of(a, b, c);
-        // Off the triangle's prism: the nearest of its edges; on it: the plane.
-        let ab = edge_dist2(a, b, l.inv_len2[0][i]);
-        let bc = edge_dist2(b, c, l.inv_len2[1][i]);
-        let ca = edge_dist2(c, a, l.inv_len2[2][i]);
-        let best = min(min(ab, bc), ca);
-        let n = [l.n[0][i], l.n[1][i], l.n[2][i]];
-        // q inside the prism over the triangle: on the inner side of each edge's plane along n.
-        let inside = (dot(cross(sub(b, a), a), n) <= 0.0)
-            & (dot(cross(sub(c, b), b), n) <= 0.0)
-            & (dot(cross(sub(a, c), c), n) <= 0.0);
-        let h = dot(a, n);
-        let plane = h * h * l.inv_n2[i];
-        dist2[i] = if inside & (l.inv_n2[i] > 0.0) & (plane < best) {
-            plane
-        } else {
-            best
-        };
+        (angle[i], dist2[i]) = leaf_lane(l, q, i);
     }
+    (angle, dist2)
+}
+
+#[inline(always)]
+fn leaf_spread_body(l: &Leaf, q: [f64; 3], rq: f64) -> LeafSpread {
+    let mut out = LeafSpread {
+        angle: [0.0; LANES],
+        g: [0.0; LANES],
+        magnitude: [0.0; LANES],
+        variation: [0.0; LANES],
+    };
+    for i in 0..LANES {
+        let (angle, dist2) = leaf_lane(l, q, i);
+        let g = dist2.sqrt() - rq;
+        let ig = 1.0 / g;
+        let by_distance = l.area[i] * ig * ig;
+        out.angle[i] = angle;
+        out.g[i] = g;
+        out.magnitude[i] = min(by_distance, 2.0 * PI);
+        out.variation[i] = rq * 2.0 * by_distance * ig;
+    }
+    out
+}
+
+#[inline(always)]
+fn leaf_taylor_body(l: &Leaf, q: [f64; 3], rq: f64) -> LeafTaylor {
+    let mut out = LeafTaylor {
+        angle: [0.0; LANES],
+        dist: [0.0; LANES],
+        hessian: [0.0; LANES],
+    };
+    for i in 0..LANES {
+        let (angle, dist2) = leaf_lane(l, q, i);
+        let dist = dist2.sqrt();
+        let g = dist - rq;
+        out.angle[i] = angle;
+        out.dist[i] = dist;
+        out.hessian[i] = l.area[i] / (g * g * g * g);
+    }
+    out
+}
+
+/// Lane i of [`leaf`]: written with plain locals (no closures), so that the loops that call it
+/// vectorize.
+#[inline(always)]
+fn leaf_lane(l: &Leaf, q: [f64; 3], i: usize) -> (f64, f64) {
+    let a = [l.v[0][i] - q[0], l.v[1][i] - q[1], l.v[2][i] - q[2]];
+    let b = [l.v[3][i] - q[0], l.v[4][i] - q[1], l.v[5][i] - q[2]];
+    let c = [l.v[6][i] - q[0], l.v[7][i] - q[1], l.v[8][i] - q[2]];
+    let angle = solid_angle_of(a, b, c);
+    // Off the triangle's prism: the nearest of its edges; on it: the plane.
+    let ab = edge_dist2(a, b, l.inv_len2[0][i]);
+    let bc = edge_dist2(b, c, l.inv_len2[1][i]);
+    let ca = edge_dist2(c, a, l.inv_len2[2][i]);
+    let best = min(min(ab, bc), ca);
+    let n = [l.n[0][i], l.n[1][i], l.n[2][i]];
+    // q inside the prism over the triangle: on the inner side of each edge's plane along n.
+    let inside = (dot(cross(sub(b, a), a), n) <= 0.0)
+        & (dot(cross(sub(c, b), b), n) <= 0.0)
+        & (dot(cross(sub(a, c), c), n) <= 0.0);
+    let h = dot(a, n);
+    let plane = h * h * l.inv_n2[i];
+    let dist2 = if inside & (l.inv_n2[i] > 0.0) & (plane < best) {
+        plane
+    } else {
+        best
+    };
     (angle, dist2)
 }
 
@@ -510,10 +702,32 @@ mod tests {
         for case in 0..4000 {
             let count = 1 + case % LANES;
             let tris: Vec<_> = (0..count).map(|i| triangle(&mut rng, case + i)).collect();
-            let leaf_ = Leaf::new(&tris);
+            let areas: Vec<f64> = (0..count).map(|_| rng.next()).collect();
+            let leaf_ = Leaf::new(&tris, &areas);
             let q = rng.point(if case % 3 == 0 { 0.3 } else { 3.0 });
             let (angles, dist2) = leaf(&leaf_, q);
+            let rq = rng.next() * 0.5;
+            let (sp, ta) = (leaf_spread(&leaf_, q, rq), leaf_taylor(&leaf_, q, rq));
             for (j, t) in tris.iter().enumerate() {
+                // The bounds, from the distance and each triangle's own area, as `spread` and
+                // `taylor` define them.
+                let g = dist2[j].sqrt() - rq;
+                let by_distance = areas[j] / (g * g);
+                let want = [
+                    (sp.angle[j], angles[j]),
+                    (sp.g[j], g),
+                    (sp.magnitude[j], by_distance.min(2.0 * PI)),
+                    (sp.variation[j], 2.0 * rq * areas[j] / (g * g * g)),
+                    (ta.angle[j], angles[j]),
+                    (ta.dist[j], dist2[j].sqrt()),
+                    (ta.hessian[j], areas[j] / g.powi(4)),
+                ];
+                for (k, (got, want)) in want.into_iter().enumerate() {
+                    assert!(
+                        (got - want).abs() <= 1e-12 * want.abs().max(1e-300),
+                        "case {case} lane {j} bound {k}: {got} against {want}"
+                    );
+                }
                 // Ericson's distance, but never more than the edges' (which it can exceed, or
                 // be NaN, for a triangle whose area is lost to rounding or zero).
                 let edges = (0..3)
@@ -535,6 +749,50 @@ mod tests {
             }
         }
         assert!(checked > 10_000);
+    }
+
+    #[test]
+    fn nodes_match_the_scalar_bounds() {
+        let mut rng = Rng(19);
+        for case in 0..500 {
+            let far = Far {
+                n1: rng.point(1.0),
+                tr: rng.next(),
+                m: std::array::from_fn(|_| rng.next() - 0.5),
+                w: rng.point(1.0),
+                c: std::array::from_fn(|_| std::array::from_fn(|_| rng.next() - 0.5)),
+            };
+            let centre = rng.point(1.0);
+            let (radius, area, rq) = (rng.next() * 0.5, rng.next(), rng.next() * 0.2);
+            let qs = [0, 1, 2].map(|_| std::array::from_fn(|_| rng.next() * 6.0 - 3.0));
+            let (sp, ta) = (
+                node_spread(&far, centre, radius, area, rq, &qs),
+                node_taylor(&far, centre, radius, area, rq, &qs),
+            );
+            for i in 0..LANES {
+                let r = [0, 1, 2].map(|a| centre[a] - qs[a][i]);
+                let d2 = dot(r, r);
+                let g = d2.sqrt() - radius - rq;
+                let want = [
+                    (sp.d2[i], d2),
+                    (sp.far[i], far_one(&far, r, d2)),
+                    (sp.g[i], g),
+                    (sp.magnitude[i], area / (g * g)),
+                    (sp.extra[i], 2.0 * rq * area / (g * g * g)),
+                    (ta.d2[i], d2),
+                    (ta.far[i], far_one(&far, r, d2)),
+                    (ta.g[i], g),
+                    (ta.magnitude[i], area / (g * g)),
+                    (ta.extra[i], area / g.powi(4)),
+                ];
+                for (k, (got, want)) in want.into_iter().enumerate() {
+                    assert!(
+                        (got - want).abs() <= 1e-12 * want.abs().max(1e-300),
+                        "case {case} lane {i} output {k}: {got} against {want}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]
@@ -586,7 +844,8 @@ mod tests {
     fn every_instruction_set_gives_the_same_bits() {
         let mut rng = Rng(17);
         let tris: Vec<_> = (0..LANES).map(|i| triangle(&mut rng, i)).collect();
-        let leaf_ = Leaf::new(&tris);
+        let areas: Vec<f64> = (0..LANES).map(|_| rng.next()).collect();
+        let leaf_ = Leaf::new(&tris, &areas);
         let near: Vec<(u32, f64)> = (0..LANES as u32).map(|i| (i, 1.0)).collect();
         let far = Far {
             n1: rng.point(1.0),
@@ -597,39 +856,64 @@ mod tests {
         };
         let moment = [rng.point(1.0), rng.point(1.0), rng.point(1.0)];
         let (net, anti, centre) = (rng.point(1.0), rng.point(1.0), rng.point(3.0));
+        let (radius, area, rq) = (0.3, 0.7, 0.05);
+        let segs: Vec<[[f64; 3]; 2]> = (0..LANES)
+            .map(|_| [rng.point(1.0), rng.point(1.0)])
+            .collect();
+        let acc = [0, 1, 2].map(|_| std::array::from_fn(|_| rng.next()));
         // Every kernel's outputs by one instruction set (0 the baseline, 1 AVX2, 2 AVX-512), as
         // bits.
         let outputs = |path: u32, q: [f64; 3], qs: &[[f64; LANES]; 3]| -> Vec<u64> {
             // SAFETY: each path is run only where the processor has its instructions (below).
-            let (l, p, n, e) = unsafe {
+            let (l, ls, lt, p, ns, nt, e, el) = unsafe {
                 match path {
                     #[cfg(target_arch = "x86_64")]
                     1 => (
                         leaf_avx2(&leaf_, q),
+                        leaf_spread_avx2(&leaf_, q, rq),
+                        leaf_taylor_avx2(&leaf_, q, rq),
                         point_sums_avx2(&tris, &near, qs, 1e-9),
-                        node_avx2(&far, centre, qs),
+                        node_spread_avx2(&far, centre, radius, area, rq, qs),
+                        node_taylor_avx2(&far, centre, radius, area, rq, qs),
                         edge_node_avx2(centre, net, &moment, anti, qs),
+                        edge_leaf_avx2(&segs, qs, acc),
                     ),
                     #[cfg(target_arch = "x86_64")]
                     2 => (
                         leaf_avx512(&leaf_, q),
+                        leaf_spread_avx512(&leaf_, q, rq),
+                        leaf_taylor_avx512(&leaf_, q, rq),
                         point_sums_avx512(&tris, &near, qs, 1e-9),
-                        node_avx512(&far, centre, qs),
+                        node_spread_avx512(&far, centre, radius, area, rq, qs),
+                        node_taylor_avx512(&far, centre, radius, area, rq, qs),
                         edge_node_avx512(centre, net, &moment, anti, qs),
+                        edge_leaf_avx512(&segs, qs, acc),
                     ),
                     _ => (
                         leaf_body(&leaf_, q),
+                        leaf_spread_body(&leaf_, q, rq),
+                        leaf_taylor_body(&leaf_, q, rq),
                         point_sums_body(&tris, &near, qs, 1e-9),
-                        node_body(&far, centre, qs),
+                        node_spread_body(&far, centre, radius, area, rq, qs),
+                        node_taylor_body(&far, centre, radius, area, rq, qs),
                         edge_node_body(centre, net, &moment, anti, qs),
+                        edge_leaf_body(&segs, qs, acc),
                     ),
                 }
             };
-            let values = [l.0, l.1, p.0, n.r[0], n.r[1], n.r[2], n.d2, n.far]
+            let nodes = [ns, nt]
                 .into_iter()
-                .chain([e.d, e.field[0], e.field[1], e.field[2]]);
+                .flat_map(|n| [n.d2, n.far, n.g, n.magnitude, n.extra]);
+            let values = [l.0, l.1, p.0]
+                .into_iter()
+                .chain([ls.angle, ls.g, ls.magnitude, ls.variation])
+                .chain([lt.angle, lt.dist, lt.hessian])
+                .chain(nodes)
+                .chain([e.d, e.field[0], e.field[1], e.field[2]])
+                .chain(el.0);
             let mut bits: Vec<u64> = values.flat_map(|v| v.map(f64::to_bits)).collect();
             bits.extend(p.1.map(u64::from));
+            bits.extend(el.1.map(u64::from));
             bits
         };
         let mut paths = Vec::new();

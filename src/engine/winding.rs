@@ -264,27 +264,7 @@ impl Certifier<'_> {
                 _ => None,
             };
         }
-        // The variation over the block, wherever a winding number is smooth on it: rb × the
-        // Biot–Savart bound of the boundary; where that is too large, the triangles' own bounds.
-        let interval = |tree: &WindingTree, edges: &EdgeTree| -> Option<(f64, f64, f64)> {
-            let bs = rb * edges.bound(c, rb, limit / rb);
-            let by_edges = bs < limit;
-            let t = tree.spread(
-                c,
-                rb,
-                TIE * s,
-                if by_edges { f64::INFINITY } else { limit },
-                small,
-                !by_edges,
-            )?;
-            let e = if by_edges {
-                t.spread.min(t.left_out + bs)
-            } else {
-                t.spread
-            };
-            Some((t.value / four_pi, e / four_pi + MARGIN, t.crude))
-        };
-        if let Some((v, e, crude)) = interval(self.caps, self.cap_edges) {
+        if let Some((v, e, crude)) = self.interval(self.caps, self.cap_edges, c, rb) {
             if crude < CAP_LIMIT * four_pi {
                 return Some(Decision::Ne(0, EXACT));
             }
@@ -301,23 +281,64 @@ impl Certifier<'_> {
         if size == 2 {
             return None;
         }
-        let (v, e, _) = interval(self.mesh, self.mesh_edges)?;
+        self.mesh_decision(c, rb)
+    }
+
+    /// The interval of `tree`'s winding number over the ball (c, rb), in units of w: its value
+    /// at c, the bound on how far it strays over the ball (with `MARGIN`), and the crude bound
+    /// Σ |solid angle| (in steradians). The variation, wherever a winding number is smooth on
+    /// the ball, is rb × the Biot–Savart bound of the boundary; where that is too large, the
+    /// triangles' own bounds.
+    fn interval(
+        &self,
+        tree: &WindingTree,
+        edges: &EdgeTree,
+        c: [f64; 3],
+        rb: f64,
+    ) -> Option<(f64, f64, f64)> {
+        let s = self.grid.voxel_size;
+        let four_pi = 4.0 * PI;
+        let limit = (0.5 - MARGIN) * four_pi;
+        let bs = rb * edges.bound(c, rb, limit / rb);
+        let by_edges = bs < limit;
+        let t = tree.spread(
+            c,
+            rb,
+            TIE * s,
+            if by_edges { f64::INFINITY } else { limit },
+            SMALL * four_pi,
+            !by_edges,
+        )?;
+        let e = if by_edges {
+            t.spread.min(t.left_out + bs)
+        } else {
+            t.spread
+        };
+        Some((t.value / four_pi, e / four_pi + MARGIN, t.crude))
+    }
+
+    /// The decision for the ball (c, rb) by the mesh's own winding number: all inside or all
+    /// outside where its interval excludes ±½.
+    fn mesh_decision(&self, c: [f64; 3], rb: f64) -> Option<Decision> {
+        let (v, e, _) = self.interval(self.mesh, self.mesh_edges, c, rb)?;
         ((v - 0.5).abs() > e && (v + 0.5).abs() > e).then_some(Decision::Is(v.abs() >= 0.5))
     }
 
-    /// [`Self::decide`] for the eight 2³ blocks of the 4³ block at `lo` (inside the grid, with
-    /// `blocks` on), by the caps' intervals of all eight from one traversal
-    /// ([`WindingTree::spread_lanes`]).
-    fn decide_lanes(&self, lo: [u32; 3]) -> [Option<Decision>; LANES] {
+    /// [`Self::decide`] for the eight blocks of edge `size` (2 or 4) of the block of edge
+    /// 2·size at `lo` (inside the grid, with `blocks` on), by the caps' intervals of all eight
+    /// from one traversal ([`WindingTree::spread_lanes`]); where those leave a 4³ block open,
+    /// by the mesh's interval, one by one.
+    fn decide_lanes(&self, lo: [u32; 3], size: u32) -> [Option<Decision>; LANES] {
         let g = self.grid;
         let s = g.voxel_size;
         let four_pi = 4.0 * PI;
         let limit = (0.5 - MARGIN) * four_pi;
-        // As `decide` computes them for a whole 2³ block.
-        let rb = 0.5 * s * 3f64.sqrt();
+        // As `decide` computes them for a whole block.
+        let rb = 0.5 * s * 3f64.sqrt() * (size - 1) as f64;
+        let h = size as f64 * 0.5;
         let subs: [[u32; 3]; LANES] =
-            std::array::from_fn(|d| [0, 1, 2].map(|a| lo[a] + ((d as u32 >> a) & 1) * 2));
-        let centres = subs.map(|b| g.world_of(b.map(|v| v as f64 + 1.0)));
+            std::array::from_fn(|d| [0, 1, 2].map(|a| lo[a] + ((d as u32 >> a) & 1) * size));
+        let centres = subs.map(|b| g.world_of(b.map(|v| v as f64 + h)));
         let bs = centres.map(|c| rb * self.cap_edges.bound(c, rb, limit / rb));
         let by_edges = bs.map(|b| b < limit);
         let limits = by_edges.map(|e| if e { f64::INFINITY } else { limit });
@@ -330,19 +351,22 @@ impl Certifier<'_> {
             &by_edges.map(|e| !e),
         );
         std::array::from_fn(|i| {
-            let t = spreads[i]?;
-            if t.crude < CAP_LIMIT * four_pi {
-                return Some(Decision::Ne(0, EXACT));
-            }
-            let e = if by_edges[i] {
-                t.spread.min(t.left_out + bs[i])
-            } else {
-                t.spread
-            };
-            let (v, e) = (t.value / four_pi, e / four_pi + MARGIN);
-            let k = v.round();
-            ((v - k).abs() + e < 0.5 && k.abs() <= K_MAX)
-                .then_some(Decision::Ne(k as i32, CAP_BLOCK))
+            let caps = spreads[i].and_then(|t| {
+                if t.crude < CAP_LIMIT * four_pi {
+                    return Some(Decision::Ne(0, EXACT));
+                }
+                let e = if by_edges[i] {
+                    t.spread.min(t.left_out + bs[i])
+                } else {
+                    t.spread
+                };
+                let (v, e) = (t.value / four_pi, e / four_pi + MARGIN);
+                let k = v.round();
+                ((v - k).abs() + e < 0.5 && k.abs() <= K_MAX)
+                    .then_some(Decision::Ne(k as i32, CAP_BLOCK))
+            });
+            // As in `decide`: a 2³ block goes to the Taylor model, a larger one to the mesh.
+            caps.or_else(|| (size > 2).then(|| self.mesh_decision(centres[i], rb))?)
         })
     }
 
@@ -371,8 +395,12 @@ impl Certifier<'_> {
         // Sub-blocks still to decide, with their decision where it was made for eight at once.
         let mut stack: Vec<([u32; 3], u32, Option<Option<Decision>>)> = Vec::with_capacity(32);
         let h = BLOCK / 2;
+        // A block wholly inside the grid: its eight 4³ blocks' intervals at once.
+        let whole = (0..3).all(|a| lo[a] + BLOCK <= self.grid.dims[a]);
+        let made = (whole && self.blocks).then(|| self.decide_lanes(lo, h));
         for d in 0..8u32 {
-            stack.push(([0, 1, 2].map(|a| lo[a] + ((d >> a) & 1) * h), h, None));
+            let child = [0, 1, 2].map(|a| lo[a] + ((d >> a) & 1) * h);
+            stack.push((child, h, made.map(|m| m[d as usize])));
         }
         while let Some((sub, size, made)) = stack.pop() {
             if (0..3).any(|a| sub[a] >= self.grid.dims[a]) {
@@ -397,7 +425,7 @@ impl Certifier<'_> {
                     let whole = (0..3).all(|a| sub[a] + size <= self.grid.dims[a]);
                     if size == 4 && self.blocks && whole {
                         // ... and the models of those they leave open, at once too.
-                        let made = self.decide_lanes(sub);
+                        let made = self.decide_lanes(sub, h);
                         let mut open = Vec::with_capacity(LANES);
                         for (d, &decision) in made.iter().enumerate() {
                             let child = [0, 1, 2].map(|a| sub[a] + ((d as u32 >> a) & 1) * h);
@@ -969,13 +997,12 @@ impl WindingTree {
         if !tris.is_empty() {
             build(&mut nodes, &mut Vec::new(), &mut tris, 0);
         }
-        let areas = tris.iter().map(|t| norm(area_normal(t))).collect();
+        let areas: Vec<f64> = tris.iter().map(|t| norm(area_normal(t))).collect();
         let mut leaves = Vec::new();
         for n in nodes.iter_mut().filter(|n| n.count > 0) {
             n.right = leaves.len() as u32;
-            leaves.push(lanes::Leaf::new(
-                &tris[n.first as usize..(n.first + n.count) as usize],
-            ));
+            let range = n.first as usize..(n.first + n.count) as usize;
+            leaves.push(lanes::Leaf::new(&tris[range.clone()], &areas[range]));
         }
         WindingTree {
             nodes,
@@ -1097,20 +1124,17 @@ impl WindingTree {
             }
             if n.count > 0 {
                 let (s, e) = (n.first as usize, (n.first + n.count) as usize);
-                let (angles, dist2) = lanes::leaf(&self.leaves[n.right as usize], q);
+                let at = lanes::leaf_spread(&self.leaves[n.right as usize], q, rq);
                 for (j, &area) in self.areas[s..e].iter().enumerate() {
                     // A degenerate triangle (of a fan over collinear edges) subtends nothing.
                     if area == 0.0 {
                         continue;
                     }
-                    let g = dist2[j].sqrt() - rq;
+                    let g = at.g[j];
                     if g.is_nan() || g <= gap {
                         return None;
                     }
-                    let ig = 1.0 / g;
-                    let by_distance = area * ig * ig;
-                    let magnitude = by_distance.min(2.0 * PI);
-                    let variation = rq * 2.0 * by_distance * ig;
+                    let (magnitude, variation) = (at.magnitude[j], at.variation[j]);
                     if (magnitude <= small && magnitude <= budget)
                         || (by_area && variation >= magnitude)
                     {
@@ -1120,7 +1144,7 @@ impl WindingTree {
                         out.spread += magnitude;
                         out.left_out += magnitude;
                     } else {
-                        out.value += angles[j];
+                        out.value += at.angle[j];
                         out.spread += variation;
                     }
                     out.crude += magnitude;
@@ -1172,17 +1196,14 @@ impl WindingTree {
                 continue;
             }
             let n = &self.nodes[index as usize];
-            let at = lanes::node(&n.far, n.centre, &q);
+            let at = lanes::node_spread(&n.far, n.centre, n.radius, n.area, rq, &q);
+            let reach2 = (BETA * n.radius).powi(2);
             let mut open = 0;
-            for i in (0..LANES).filter(|i| mask >> i & 1 == 1) {
+            for i in lanes_of(mask) {
                 let o = &mut out[i];
-                let d2 = at.d2[i];
-                let g = d2.sqrt() - n.radius - rq;
-                if g > gap {
-                    let ig = 1.0 / g;
-                    let magnitude = n.area * ig * ig;
-                    let variation = rq * 2.0 * magnitude * ig;
-                    let expanded = d2 > (BETA * n.radius).powi(2);
+                if at.g[i] > gap {
+                    let (magnitude, variation) = (at.magnitude[i], at.extra[i]);
+                    let expanded = at.d2[i] > reach2;
                     let alone = if magnitude <= small && magnitude <= budget[i] {
                         budget[i] -= magnitude;
                         true
@@ -1206,22 +1227,19 @@ impl WindingTree {
             }
             if open != 0 && n.count > 0 {
                 let (s, e) = (n.first as usize, (n.first + n.count) as usize);
-                for i in (0..LANES).filter(|i| open >> i & 1 == 1) {
+                for i in lanes_of(open) {
                     let o = &mut out[i];
-                    let (angles, dist2) = lanes::leaf(&self.leaves[n.right as usize], qs[i]);
+                    let at = lanes::leaf_spread(&self.leaves[n.right as usize], qs[i], rq);
                     for (j, &area) in self.areas[s..e].iter().enumerate() {
                         if area == 0.0 {
                             continue;
                         }
-                        let g = dist2[j].sqrt() - rq;
+                        let g = at.g[j];
                         if g.is_nan() || g <= gap {
                             alive &= !(1 << i);
                             break;
                         }
-                        let ig = 1.0 / g;
-                        let by_distance = area * ig * ig;
-                        let magnitude = by_distance.min(2.0 * PI);
-                        let variation = rq * 2.0 * by_distance * ig;
+                        let (magnitude, variation) = (at.magnitude[j], at.variation[j]);
                         let small_enough = magnitude <= small && magnitude <= budget[i];
                         if small_enough || (by_area[i] && variation >= magnitude) {
                             if small_enough {
@@ -1230,7 +1248,7 @@ impl WindingTree {
                             o.spread += magnitude;
                             o.left_out += magnitude;
                         } else {
-                            o.value += angles[j];
+                            o.value += at.angle[j];
                             o.spread += variation;
                         }
                         o.crude += magnitude;
@@ -1247,8 +1265,8 @@ impl WindingTree {
                 stack[top + 1] = (near, open);
                 top += 2;
             }
-            for (i, o) in out.iter().enumerate() {
-                if mask >> i & 1 == 1 && o.spread >= limit[i] {
+            for i in lanes_of(mask) {
+                if out[i].spread >= limit[i] {
                     alive &= !(1 << i);
                 }
             }
@@ -1312,20 +1330,19 @@ impl WindingTree {
                 }
             }
             if n.count > 0 {
-                let (angles, dist2) = lanes::leaf(&self.leaves[n.right as usize], c);
+                let at = lanes::leaf_taylor(&self.leaves[n.right as usize], c, rq);
                 for (j, i) in (n.first..n.first + n.count).enumerate() {
                     let area = self.areas[i as usize];
                     if area == 0.0 {
                         continue;
                     }
-                    let dist = dist2[j].sqrt();
+                    let dist = at.dist[j];
                     if dist.is_nan() || dist <= gap {
                         return None;
                     }
-                    let g = dist - rq;
-                    if g > near_dist {
-                        out.value += angles[j];
-                        out.hessian += area / (g * g * g * g);
+                    if dist - rq > near_dist {
+                        out.value += at.angle[j];
+                        out.hessian += at.hessian[j];
                     } else {
                         near.push((i, 2.0 * area));
                     }
@@ -1377,47 +1394,44 @@ impl WindingTree {
                 continue;
             }
             let n = &self.nodes[index as usize];
-            let at = lanes::node(&n.far, n.centre, &q);
+            let at = lanes::node_taylor(&n.far, n.centre, n.radius, n.area, rq, &q);
+            let reach2 = (BETA * n.radius).powi(2);
             let mut open = 0;
-            for i in (0..LANES).filter(|i| mask >> i & 1 == 1) {
+            for i in lanes_of(mask) {
                 let o = &mut out[i];
-                let d2 = at.d2[i];
-                let g = d2.sqrt() - n.radius - rq;
-                if g > near_dist {
-                    let ig2 = 1.0 / (g * g);
-                    let magnitude = n.area * ig2;
+                if at.g[i] > near_dist {
+                    let magnitude = at.magnitude[i];
                     if magnitude <= small && magnitude <= budget[i] {
                         budget[i] -= magnitude;
                         o.left_out += magnitude;
-                        o.hessian += magnitude * ig2;
+                        o.hessian += at.extra[i];
                         continue;
                     }
-                    if d2 > (BETA * n.radius).powi(2) {
+                    if at.d2[i] > reach2 {
                         o.value += at.far[i];
-                        o.hessian += magnitude * ig2;
+                        o.hessian += at.extra[i];
                         continue;
                     }
                 }
                 open |= 1 << i;
             }
             if open != 0 && n.count > 0 {
-                for i in (0..LANES).filter(|i| open >> i & 1 == 1) {
+                for i in lanes_of(open) {
                     let o = &mut out[i];
-                    let (angles, dist2) = lanes::leaf(&self.leaves[n.right as usize], qs[i]);
+                    let at = lanes::leaf_taylor(&self.leaves[n.right as usize], qs[i], rq);
                     for (j, t) in (n.first..n.first + n.count).enumerate() {
                         let area = self.areas[t as usize];
                         if area == 0.0 {
                             continue;
                         }
-                        let dist = dist2[j].sqrt();
+                        let dist = at.dist[j];
                         if dist.is_nan() || dist <= gap {
                             alive &= !(1 << i);
                             break;
                         }
-                        let g = dist - rq;
-                        if g > near_dist {
-                            o.value += angles[j];
-                            o.hessian += area / (g * g * g * g);
+                        if dist - rq > near_dist {
+                            o.value += at.angle[j];
+                            o.hessian += at.hessian[j];
                         } else {
                             near[i].push((t, 2.0 * area));
                         }
@@ -1473,6 +1487,18 @@ impl WindingTree {
         stack[*top + 1] = near;
         *top += 2;
     }
+}
+
+/// The lanes whose bits are set in `mask`, in order.
+#[inline(always)]
+fn lanes_of(mut mask: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (mask != 0).then(|| {
+            let i = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            i
+        })
+    })
 }
 
 /// See [`WindingTree::taylor`]; in steradians.
@@ -1721,7 +1747,7 @@ impl EdgeTree {
             let n = &self.nodes[index as usize];
             let at = lanes::edge_node(n.centre, n.net, &n.moment, n.anti, &q);
             let mut open = 0;
-            for i in (0..LANES).filter(|i| mask >> i & 1 == 1) {
+            for i in lanes_of(mask) {
                 let g = at.d[i] - n.radius;
                 if g > FIELD_OPEN * n.radius {
                     let (field, error) = &mut out[i];
@@ -1733,15 +1759,13 @@ impl EdgeTree {
             }
             if open != 0 && n.count > 0 {
                 let (s, e) = (n.first as usize, (n.first + n.count) as usize);
-                for i in (0..LANES).filter(|i| open >> i & 1 == 1) {
-                    for seg in &self.segs[s..e] {
-                        match segment_field_off(seg, qs[i]) {
-                            Some(f) => out[i].0 = add3(out[i].0, f),
-                            None => {
-                                alive &= !(1 << i);
-                                break;
-                            }
-                        }
+                let acc = [0, 1, 2].map(|a| std::array::from_fn(|i| out[i].0[a]));
+                let (sum, on) = lanes::edge_leaf(&self.segs[s..e], &q, acc);
+                for i in lanes_of(open) {
+                    if on[i] {
+                        alive &= !(1 << i);
+                    } else {
+                        out[i].0 = [sum[0][i], sum[1][i], sum[2][i]];
                     }
                 }
             } else if open != 0 {
