@@ -53,8 +53,9 @@
 //! tree gives all eight intervals (`WindingTree::spread_lanes`), one more the Taylor models of
 //! those still open (`WindingTree::taylor_lanes`), one of the chain their fields
 //! (`EdgeTree::field_lanes`); a node is opened for the balls that need it and taken through
-//! its children by the others, which bounds them as well. The solid angles, distances and
-//! expansions inside are computed eight at a time ([`super::lanes`]).
+//! its children by the others, which bounds them as well. The eight 4³ blocks of an open 8³
+//! block get their caps' intervals the same way. The solid angles, distances, expansions and
+//! the bounds built on them are computed eight at a time ([`super::lanes`]).
 //!
 //! Both parts run on the CPU; the signed counts use the same integer crossing rule as `solid`.
 
