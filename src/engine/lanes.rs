@@ -13,11 +13,11 @@
 
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 
-/// `pub fn NAME(args) -> R` that runs `BODY` compiled for AVX-512 (as `AVX512`), for AVX2 (as
+/// `pub fn NAME(args) -> R` that runs `BODY` (a function's path, generic arguments and all) compiled for AVX-512 (as `AVX512`), for AVX2 (as
 /// `AVX2`) or for the baseline target, the widest the processor has.
 macro_rules! dispatch {
     ($(#[$m:meta])* pub fn $name:ident($($arg:ident: $ty:ty),* $(,)?) -> $ret:ty
-        = $body:ident, $avx512:ident, $avx2:ident;) => {
+        = $body:path, $avx512:ident, $avx2:ident;) => {
         $(#[$m])*
         pub fn $name($($arg: $ty),*) -> $ret {
             #[cfg(target_arch = "x86_64")]
@@ -219,7 +219,7 @@ dispatch! {
         rq: f64,
         q: &[[f64; LANES]; 3],
     ) -> NodeLanes
-        = node_spread_body, node_spread_avx512, node_spread_avx2;
+        = node_body::<true>, node_spread_avx512, node_spread_avx2;
 }
 
 dispatch! {
@@ -233,7 +233,7 @@ dispatch! {
         rq: f64,
         q: &[[f64; LANES]; 3],
     ) -> NodeLanes
-        = node_taylor_body, node_taylor_avx512, node_taylor_avx2;
+        = node_body::<false>, node_taylor_avx512, node_taylor_avx2;
 }
 
 /// See [`node_spread`].
@@ -286,30 +286,6 @@ fn node_body<const SPREAD: bool>(
         }
     }
     out
-}
-
-#[inline(always)]
-fn node_spread_body(
-    f: &Far,
-    centre: [f64; 3],
-    radius: f64,
-    area: f64,
-    rq: f64,
-    q: &[[f64; LANES]; 3],
-) -> NodeLanes {
-    node_body::<true>(f, centre, radius, area, rq, q)
-}
-
-#[inline(always)]
-fn node_taylor_body(
-    f: &Far,
-    centre: [f64; 3],
-    radius: f64,
-    area: f64,
-    rq: f64,
-    q: &[[f64; LANES]; 3],
-) -> NodeLanes {
-    node_body::<false>(f, centre, radius, area, rq, q)
 }
 
 dispatch! {
@@ -894,8 +870,8 @@ mod tests {
                         leaf_spread_body(&leaf_, q, rq),
                         leaf_taylor_body(&leaf_, q, rq),
                         point_sums_body(&tris, &near, qs, 1e-9),
-                        node_spread_body(&far, centre, radius, area, rq, qs),
-                        node_taylor_body(&far, centre, radius, area, rq, qs),
+                        node_body::<true>(&far, centre, radius, area, rq, qs),
+                        node_body::<false>(&far, centre, radius, area, rq, qs),
                         edge_node_body(centre, net, &moment, anti, qs),
                         edge_leaf_body(&segs, qs, acc),
                     ),

@@ -265,14 +265,11 @@ impl Certifier<'_> {
                 _ => None,
             };
         }
-        if let Some((v, e, crude)) = self.interval(self.caps, self.cap_edges, c, rb) {
-            if crude < CAP_LIMIT * four_pi {
-                return Some(Decision::Ne(0, EXACT));
-            }
-            let k = v.round();
-            if (v - k).abs() + e < 0.5 && k.abs() <= K_MAX {
-                return Some(Decision::Ne(k as i32, CAP_BLOCK));
-            }
+        if let Some(d) = self
+            .interval(self.caps, self.cap_edges, c, rb)
+            .and_then(caps_decision)
+        {
+            return Some(d);
         }
         // A 2³ block left open by the caps' interval goes straight to the Taylor model
         // (`Self::taylor_voxels`) and, per voxel, the evaluation: both decide every voxel, so
@@ -310,12 +307,7 @@ impl Certifier<'_> {
             SMALL * four_pi,
             !by_edges,
         )?;
-        let e = if by_edges {
-            t.spread.min(t.left_out + bs)
-        } else {
-            t.spread
-        };
-        Some((t.value / four_pi, e / four_pi + MARGIN, t.crude))
+        Some(bounded(&t, by_edges, bs))
     }
 
     /// The decision for the ball (c, rb) by the mesh's own winding number: all inside or all
@@ -352,20 +344,7 @@ impl Certifier<'_> {
             &by_edges.map(|e| !e),
         );
         std::array::from_fn(|i| {
-            let caps = spreads[i].and_then(|t| {
-                if t.crude < CAP_LIMIT * four_pi {
-                    return Some(Decision::Ne(0, EXACT));
-                }
-                let e = if by_edges[i] {
-                    t.spread.min(t.left_out + bs[i])
-                } else {
-                    t.spread
-                };
-                let (v, e) = (t.value / four_pi, e / four_pi + MARGIN);
-                let k = v.round();
-                ((v - k).abs() + e < 0.5 && k.abs() <= K_MAX)
-                    .then_some(Decision::Ne(k as i32, CAP_BLOCK))
-            });
+            let caps = spreads[i].and_then(|t| caps_decision(bounded(&t, by_edges[i], bs[i])));
             // As in `decide`: a 2³ block goes to the Taylor model, a larger one to the mesh.
             caps.or_else(|| (size > 2).then(|| self.mesh_decision(centres[i], rb))?)
         })
@@ -605,6 +584,30 @@ impl Certifier<'_> {
             codes[local(v)] = code;
         }
     }
+}
+
+/// A winding number's interval over a ball from its [`Spread`] there, in units of w: the value
+/// at the centre, how far it strays over the ball (with `MARGIN`; by `bs`, rb × the Biot–Savart
+/// bound of the boundary, where `by_edges`, else the triangles' own bounds), and the crude bound
+/// Σ |solid angle| (in steradians).
+fn bounded(t: &Spread, by_edges: bool, bs: f64) -> (f64, f64, f64) {
+    let four_pi = 4.0 * PI;
+    let e = if by_edges {
+        t.spread.min(t.left_out + bs)
+    } else {
+        t.spread
+    };
+    (t.value / four_pi, e / four_pi + MARGIN, t.crude)
+}
+
+/// The decision for a block by the caps' interval over it ([`bounded`]): |w_caps| < 0.45
+/// proven (the exact crossing count alone), or no half-integer in it, so inside ⇔ N ≠ k.
+fn caps_decision((v, e, crude): (f64, f64, f64)) -> Option<Decision> {
+    if crude < CAP_LIMIT * 4.0 * PI {
+        return Some(Decision::Ne(0, EXACT));
+    }
+    let k = v.round();
+    ((v - k).abs() + e < 0.5 && k.abs() <= K_MAX).then_some(Decision::Ne(k as i32, CAP_BLOCK))
 }
 
 /// A voxel's index in its block's codes.
