@@ -276,3 +276,119 @@ fn slabs_check_the_control_and_report_progress() {
         assert_eq!(v, CpuEngine.voxelize(&gm, method).unwrap(), "{method}");
     }
 }
+
+/// Jobs from many threads at once on one engine, each in several slabs: every volume equals
+/// the CPU's bits whichever batch its slabs went to the device in, and with buffers leased from
+/// the pool that other jobs (other sizes, other methods) left their contents in. Rounds repeat
+/// (at most 20) until some submission carried slabs of more than one job.
+#[test]
+fn jobs_from_many_threads_at_once_equal_the_cpu() {
+    let Some(_) = gpu() else { return };
+    let engine = GpuEngine::new(GpuOptions {
+        adapter: std::env::var("VOXD_ADAPTER").ok(),
+        max_slab_bytes: Some(8192),
+        ..Default::default()
+    })
+    .unwrap();
+    let spot = mesh::load_file(&data("spot.obj"), usize::MAX).unwrap();
+    let (lo, hi) = spot.bounds();
+    let mut meshes: Vec<GridMesh> = [20, 33, 48, 64]
+        .into_iter()
+        .map(|n| {
+            let spec = GridSpec::Resolution { n, cubic: false };
+            let g = Grid::fit(lo, hi, spec, 1, Default::default()).unwrap();
+            GridMesh::new(&spot, &g).unwrap()
+        })
+        .collect();
+    for seed in 0..4u64 {
+        let mut rng = Rng::new(1000 + seed);
+        let dims = [10 + rng.below(30) as u32, 10 + rng.below(30) as u32, 33];
+        let m = random_mesh(&mut rng, dims, seed);
+        meshes.push(GridMesh::new(&m, &unit_grid(dims)).unwrap());
+    }
+    let jobs: Vec<(&GridMesh, Method, voxd::volume::BitVolume)> = meshes
+        .iter()
+        .enumerate()
+        .flat_map(|(i, gm)| [Method::ALL[i % Method::ALL.len()], Method::Solid].map(|m| (gm, m)))
+        .map(|(gm, m)| (gm, m, CpuEngine.voxelize(gm, m).unwrap()))
+        .collect();
+    let threads = 6;
+    let mut slabs = 0u64;
+    for _round in 0..20 {
+        slabs += std::thread::scope(|s| {
+            let runs: Vec<_> = (0..threads)
+                .map(|k| {
+                    let jobs = &jobs;
+                    let engine = &engine;
+                    s.spawn(move || {
+                        let mut slabs = 0u64;
+                        for (i, (gm, m, want)) in jobs.iter().enumerate() {
+                            if i % threads != k && (i + 1) % threads != k {
+                                continue;
+                            }
+                            let (got, t) = engine.voxelize_timed(gm, *m).unwrap();
+                            if let Some(d) = first_difference(&got, want) {
+                                panic!("job {i} ({m}) on thread {k}: GPU differs from CPU: {d}");
+                            }
+                            slabs += u64::from(t.slabs);
+                        }
+                        slabs
+                    })
+                })
+                .collect();
+            runs.into_iter().map(|r| r.join().unwrap()).sum::<u64>()
+        });
+        if engine.stats().submissions.largest >= 2 {
+            break;
+        }
+    }
+    let stats = engine.stats();
+    assert!(stats.submissions.largest >= 2, "{stats:?}");
+    // One command buffer per slab, in fewer submissions; most buffers came from the pool.
+    assert_eq!(stats.submissions.items, slabs, "{stats:?}");
+    assert!(stats.submissions.batches < slabs, "{stats:?}");
+    assert!(stats.buffers.reused > stats.buffers.created, "{stats:?}");
+}
+
+/// A job run again takes every buffer from the pool (none created), and gets the same bits; a
+/// pool whose budget is smaller than a job's buffers keeps no more than its budget idle.
+#[test]
+fn a_job_run_again_reuses_its_buffers_within_the_pool_budget() {
+    let Some(_) = gpu() else { return };
+    let m = mesh::load_file(&data("spot.obj"), usize::MAX).unwrap();
+    let (lo, hi) = m.bounds();
+    let spec = GridSpec::Resolution {
+        n: 64,
+        cubic: false,
+    };
+    let gm = GridMesh::new(&m, &Grid::fit(lo, hi, spec, 1, Default::default()).unwrap()).unwrap();
+    let want = CpuEngine.voxelize(&gm, Method::Conservative).unwrap();
+    for budget in [None, Some(4096)] {
+        let engine = GpuEngine::new(GpuOptions {
+            adapter: std::env::var("VOXD_ADAPTER").ok(),
+            pool_bytes: budget,
+            ..Default::default()
+        })
+        .unwrap();
+        assert_eq!(engine.stats().buffers, Default::default());
+        let mut seen = vec![];
+        for _ in 0..3 {
+            assert!(engine.voxelize(&gm, Method::Conservative).unwrap() == want);
+            let s = engine.stats().buffers;
+            assert!(s.idle_bytes <= budget.unwrap_or(voxd::engine::gpu::POOL_BYTES));
+            seen.push(s);
+        }
+        let first = seen[0];
+        // Slabs a and b, the readback, the triangles, the items and their parameters.
+        assert!(first.created >= 6, "{first:?}");
+        match budget {
+            None => {
+                assert_eq!(first.idle, first.created, "{first:?}");
+                assert!(seen.iter().all(|s| s.created == first.created), "{seen:?}");
+                assert_eq!(seen[2].reused, 2 * first.created, "{seen:?}");
+            }
+            // The slabs (over 4 KiB each) are freed after each job and created again.
+            Some(_) => assert!(seen[2].created >= first.created + 2 * 3, "{seen:?}"),
+        }
+    }
+}

@@ -207,7 +207,7 @@ pub struct ServeArgs {
     /// Jobs that may wait; more are refused with 429.
     #[arg(long, env = "VOXD_QUEUE_CAPACITY", default_value_t = 64)]
     pub queue_capacity: usize,
-    /// Jobs run at once on the CPU engine (a GPU engine runs one at a time).
+    /// Jobs run at once. On a GPU each records its own work and their submissions are batched.
     #[arg(long, env = "VOXD_WORKERS", default_value_t = 1)]
     pub workers: usize,
     /// Largest request body in bytes (gzip'd meshes may expand 16× this).

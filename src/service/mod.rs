@@ -41,7 +41,7 @@ pub struct Config {
     pub adapter: Option<String>,
     /// Jobs waiting at most; more get 429.
     pub queue_capacity: usize,
-    /// Jobs running at once on the CPU engine (a GPU engine runs one).
+    /// Jobs running at once, on either engine (on a GPU their submissions are batched).
     pub workers: usize,
     pub limits: Limits,
     pub max_store_bytes: u64,
@@ -152,16 +152,6 @@ impl App {
             .retry_after(5)
         })
         .map(|p| p.expect("the semaphore is never closed"))
-    }
-
-    /// Jobs this process runs at once: `workers` on the CPU engine (however it was chosen),
-    /// one on a GPU, which runs one job at a time anyway.
-    pub fn workers(&self, workers: usize) -> usize {
-        if self.engine.name() == "cpu" {
-            workers.max(1)
-        } else {
-            1
-        }
     }
 }
 
@@ -284,7 +274,7 @@ pub async fn serve(
     on_bound: impl FnOnce(SocketAddr, Option<SocketAddr>),
 ) -> Result<(), String> {
     let app = open(&config).await?;
-    let n = app.workers(config.workers);
+    let n = config.workers.max(1);
     tracing::info!(workers = n, "workers");
     let workers: Vec<_> = (0..n)
         .map(|_| {

@@ -1,10 +1,12 @@
 //! Opening the one device: adapter choice, limits, pipelines (compiled once), loss detection.
 
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 
 use serde::Serialize;
 
+use super::batch::{BatchStats, Batcher};
+use super::pool::{BufferPool, POOL_BYTES};
 use crate::engine::EngineError;
 
 const COMMON: &str = include_str!("../../../shaders/common.wgsl");
@@ -35,6 +37,11 @@ pub(super) struct GpuDevice {
     pub surface: wgpu::ComputePipeline,
     pub union: wgpu::ComputePipeline,
     pub subtract: wgpu::ComputePipeline,
+    /// Buffers kept from one job for the next.
+    pub pool: BufferPool,
+    /// The jobs' slabs on their way to the queue, submitted together.
+    pub batcher: Batcher<super::Submission, Result<(), String>>,
+    pub batch_stats: Mutex<BatchStats>,
     lost: Arc<AtomicBool>,
 }
 
@@ -52,9 +59,10 @@ fn rank(t: wgpu::DeviceType) -> u8 {
 }
 
 impl GpuDevice {
-    /// The best adapter with 64-bit shader integers, or the one named like `wanted`;
-    /// `hardware_only`: never a software (CPU) adapter such as lavapipe.
-    pub fn open(wanted: Option<&str>, hardware_only: bool) -> Result<GpuDevice, EngineError> {
+    /// The best adapter with 64-bit shader integers, or the one named like `options.adapter`;
+    /// `options.hardware_only`: never a software (CPU) adapter such as lavapipe.
+    pub fn open(options: &super::GpuOptions) -> Result<GpuDevice, EngineError> {
+        let (wanted, hardware_only) = (options.adapter.as_deref(), options.hardware_only);
         let instance =
             wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
         let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
@@ -140,6 +148,12 @@ impl GpuDevice {
             surface: pipeline("surface", SURFACE, &[]),
             union: pipeline("union", COMBINE, &[("SUBTRACT", 0.0)]),
             subtract: pipeline("subtract", COMBINE, &[("SUBTRACT", 1.0)]),
+            pool: BufferPool::new(
+                options.pool_bytes.unwrap_or(POOL_BYTES),
+                limits.max_buffer_size,
+            ),
+            batcher: Batcher::new(),
+            batch_stats: Mutex::default(),
             device,
             queue,
             limits,

@@ -8,15 +8,19 @@
 //! (solid) or voxels (surface) per invocation, so no invocation comes near lavapipe's silent
 //! 65,535-iteration loop cap (`docs/lavapipe-notes.md`).
 
+mod batch;
 pub(crate) mod device;
+mod pool;
 mod work;
 
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+pub use batch::BatchStats;
 pub use device::AdapterSummary;
 use device::GpuDevice;
-use wgpu::util::DeviceExt;
+use pool::Leases;
+pub use pool::{POOL_BYTES, PoolStats};
 
 use super::{Engine, EngineError, GridMesh, Method};
 use crate::cancel::Control;
@@ -31,6 +35,8 @@ pub struct GpuOptions {
     pub max_slab_bytes: Option<u64>,
     /// Cap on one triangle chunk's bytes; tests use it to force several chunks.
     pub max_chunk_bytes: Option<u64>,
+    /// Idle buffers kept for the next jobs, in bytes; [`POOL_BYTES`] when `None`.
+    pub pool_bytes: Option<u64>,
     /// How solid turns crossings into parity.
     pub solid_strategy: SolidStrategy,
     /// Only a hardware adapter (discrete, integrated or virtual GPU): a software one such as
@@ -74,7 +80,17 @@ pub struct GpuTimings {
 
 pub struct GpuEngine {
     options: GpuOptions,
-    device: Mutex<GpuDevice>,
+    /// The device the next job runs on: replaced when it is lost. Jobs run on it at once, each
+    /// on its own thread; their submissions are batched ([`batch`]).
+    device: Mutex<Arc<GpuDevice>>,
+}
+
+/// What the engine's device has done since it was opened: batches of submissions and buffer
+/// reuse (for benchmarks, metrics and tests).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GpuStats {
+    pub submissions: BatchStats,
+    pub buffers: PoolStats,
 }
 
 #[repr(C)]
@@ -88,15 +104,52 @@ struct Params {
     item_offset: u32,
 }
 
+/// One slab's recorded work, handed to the batcher: the device runs `commands`, after which
+/// the first `bytes` of `readback` hold the slab.
+struct Submission {
+    commands: wgpu::CommandBuffer,
+    readback: wgpu::Buffer,
+    bytes: u64,
+}
+
+const SLAB_USAGE: wgpu::BufferUsages = wgpu::BufferUsages::STORAGE
+    .union(wgpu::BufferUsages::COPY_SRC)
+    .union(wgpu::BufferUsages::COPY_DST);
+const INPUT_USAGE: wgpu::BufferUsages =
+    wgpu::BufferUsages::STORAGE.union(wgpu::BufferUsages::COPY_DST);
+const PARAMS_USAGE: wgpu::BufferUsages =
+    wgpu::BufferUsages::UNIFORM.union(wgpu::BufferUsages::COPY_DST);
+const READBACK_USAGE: wgpu::BufferUsages =
+    wgpu::BufferUsages::MAP_READ.union(wgpu::BufferUsages::COPY_DST);
+
+/// The first `size` bytes of `buffer`, to bind (a pooled buffer may be larger than its use).
+fn bound(buffer: &wgpu::Buffer, size: u64) -> wgpu::BindingResource<'_> {
+    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+        buffer,
+        offset: 0,
+        size: Some(std::num::NonZeroU64::new(size).expect("bindings are never empty")),
+    })
+}
+
 impl GpuEngine {
     /// Opens the best adapter that supports 64-bit integers in shaders (discrete, then
     /// integrated, then virtual, then CPU such as lavapipe), or the one `options.adapter` names.
     pub fn new(options: GpuOptions) -> Result<GpuEngine, EngineError> {
-        let device = GpuDevice::open(options.adapter.as_deref(), options.hardware_only)?;
+        let device = GpuDevice::open(&options)?;
         Ok(GpuEngine {
             options,
-            device: Mutex::new(device),
+            device: Mutex::new(Arc::new(device)),
         })
+    }
+
+    /// The device for the next job: the one open, or a new one if it was lost.
+    fn device(&self) -> Result<Arc<GpuDevice>, EngineError> {
+        let mut guard = self.device.lock().unwrap_or_else(|e| e.into_inner());
+        if guard.is_lost() {
+            tracing::warn!("GPU device was lost; opening it again");
+            *guard = Arc::new(GpuDevice::open(&self.options)?);
+        }
+        Ok(guard.clone())
     }
 
     pub fn adapter(&self) -> AdapterSummary {
@@ -105,6 +158,19 @@ impl GpuEngine {
             .unwrap_or_else(|e| e.into_inner())
             .summary
             .clone()
+    }
+
+    /// Submissions and buffer reuse on the open device.
+    pub fn stats(&self) -> GpuStats {
+        let dev = self
+            .device
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone();
+        GpuStats {
+            submissions: *dev.batch_stats.lock().unwrap_or_else(|e| e.into_inner()),
+            buffers: dev.pool.stats(),
+        }
     }
 
     /// Voxelizes and reports where the time went.
@@ -117,7 +183,8 @@ impl GpuEngine {
     }
 
     /// [`GpuEngine::voxelize_timed`], checking `ctl` before each slab (a submitted slab runs to
-    /// its end: kernels are not interruptible) and reporting each slab done.
+    /// its end: kernels are not interruptible) and reporting each slab done. Calls from several
+    /// threads run at once: each records its own work, and their submissions are batched.
     pub fn voxelize_timed_with(
         &self,
         mesh: &GridMesh,
@@ -125,15 +192,13 @@ impl GpuEngine {
         ctl: &Control,
     ) -> Result<(BitVolume, GpuTimings), EngineError> {
         ctl.check()?;
-        let mut guard = self.device.lock().unwrap_or_else(|e| e.into_inner());
-        if guard.is_lost() {
-            tracing::warn!("GPU device was lost; opening it again");
-            *guard = GpuDevice::open(self.options.adapter.as_deref(), self.options.hardware_only)?;
-        }
-        let dev = &*guard;
+        let dev = self.device()?;
+        // Error scopes are per thread: these see this job's buffers and commands (and, when
+        // this thread leads a batch, that batch's submission).
         let scope = dev.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let oom = dev.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-        let result = self.run(dev, mesh, method, ctl);
+        let mut leases = Leases::new(&dev.pool);
+        let result = self.run(&dev, &mut leases, mesh, method, ctl);
         let oom_err = pollster::block_on(oom.pop());
         let val_err = pollster::block_on(scope.pop());
         if let Some(e) = oom_err.or(val_err) {
@@ -148,12 +213,16 @@ impl GpuEngine {
                     .into(),
             ));
         }
+        if result.is_ok() {
+            leases.recycle();
+        }
         result
     }
 
     fn run(
         &self,
         dev: &GpuDevice,
+        leases: &mut Leases<'_>,
         mesh: &GridMesh,
         method: Method,
         ctl: &Control,
@@ -184,7 +253,7 @@ impl GpuEngine {
             .max_chunk_bytes
             .map_or(binding, |m| m.min(binding));
         let tris_per_chunk = (chunk_limit / 36).max(1) as usize;
-        let chunks: Vec<(usize, wgpu::Buffer)> = mesh
+        let chunks: Vec<(usize, wgpu::Buffer, u64)> = mesh
             .triangles
             .chunks(tris_per_chunk)
             .enumerate()
@@ -194,38 +263,20 @@ impl GpuEngine {
                 } else {
                     bytemuck::cast_slice(c)
                 };
-                let buf = dev
-                    .device
-                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                        label: Some("triangles"),
-                        contents,
-                        usage: wgpu::BufferUsages::STORAGE,
-                    });
-                (i * tris_per_chunk, buf)
+                let size = contents.len() as u64;
+                let buf = leases.take(&dev.device, "triangles", INPUT_USAGE, size);
+                dev.queue.write_buffer(&buf, 0, contents);
+                (i * tris_per_chunk, buf, size)
             })
             .collect();
         timings.upload += t0.elapsed();
 
-        let storage = |label| {
-            dev.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: slab_bytes,
-                usage: wgpu::BufferUsages::STORAGE
-                    | wgpu::BufferUsages::COPY_SRC
-                    | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        };
         let need_solid = method != Method::Surface;
         let need_surface = method != Method::Solid;
-        let slab_a = storage("slab a");
-        let slab_b = (need_solid && need_surface).then(|| storage("slab b"));
-        let staging = dev.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("readback"),
-            size: slab_bytes,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let slab_a = leases.take(&dev.device, "slab a", SLAB_USAGE, slab_bytes);
+        let slab_b = (need_solid && need_surface)
+            .then(|| leases.take(&dev.device, "slab b", SLAB_USAGE, slab_bytes));
+        let staging = leases.take(&dev.device, "readback", READBACK_USAGE, slab_bytes);
 
         let words64_per_row = ny as usize * words_per_column(nz);
         let done = ctl.counter(nx.div_ceil(slab_rows.max(1)) as u64);
@@ -241,15 +292,23 @@ impl GpuEngine {
                 item_offset: 0,
             };
             let t_up = Instant::now();
-            let mut enc = dev.device.create_command_encoder(&Default::default());
-            enc.clear_buffer(&slab_a, 0, None);
+            // This slab's work items and parameters: back to the pool once it has run.
+            let mut inputs = Leases::new(&dev.pool);
+            let mut rec = Recorder {
+                dev,
+                leases: &mut inputs,
+                enc: dev.device.create_command_encoder(&Default::default()),
+                slab_bytes,
+            };
+            rec.enc.clear_buffer(&slab_a, 0, Some(slab_bytes));
             if let Some(b) = &slab_b {
-                enc.clear_buffer(b, 0, None);
+                rec.enc.clear_buffer(b, 0, Some(slab_bytes));
             }
             let xr = x0..x0 + rows;
-            for (base, tris) in &chunks {
+            for (base, tris, tri_bytes) in &chunks {
                 let n = tris_per_chunk.min(mesh.triangles.len() - base);
                 let part = &mesh.triangles[*base..*base + n];
+                let tris = (tris, *tri_bytes);
                 if need_solid {
                     let masks = self.options.solid_strategy == SolidStrategy::Masks;
                     // With masks a crossing touches up to every word of its column: fewer columns
@@ -261,28 +320,19 @@ impl GpuEngine {
                     };
                     let items = work::solid_items(part, xr.clone(), grid.dims, side);
                     let pipeline = if masks { &dev.solid_masks } else { &dev.solid };
-                    self.dispatch_items(dev, &mut enc, pipeline, &params, tris, &items, 4, &slab_a);
+                    rec.items(pipeline, &params, tris, &items, 4, &slab_a);
                 }
                 if need_surface {
                     let items = work::surface_items(part, xr.clone(), grid.dims);
                     let target = slab_b.as_ref().unwrap_or(&slab_a);
-                    self.dispatch_items(
-                        dev,
-                        &mut enc,
-                        &dev.surface,
-                        &params,
-                        tris,
-                        &items,
-                        5,
-                        target,
-                    );
+                    rec.items(&dev.surface, &params, tris, &items, 5, target);
                 }
             }
             if need_solid && self.options.solid_strategy == SolidStrategy::ToggleScan {
                 let cols = rows * ny;
-                let u = self.uniform(dev, &params);
-                let bind = [(0, u.as_entire_binding()), (1, slab_a.as_entire_binding())];
-                dispatch(dev, &mut enc, &dev.prefix_xor, &bind, cols);
+                let u = rec.params(&params);
+                let bind = [(0, bound(&u, PARAMS_SIZE)), (1, bound(&slab_a, slab_bytes))];
+                rec.dispatch(&dev.prefix_xor, &bind, cols);
             }
             if let Some(b) = &slab_b {
                 let pipeline = if method == Method::Interior {
@@ -290,40 +340,35 @@ impl GpuEngine {
                 } else {
                     &dev.union
                 };
-                let u = self.uniform(dev, &params);
+                let u = rec.params(&params);
                 let bind = [
-                    (0, u.as_entire_binding()),
-                    (1, slab_a.as_entire_binding()),
-                    (2, b.as_entire_binding()),
+                    (0, bound(&u, PARAMS_SIZE)),
+                    (1, bound(&slab_a, slab_bytes)),
+                    (2, bound(b, slab_bytes)),
                 ];
-                dispatch(
-                    dev,
-                    &mut enc,
-                    pipeline,
-                    &bind,
-                    (rows as u64 * row_bytes / 4) as u32,
-                );
+                rec.dispatch(pipeline, &bind, (rows as u64 * row_bytes / 4) as u32);
             }
             let bytes = rows as u64 * row_bytes;
-            enc.copy_buffer_to_buffer(&slab_a, 0, &staging, 0, bytes);
+            rec.enc
+                .copy_buffer_to_buffer(&slab_a, 0, &staging, 0, Some(bytes));
+            let commands = rec.enc.finish();
             timings.upload += t_up.elapsed();
 
             let t_run = Instant::now();
-            dev.queue.submit([enc.finish()]);
-            let slice = staging.slice(..bytes);
-            let (tx, rx) = std::sync::mpsc::channel();
-            slice.map_async(wgpu::MapMode::Read, move |r| {
-                let _ = tx.send(r);
-            });
-            dev.device
-                .poll(wgpu::PollType::wait_indefinitely())
-                .map_err(|e| EngineError::Gpu(format!("waiting for the GPU: {e}")))?;
-            rx.recv()
-                .map_err(|_| EngineError::Gpu("the readback was dropped".into()))?
-                .map_err(|e| EngineError::Gpu(format!("mapping the result: {e}")))?;
+            let submission = Submission {
+                commands,
+                readback: staging.clone(),
+                bytes,
+            };
+            dev.batcher
+                .run(submission, &dev.batch_stats, |batch| run_batch(dev, batch))
+                .unwrap_or_else(|| Err("the submission this slab was in failed".into()))
+                .map_err(EngineError::Gpu)?;
             timings.dispatch += t_run.elapsed();
+            inputs.recycle();
 
             let t_read = Instant::now();
+            let slice = staging.slice(..bytes);
             {
                 let view = slice
                     .get_mapped_range()
@@ -339,83 +384,127 @@ impl GpuEngine {
         }
         Ok((vol, timings))
     }
+}
 
-    fn uniform(&self, dev: &GpuDevice, p: &Params) -> wgpu::Buffer {
-        dev.device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("params"),
-                contents: bytemuck::bytes_of(p),
-                usage: wgpu::BufferUsages::UNIFORM,
-            })
+/// Bytes of [`Params`].
+const PARAMS_SIZE: u64 = std::mem::size_of::<Params>() as u64;
+
+/// Records one slab's commands, with its inputs in leased buffers.
+struct Recorder<'a, 'p> {
+    dev: &'a GpuDevice,
+    leases: &'a mut Leases<'p>,
+    enc: wgpu::CommandEncoder,
+    slab_bytes: u64,
+}
+
+impl Recorder<'_, '_> {
+    /// A parameter block of its own (each dispatch reads the parameters written for it: writes
+    /// land before the submission, so two dispatches cannot share one buffer).
+    fn params(&mut self, p: &Params) -> wgpu::Buffer {
+        let u = self
+            .leases
+            .take(&self.dev.device, "params", PARAMS_USAGE, PARAMS_SIZE);
+        self.dev.queue.write_buffer(&u, 0, bytemuck::bytes_of(p));
+        u
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn dispatch_items(
-        &self,
-        dev: &GpuDevice,
-        enc: &mut wgpu::CommandEncoder,
+    /// Dispatches `pipeline` over `items` (`stride` words each), in batches the device binds.
+    fn items(
+        &mut self,
         pipeline: &wgpu::ComputePipeline,
         params: &Params,
-        tris: &wgpu::Buffer,
+        (tris, tri_bytes): (&wgpu::Buffer, u64),
         items: &[u32],
         stride: usize,
         target: &wgpu::Buffer,
     ) {
-        let binding = dev.limits.max_storage_buffer_binding_size as usize;
+        let binding = self.dev.limits.max_storage_buffer_binding_size as usize;
         let per_batch = (binding / (4 * stride)).min(1 << 26);
         for batch in items.chunks(per_batch * stride) {
             let count = (batch.len() / stride) as u32;
-            let buf = dev
-                .device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("items"),
-                    contents: bytemuck::cast_slice(batch),
-                    usage: wgpu::BufferUsages::STORAGE,
-                });
-            let p = Params {
+            let bytes: &[u8] = bytemuck::cast_slice(batch);
+            let buf = self
+                .leases
+                .take(&self.dev.device, "items", INPUT_USAGE, bytes.len() as u64);
+            self.dev.queue.write_buffer(&buf, 0, bytes);
+            let u = self.params(&Params {
                 item_count: count,
                 ..*params
-            };
-            let u = self.uniform(dev, &p);
+            });
             let bind = [
-                (0, u.as_entire_binding()),
-                (1, tris.as_entire_binding()),
-                (2, buf.as_entire_binding()),
-                (3, target.as_entire_binding()),
+                (0, bound(&u, PARAMS_SIZE)),
+                (1, bound(tris, tri_bytes)),
+                (2, bound(&buf, bytes.len() as u64)),
+                (3, bound(target, self.slab_bytes)),
             ];
-            dispatch(dev, enc, pipeline, &bind, count);
+            self.dispatch(pipeline, &bind, count);
         }
+    }
+
+    /// Records one dispatch of `invocations` 64-wide invocations (2D when over 65,535 groups).
+    fn dispatch(
+        &mut self,
+        pipeline: &wgpu::ComputePipeline,
+        bind: &[(u32, wgpu::BindingResource<'_>)],
+        invocations: u32,
+    ) {
+        if invocations == 0 {
+            return;
+        }
+        let entries: Vec<wgpu::BindGroupEntry> = bind
+            .iter()
+            .map(|(b, r)| wgpu::BindGroupEntry {
+                binding: *b,
+                resource: r.clone(),
+            })
+            .collect();
+        let group = self
+            .dev
+            .device
+            .create_bind_group(&wgpu::BindGroupDescriptor {
+                label: None,
+                layout: &pipeline.get_bind_group_layout(0),
+                entries: &entries,
+            });
+        let groups = invocations.div_ceil(64);
+        let mut pass = self.enc.begin_compute_pass(&Default::default());
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, &group, &[]);
+        pass.dispatch_workgroups(groups.min(65535), groups.div_ceil(65535), 1);
     }
 }
 
-/// Records one dispatch of `invocations` 64-wide invocations (2D when over 65,535 groups).
-fn dispatch(
-    dev: &GpuDevice,
-    enc: &mut wgpu::CommandEncoder,
-    pipeline: &wgpu::ComputePipeline,
-    bind: &[(u32, wgpu::BindingResource<'_>)],
-    invocations: u32,
-) {
-    if invocations == 0 {
-        return;
-    }
-    let entries: Vec<wgpu::BindGroupEntry> = bind
-        .iter()
-        .map(|(b, r)| wgpu::BindGroupEntry {
-            binding: *b,
-            resource: r.clone(),
+/// Runs one batch as the leader: one submission of every slab's commands, then the wait for
+/// the device, then each readback mapped. One result per slab, in order.
+fn run_batch(dev: &GpuDevice, batch: Vec<Submission>) -> Vec<Result<(), String>> {
+    let n = batch.len();
+    let mut readbacks = Vec::with_capacity(n);
+    let commands: Vec<wgpu::CommandBuffer> = batch
+        .into_iter()
+        .map(|s| {
+            readbacks.push((s.readback, s.bytes));
+            s.commands
         })
         .collect();
-    let group = dev.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: None,
-        layout: &pipeline.get_bind_group_layout(0),
-        entries: &entries,
-    });
-    let groups = invocations.div_ceil(64);
-    let mut pass = enc.begin_compute_pass(&Default::default());
-    pass.set_pipeline(pipeline);
-    pass.set_bind_group(0, &group, &[]);
-    pass.dispatch_workgroups(groups.min(65535), groups.div_ceil(65535), 1);
+    dev.queue.submit(commands);
+    let (tx, rx) = std::sync::mpsc::channel();
+    for (i, (buffer, bytes)) in readbacks.iter().enumerate() {
+        let tx = tx.clone();
+        buffer
+            .slice(..*bytes)
+            .map_async(wgpu::MapMode::Read, move |r| {
+                let _ = tx.send((i, r));
+            });
+    }
+    drop(tx);
+    if let Err(e) = dev.device.poll(wgpu::PollType::wait_indefinitely()) {
+        return vec![Err(format!("waiting for the GPU: {e}")); n];
+    }
+    let mut results = vec![Err("the readback was dropped".to_string()); n];
+    for (i, r) in rx.try_iter() {
+        results[i] = r.map_err(|e| format!("mapping the result: {e}"));
+    }
+    results
 }
 
 impl Engine for GpuEngine {
