@@ -4,7 +4,8 @@
 #
 #   bench/load/ab.sh OLD_BIN NEW_BIN [OUT_DIR]
 #
-# Both servers run at once on 127.0.0.1 (free ports, `--engine cpu --workers AB_WORKERS`, each
+# Both servers run at once on 127.0.0.1 (free ports, `--engine AB_ENGINE --workers AB_WORKERS`
+# (cpu and 2 unless set; AB_ENGINE=gpu runs both on the GPU engine, lavapipe where there is none), each
 # with its own scratch data dir on the same disk), warmed up, and idle while the other is
 # measured. Then AB_ROUNDS (6) rounds, each running k6's closed loop (closed.js, AB_VUS 16
 # users, `POST /v1/voxelize?resolution=64&wait=30`, AB_STEP_S 4 s) for the cube and for spot on
@@ -23,6 +24,7 @@ rounds=${AB_ROUNDS:-6}
 vus=${AB_VUS:-16}
 step_s=${AB_STEP_S:-4}
 workers=${AB_WORKERS:-2}
+engine=${AB_ENGINE:-cpu}
 venv=${LOAD_VENV:-${XDG_CACHE_HOME:-$HOME/.cache}/voxd/load-venv}
 k6=$venv/bin/k6
 py=python3
@@ -50,7 +52,7 @@ cube=$here/cube.obj
 spot=$root/tests/data/spot.obj
 bases=()
 for i in 0 1; do
-  "${bins[$i]}" serve --addr 127.0.0.1:0 --data-dir "$scratch/data$i" --engine cpu --workers "$workers" \
+  "${bins[$i]}" serve --addr 127.0.0.1:0 --data-dir "$scratch/data$i" --engine "$engine" --workers "$workers" \
     >"$out/server$i.out" 2>"$out/server$i.err" &
   pids+=($!)
   addr=
@@ -71,7 +73,7 @@ done
 {
   echo "A: ${bins[0]} ($(sha256sum "${bins[0]}" | cut -c1-12))"
   echo "B: ${bins[1]} ($(sha256sum "${bins[1]}" | cut -c1-12))"
-  echo "$(nproc) cores, $(uname -sr), data dirs on $(df -T "$scratch" | awk 'NR == 2 {print $2}'), --workers $workers, $vus users, ${step_s} s steps, $rounds rounds"
+  echo "$(nproc) cores, $(uname -sr), data dirs on $(df -T "$scratch" | awk 'NR == 2 {print $2}'), --engine $engine --workers $workers, $vus users, ${step_s} s steps, $rounds rounds"
   echo "start: $(uptime)"
 } | tee "$out/summary.txt"
 : >"$out/steps.tsv"
