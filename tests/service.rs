@@ -29,9 +29,13 @@ impl Server {
                 "127.0.0.1:0",
                 "--data-dir",
                 dir.to_str().unwrap(),
-                "--engine",
-                "cpu",
             ])
+            // The CPU engine unless `extra` names one.
+            .args(if extra.contains(&"--engine") {
+                &[][..]
+            } else {
+                &["--engine", "cpu"][..]
+            })
             .args(extra)
             .env("VOXD_LOG", "warn")
             .stdout(Stdio::piped())
@@ -645,6 +649,8 @@ fn health_metrics_and_the_openapi_document() {
     ] {
         assert!(m.contains(want), "{want} missing from\n{m}");
     }
+    // The GPU's counters only where it runs.
+    assert!(!m.contains("voxd_gpu_"), "{m}");
     let doc = srv.req("GET", "/openapi.yaml", &[], &[]);
     assert_eq!(doc.header("content-type"), Some("application/yaml"));
     assert_eq!(
@@ -1460,4 +1466,63 @@ fn a_job_past_its_deadline_fails_with_the_timeout_problem() {
     assert!(j["progress"].as_f64().unwrap() < 1.0, "{j}");
     let list = srv.req("GET", "/v1/volumes", &[], &[]).json();
     assert_eq!(list["volumes"].as_array().unwrap().len(), 0, "{list}");
+}
+
+/// A service on the GPU engine (lavapipe in CI) with 4 workers: jobs posted at once all
+/// succeed, and `/metrics` counts the slabs, the submissions they went in (never more than the
+/// slabs) and the buffers the pool served. Skips without an adapter unless VOXD_REQUIRE_GPU=1.
+#[test]
+fn gpu_jobs_at_once_succeed_and_their_submissions_are_counted() {
+    if let Err(e) = voxd::engine::gpu::GpuEngine::new(Default::default()) {
+        assert!(
+            std::env::var("VOXD_REQUIRE_GPU").is_err(),
+            "VOXD_REQUIRE_GPU is set but: {e}"
+        );
+        eprintln!("NOTICE: {e}; skipping the GPU service test");
+        return;
+    }
+    let srv = Server::start(
+        &tmpdir("gpu-service"),
+        &["--engine", "gpu", "--workers", "4"],
+    );
+    let spot = std::fs::read(data("spot.obj")).unwrap();
+    let jobs = 12;
+    std::thread::scope(|s| {
+        let posts: Vec<_> = (0..jobs)
+            .map(|_| {
+                s.spawn(|| {
+                    srv.req(
+                        "POST",
+                        "/v1/voxelize?resolution=24&wait=60",
+                        &[("Content-Type", "model/obj")],
+                        &spot,
+                    )
+                })
+            })
+            .collect();
+        for p in posts {
+            let r = p.join().unwrap();
+            assert_eq!(r.status, 201, "{}", String::from_utf8_lossy(&r.body));
+        }
+    });
+    let m = String::from_utf8(srv.req("GET", "/metrics", &[], &[]).body).unwrap();
+    let value = |name: &str| -> u64 {
+        m.lines()
+            .find_map(|l| l.strip_prefix(name)?.strip_prefix(' ')?.parse().ok())
+            .unwrap_or_else(|| panic!("{name} missing from\n{m}"))
+    };
+    // One slab per job at 24³ (and a few warm-up ones at start, if any).
+    let slabs = value("voxd_gpu_slabs_total");
+    assert!(slabs >= jobs, "{slabs}");
+    let submissions = value("voxd_gpu_submissions_total");
+    assert!(
+        (1..=slabs).contains(&submissions),
+        "{submissions} of {slabs}"
+    );
+    assert!(value("voxd_gpu_buffers_reused_total") > 0);
+    assert!(value("voxd_gpu_pool_idle_bytes") > 0);
+    assert!(m.contains(&format!(
+        "voxd_jobs{{state=\"succeeded\",method=\"solid\"}} {jobs}"
+    )));
+    assert!(m.contains("voxd_engine_info{engine=\"gpu ("), "{m}");
 }

@@ -87,6 +87,10 @@ pub trait Engine: Send + Sync {
         method: Method,
         ctl: &Control,
     ) -> Result<BitVolume, EngineError>;
+    /// The GPU engine's submissions and buffer reuse (for metrics); `None` for other engines.
+    fn gpu_stats(&self) -> Option<gpu::GpuStats> {
+        None
+    }
 }
 
 /// Which engine to use.

@@ -3,6 +3,7 @@
 use std::fmt::Write;
 use std::sync::Mutex;
 
+use crate::engine::gpu::GpuStats;
 use crate::queue::QueueStats;
 
 const BUCKETS: [f64; 9] = [0.01, 0.05, 0.1, 0.25, 0.5, 1.0, 5.0, 10.0, 60.0];
@@ -46,7 +47,9 @@ impl Metrics {
         }
     }
 
-    pub fn render(&self, q: &QueueStats) -> String {
+    /// The text of `/metrics`: the queue's counts `q`, this process's jobs, and the GPU
+    /// engine's submissions and buffers when it runs one (`gpu`).
+    pub fn render(&self, q: &QueueStats, gpu: Option<GpuStats>) -> String {
         let mut s = String::new();
         let _ = writeln!(
             s,
@@ -121,6 +124,50 @@ impl Metrics {
             "# HELP voxd_engine_info The engine this process runs.\n# TYPE voxd_engine_info gauge\nvoxd_engine_info{{engine=\"{}\"}} 1",
             self.engine
         );
+        if let Some(g) = gpu {
+            // Counted since the device was opened (again, after a loss: a counter reset).
+            let b = g.submissions;
+            for (name, kind, help, v) in [
+                (
+                    "voxd_gpu_submissions_total",
+                    "counter",
+                    "Submissions to the GPU (each a batch of slabs recorded by jobs running at once).",
+                    b.batches,
+                ),
+                (
+                    "voxd_gpu_slabs_total",
+                    "counter",
+                    "Slabs submitted to the GPU (one command buffer each).",
+                    b.items,
+                ),
+                (
+                    "voxd_gpu_submission_slabs_max",
+                    "gauge",
+                    "The most slabs one submission carried.",
+                    b.largest,
+                ),
+                (
+                    "voxd_gpu_buffers_created_total",
+                    "counter",
+                    "GPU buffers created because the pool had none idle of their size class.",
+                    g.buffers.created,
+                ),
+                (
+                    "voxd_gpu_buffers_reused_total",
+                    "counter",
+                    "GPU buffer leases served by an idle buffer from the pool.",
+                    g.buffers.reused,
+                ),
+                (
+                    "voxd_gpu_pool_idle_bytes",
+                    "gauge",
+                    "Bytes of idle GPU buffers the pool keeps for the next jobs.",
+                    g.buffers.idle_bytes,
+                ),
+            ] {
+                let _ = writeln!(s, "# HELP {name} {help}\n# TYPE {name} {kind}\n{name} {v}");
+            }
+        }
         s
     }
 }

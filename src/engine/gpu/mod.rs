@@ -522,4 +522,7 @@ impl Engine for GpuEngine {
     ) -> Result<BitVolume, EngineError> {
         self.voxelize_timed_with(mesh, method, ctl).map(|(v, _)| v)
     }
+    fn gpu_stats(&self) -> Option<GpuStats> {
+        Some(self.stats())
+    }
 }

@@ -51,7 +51,7 @@ pub async fn readyz(axum::extract::State(app): AppState) -> Result<Response, Pro
 
 pub async fn metrics(axum::extract::State(app): AppState) -> Response {
     let q = app.queue.stats().await;
-    let mut text = app.metrics.render(&q);
+    let mut text = app.metrics.render(&q, app.engine.gpu_stats());
     if let Some(keys) = &app.keys {
         keys.render_metrics(&mut text);
     }
