@@ -53,8 +53,9 @@ async fn build(engine: Arc<dyn Engine>, claim: &Claim) -> Result<metadata::Built
             &engine.describe(),
         )
     };
-    // The GPU engine waits on its device (under its lock): not on the CPU pool, where a job
-    // taken up by a pool thread waiting inside another could wait for that lock forever.
+    // The GPU engine waits for its device (for the batch its slab went in, or to lead the
+    // next): not on the CPU pool, where a job taken up by a pool thread waiting inside another
+    // could wait for a batch that thread was to lead.
     let built = if gpu {
         tokio::task::spawn_blocking(job)
             .await
