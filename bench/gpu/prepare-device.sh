@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# Prepares a run of bench/gpu/device.sh on a lent GPU machine (the device tool; issue 14 item
+# 6): builds voxd and examples/gpu_small_jobs here (release), strips them into .device/ with
+# the meshes the script times (from ../shared/meshes, which does not travel), and downloads the
+# Vulkan loader's Debian packages into .gl/ (the device machine may lack them). Both folders are
+# added to .git/info/exclude. Then, in one device call:
+#
+#   run(command: "bash bench/gpu/device.sh", carry: [".device", ".gl"], timeout_s: 540)
+#
+# The files come back under $OUT: one markdown report and the raw outputs.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/../.." && pwd)
+cd "$root"
+meshes=${MESHES:-$root/../shared/meshes}
+cargo build --release --locked --bin voxd --example gpu_small_jobs
+rm -rf .device && mkdir -p .device/meshes
+strip -o .device/voxd target/release/voxd
+strip -o .device/gpu_small_jobs target/release/examples/gpu_small_jobs
+cp tests/data/spot.obj bench/load/cube.obj .device/meshes/
+for m in stanford-bunny.obj igea-subdiv4.obj.gz teapot.obj; do
+  if [[ -f $meshes/$m ]]; then cp "$meshes/$m" .device/meshes/; else echo "NOTICE: no $meshes/$m; device.sh skips it" >&2; fi
+done
+for d in /.device/ /.gl/; do grep -qxF "$d" .git/info/exclude 2>/dev/null || echo "$d" >>.git/info/exclude; done
+if [[ ! -d .gl ]] || ! compgen -G ".gl/*.deb" >/dev/null; then
+  mkdir -p .gl /tmp/amd64/partial
+  o='-oAPT::Architecture=amd64 -oAPT::Architectures=amd64 -oDir::State::Lists=/tmp/amd64'
+  # shellcheck disable=SC2086
+  apt-get $o update -qq >/dev/null
+  # shellcheck disable=SC2086
+  (cd .gl && apt-get $o download libvulkan1 >/dev/null)
+fi
+du -sh .device .gl
