@@ -1,4 +1,5 @@
-//! Opening the one device: adapter choice, limits, pipelines (compiled once), loss detection.
+//! Opening the one device: adapter choice, limits, pipelines (compiled once), loss detection,
+//! and the device's buffer pool and submission batcher.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
