@@ -11,7 +11,9 @@ use voxd::engine::{Engine, GridMesh, Method};
 use voxd::grid::{Grid, GridSpec};
 use voxd::mesh::{self, Mesh};
 
-fn gpu() -> Option<&'static GpuEngine> {
+/// The shared GPU engine, or `None` (with a notice) where there is no adapter; with
+/// VOXD_REQUIRE_GPU=1 no adapter is a failure.
+pub(crate) fn gpu() -> Option<&'static GpuEngine> {
     static ENGINE: OnceLock<Option<GpuEngine>> = OnceLock::new();
     ENGINE
         .get_or_init(|| {

@@ -1473,12 +1473,7 @@ fn a_job_past_its_deadline_fails_with_the_timeout_problem() {
 /// slabs) and the buffers the pool served. Skips without an adapter unless VOXD_REQUIRE_GPU=1.
 #[test]
 fn gpu_jobs_at_once_succeed_and_their_submissions_are_counted() {
-    if let Err(e) = voxd::engine::gpu::GpuEngine::new(Default::default()) {
-        assert!(
-            std::env::var("VOXD_REQUIRE_GPU").is_err(),
-            "VOXD_REQUIRE_GPU is set but: {e}"
-        );
-        eprintln!("NOTICE: {e}; skipping the GPU service test");
+    if crate::gpu::gpu().is_none() {
         return;
     }
     let srv = Server::start(

@@ -23,6 +23,7 @@ struct State<T, R> {
     next: u64,
     /// Results by ticket; `None` for the items of a batch whose leader panicked.
     done: HashMap<u64, Option<R>>,
+    stats: BatchStats,
 }
 
 pub(super) struct Batcher<T, R> {
@@ -49,6 +50,7 @@ impl<T, R> Batcher<T, R> {
                 leading: false,
                 next: 0,
                 done: HashMap::new(),
+                stats: BatchStats::default(),
             }),
             finished: Condvar::new(),
         }
@@ -58,15 +60,15 @@ impl<T, R> Batcher<T, R> {
         self.state.lock().unwrap_or_else(|e| e.into_inner())
     }
 
+    /// The batches run so far.
+    pub fn stats(&self) -> BatchStats {
+        self.lock().stats
+    }
+
     /// Runs `item` in a batch with whatever else is waiting, and returns its result: `lead`
     /// gets the batch's items in the order they came and must return one result per item, in
     /// the same order. `None` when the batch's leader panicked (its items were not all run).
-    pub fn run(
-        &self,
-        item: T,
-        stats: &Mutex<BatchStats>,
-        lead: impl FnOnce(Vec<T>) -> Vec<R>,
-    ) -> Option<R> {
+    pub fn run(&self, item: T, lead: impl FnOnce(Vec<T>) -> Vec<R>) -> Option<R> {
         let mut state = self.lock();
         let ticket = state.next;
         state.next += 1;
@@ -85,13 +87,11 @@ impl<T, R> Batcher<T, R> {
         state.leading = true;
         let (tickets, items): (Vec<u64>, Vec<T>) =
             std::mem::take(&mut state.waiting).into_iter().unzip();
+        let s = &mut state.stats;
+        s.batches += 1;
+        s.items += items.len() as u64;
+        s.largest = s.largest.max(items.len() as u64);
         drop(state);
-        {
-            let mut s = stats.lock().unwrap_or_else(|e| e.into_inner());
-            s.batches += 1;
-            s.items += items.len() as u64;
-            s.largest = s.largest.max(items.len() as u64);
-        }
         // If `lead` panics, the guard ends the batch: its items get `None`, and another thread
         // may lead the next one.
         let mut guard = EndBatch {
@@ -156,7 +156,6 @@ mod tests {
     /// other batches give each item times ten, or panic when `panic_at` items come together.
     struct Rig {
         batcher: Arc<Batcher<u32, u32>>,
-        stats: Arc<Mutex<BatchStats>>,
         batches: Arc<Mutex<Vec<Vec<u32>>>>,
         entered: mpsc::Sender<()>,
         hold: Arc<Mutex<mpsc::Receiver<()>>>,
@@ -170,7 +169,6 @@ mod tests {
             let (release, hold) = mpsc::channel();
             let rig = Rig {
                 batcher: Arc::new(Batcher::new()),
-                stats: Arc::new(Mutex::new(BatchStats::default())),
                 batches: Arc::default(),
                 entered,
                 hold: Arc::new(Mutex::new(hold)),
@@ -180,15 +178,11 @@ mod tests {
         }
 
         fn call(&self, item: u32) -> JoinHandle<Option<u32>> {
-            let (batcher, stats, batches) = (
-                self.batcher.clone(),
-                self.stats.clone(),
-                self.batches.clone(),
-            );
+            let (batcher, batches) = (self.batcher.clone(), self.batches.clone());
             let (entered, hold, panic_at) =
                 (self.entered.clone(), self.hold.clone(), self.panic_at);
             std::thread::spawn(move || {
-                batcher.run(item, &stats, |items| {
+                batcher.run(item, |items| {
                     batches.lock().unwrap().push(items.clone());
                     if items == [0] {
                         entered.send(()).unwrap();
@@ -231,7 +225,7 @@ mod tests {
         seen[1].sort();
         assert_eq!(seen, [vec![0], vec![1, 2, 3, 4, 5]]);
         assert_eq!(
-            *rig.stats.lock().unwrap(),
+            rig.batcher.stats(),
             BatchStats {
                 batches: 2,
                 items: 6,

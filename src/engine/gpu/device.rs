@@ -1,12 +1,12 @@
 //! Opening the one device: adapter choice, limits, pipelines (compiled once), loss detection,
 //! and the device's buffer pool and submission batcher.
 
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
 
 use serde::Serialize;
 
-use super::batch::{BatchStats, Batcher};
+use super::batch::Batcher;
 use super::pool::{BufferPool, POOL_BYTES};
 use crate::engine::EngineError;
 
@@ -42,7 +42,6 @@ pub(super) struct GpuDevice {
     pub pool: BufferPool,
     /// The jobs' slabs on their way to the queue, submitted together.
     pub batcher: Batcher<super::Submission, Result<(), String>>,
-    pub batch_stats: Mutex<BatchStats>,
     lost: Arc<AtomicBool>,
 }
 
@@ -154,7 +153,6 @@ impl GpuDevice {
                 limits.max_buffer_size,
             ),
             batcher: Batcher::new(),
-            batch_stats: Mutex::default(),
             device,
             queue,
             limits,

@@ -152,23 +152,23 @@ impl GpuEngine {
         Ok(guard.clone())
     }
 
-    pub fn adapter(&self) -> AdapterSummary {
+    /// The device open now (lost or not).
+    fn current(&self) -> Arc<GpuDevice> {
         self.device
             .lock()
             .unwrap_or_else(|e| e.into_inner())
-            .summary
             .clone()
+    }
+
+    pub fn adapter(&self) -> AdapterSummary {
+        self.current().summary.clone()
     }
 
     /// Submissions and buffer reuse on the open device.
     pub fn stats(&self) -> GpuStats {
-        let dev = self
-            .device
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .clone();
+        let dev = self.current();
         GpuStats {
-            submissions: *dev.batch_stats.lock().unwrap_or_else(|e| e.into_inner()),
+            submissions: dev.batcher.stats(),
             buffers: dev.pool.stats(),
         }
     }
@@ -193,30 +193,18 @@ impl GpuEngine {
     ) -> Result<(BitVolume, GpuTimings), EngineError> {
         ctl.check()?;
         let dev = self.device()?;
-        // Error scopes are per thread: these see this job's buffers and commands (and, when
-        // this thread leads a batch, that batch's submission).
-        let scope = dev.device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let oom = dev.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         let mut leases = Leases::new(&dev.pool);
-        let result = self.run(&dev, &mut leases, mesh, method, ctl);
-        let oom_err = pollster::block_on(oom.pop());
-        let val_err = pollster::block_on(scope.pop());
-        if let Some(e) = oom_err.or(val_err) {
-            return Err(EngineError::Gpu(format!(
-                "the GPU reported: {}",
-                device::describe(&e)
-            )));
-        }
+        // This job's buffers (and, when this thread leads a batch, that batch's submission);
+        // each slab's recording has a scope of its own (`run`).
+        let result = scoped(&dev, || self.run(&dev, &mut leases, mesh, method, ctl))?;
         if dev.is_lost() {
             return Err(EngineError::Gpu(
                 "the GPU device was lost during the job; it will be reopened for the next one"
                     .into(),
             ));
         }
-        if result.is_ok() {
-            leases.recycle();
-        }
-        result
+        leases.recycle();
+        Ok(result)
     }
 
     fn run(
@@ -263,10 +251,9 @@ impl GpuEngine {
                 } else {
                     bytemuck::cast_slice(c)
                 };
-                let size = contents.len() as u64;
-                let buf = leases.take(&dev.device, "triangles", INPUT_USAGE, size);
-                dev.queue.write_buffer(&buf, 0, contents);
-                (i * tris_per_chunk, buf, size)
+                let buf =
+                    leases.filled(&dev.device, &dev.queue, "triangles", INPUT_USAGE, contents);
+                (i * tris_per_chunk, buf, contents.len() as u64)
             })
             .collect();
         timings.upload += t0.elapsed();
@@ -294,64 +281,68 @@ impl GpuEngine {
             let t_up = Instant::now();
             // This slab's work items and parameters: back to the pool once it has run.
             let mut inputs = Leases::new(&dev.pool);
-            let mut rec = Recorder {
-                dev,
-                leases: &mut inputs,
-                enc: dev.device.create_command_encoder(&Default::default()),
-                slab_bytes,
-            };
-            rec.enc.clear_buffer(&slab_a, 0, Some(slab_bytes));
-            if let Some(b) = &slab_b {
-                rec.enc.clear_buffer(b, 0, Some(slab_bytes));
-            }
-            let xr = x0..x0 + rows;
-            for (base, tris, tri_bytes) in &chunks {
-                let n = tris_per_chunk.min(mesh.triangles.len() - base);
-                let part = &mesh.triangles[*base..*base + n];
-                let tris = (tris, *tri_bytes);
-                if need_solid {
-                    let masks = self.options.solid_strategy == SolidStrategy::Masks;
-                    // With masks a crossing touches up to every word of its column: fewer columns
-                    // per item keep the invocation under the loop cap.
-                    let side = if masks {
-                        (work::MAX_TILE * 16 / wpc32 as u32).clamp(1, 1024).isqrt()
-                    } else {
-                        32
-                    };
-                    let items = work::solid_items(part, xr.clone(), grid.dims, side);
-                    let pipeline = if masks { &dev.solid_masks } else { &dev.solid };
-                    rec.items(pipeline, &params, tris, &items, 4, &slab_a);
-                }
-                if need_surface {
-                    let items = work::surface_items(part, xr.clone(), grid.dims);
-                    let target = slab_b.as_ref().unwrap_or(&slab_a);
-                    rec.items(&dev.surface, &params, tris, &items, 5, target);
-                }
-            }
-            if need_solid && self.options.solid_strategy == SolidStrategy::ToggleScan {
-                let cols = rows * ny;
-                let u = rec.params(&params);
-                let bind = [(0, bound(&u, PARAMS_SIZE)), (1, bound(&slab_a, slab_bytes))];
-                rec.dispatch(&dev.prefix_xor, &bind, cols);
-            }
-            if let Some(b) = &slab_b {
-                let pipeline = if method == Method::Interior {
-                    &dev.subtract
-                } else {
-                    &dev.union
-                };
-                let u = rec.params(&params);
-                let bind = [
-                    (0, bound(&u, PARAMS_SIZE)),
-                    (1, bound(&slab_a, slab_bytes)),
-                    (2, bound(b, slab_bytes)),
-                ];
-                rec.dispatch(pipeline, &bind, (rows as u64 * row_bytes / 4) as u32);
-            }
             let bytes = rows as u64 * row_bytes;
-            rec.enc
-                .copy_buffer_to_buffer(&slab_a, 0, &staging, 0, Some(bytes));
-            let commands = rec.enc.finish();
+            // Its own error scope: a slab whose recording the GPU refused (a buffer it could
+            // not create, say) fails here, and its inputs are freed, not given back to the pool.
+            let commands = scoped(dev, || {
+                let mut rec = Recorder {
+                    dev,
+                    leases: &mut inputs,
+                    enc: dev.device.create_command_encoder(&Default::default()),
+                    slab_bytes,
+                };
+                rec.enc.clear_buffer(&slab_a, 0, Some(slab_bytes));
+                if let Some(b) = &slab_b {
+                    rec.enc.clear_buffer(b, 0, Some(slab_bytes));
+                }
+                let xr = x0..x0 + rows;
+                for (base, tris, tri_bytes) in &chunks {
+                    let n = tris_per_chunk.min(mesh.triangles.len() - base);
+                    let part = &mesh.triangles[*base..*base + n];
+                    let tris = (tris, *tri_bytes);
+                    if need_solid {
+                        let masks = self.options.solid_strategy == SolidStrategy::Masks;
+                        // With masks a crossing touches up to every word of its column: fewer
+                        // columns per item keep the invocation under the loop cap.
+                        let side = if masks {
+                            (work::MAX_TILE * 16 / wpc32 as u32).clamp(1, 1024).isqrt()
+                        } else {
+                            32
+                        };
+                        let items = work::solid_items(part, xr.clone(), grid.dims, side);
+                        let pipeline = if masks { &dev.solid_masks } else { &dev.solid };
+                        rec.items(pipeline, &params, tris, &items, 4, &slab_a);
+                    }
+                    if need_surface {
+                        let items = work::surface_items(part, xr.clone(), grid.dims);
+                        let target = slab_b.as_ref().unwrap_or(&slab_a);
+                        rec.items(&dev.surface, &params, tris, &items, 5, target);
+                    }
+                }
+                if need_solid && self.options.solid_strategy == SolidStrategy::ToggleScan {
+                    let cols = rows * ny;
+                    let u = rec.params(&params);
+                    let bind = [(0, bound(&u, PARAMS_SIZE)), (1, bound(&slab_a, slab_bytes))];
+                    rec.dispatch(&dev.prefix_xor, &bind, cols);
+                }
+                if let Some(b) = &slab_b {
+                    let pipeline = if method == Method::Interior {
+                        &dev.subtract
+                    } else {
+                        &dev.union
+                    };
+                    let u = rec.params(&params);
+                    let bind = [
+                        (0, bound(&u, PARAMS_SIZE)),
+                        (1, bound(&slab_a, slab_bytes)),
+                        (2, bound(b, slab_bytes)),
+                    ];
+                    rec.dispatch(pipeline, &bind, (rows as u64 * row_bytes / 4) as u32);
+                }
+                rec.enc
+                    .copy_buffer_to_buffer(&slab_a, 0, &staging, 0, Some(bytes));
+                Ok(rec.enc.finish())
+            })?;
             timings.upload += t_up.elapsed();
 
             let t_run = Instant::now();
@@ -361,7 +352,7 @@ impl GpuEngine {
                 bytes,
             };
             dev.batcher
-                .run(submission, &dev.batch_stats, |batch| run_batch(dev, batch))
+                .run(submission, |batch| run_batch(dev, batch))
                 .unwrap_or_else(|| Err("the submission this slab was in failed".into()))
                 .map_err(EngineError::Gpu)?;
             timings.dispatch += t_run.elapsed();
@@ -401,11 +392,14 @@ impl Recorder<'_, '_> {
     /// A parameter block of its own (each dispatch reads the parameters written for it: writes
     /// land before the submission, so two dispatches cannot share one buffer).
     fn params(&mut self, p: &Params) -> wgpu::Buffer {
-        let u = self
-            .leases
-            .take(&self.dev.device, "params", PARAMS_USAGE, PARAMS_SIZE);
-        self.dev.queue.write_buffer(&u, 0, bytemuck::bytes_of(p));
-        u
+        let dev = self.dev;
+        self.leases.filled(
+            &dev.device,
+            &dev.queue,
+            "params",
+            PARAMS_USAGE,
+            bytemuck::bytes_of(p),
+        )
     }
 
     /// Dispatches `pipeline` over `items` (`stride` words each), in batches the device binds.
@@ -423,10 +417,10 @@ impl Recorder<'_, '_> {
         for batch in items.chunks(per_batch * stride) {
             let count = (batch.len() / stride) as u32;
             let bytes: &[u8] = bytemuck::cast_slice(batch);
+            let dev = self.dev;
             let buf = self
                 .leases
-                .take(&self.dev.device, "items", INPUT_USAGE, bytes.len() as u64);
-            self.dev.queue.write_buffer(&buf, 0, bytes);
+                .filled(&dev.device, &dev.queue, "items", INPUT_USAGE, bytes);
             let u = self.params(&Params {
                 item_count: count,
                 ..*params
@@ -471,6 +465,26 @@ impl Recorder<'_, '_> {
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &group, &[]);
         pass.dispatch_workgroups(groups.min(65535), groups.div_ceil(65535), 1);
+    }
+}
+
+/// `f` under validation and out-of-memory error scopes of this thread (scopes are per thread):
+/// an error the GPU reported meanwhile is the result.
+fn scoped<T>(
+    dev: &GpuDevice,
+    f: impl FnOnce() -> Result<T, EngineError>,
+) -> Result<T, EngineError> {
+    let validation = dev.device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let oom = dev.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+    let result = f();
+    let oom_err = pollster::block_on(oom.pop());
+    let val_err = pollster::block_on(validation.pop());
+    match oom_err.or(val_err) {
+        Some(e) => Err(EngineError::Gpu(format!(
+            "the GPU reported: {}",
+            device::describe(&e)
+        ))),
+        None => result,
     }
 }
 

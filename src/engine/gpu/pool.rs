@@ -106,6 +106,21 @@ impl<'p> Leases<'p> {
         buffer
     }
 
+    /// [`Leases::take`] for exactly `contents`, written into it (the write lands before the next
+    /// submission).
+    pub fn filled(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        label: &str,
+        usage: wgpu::BufferUsages,
+        contents: &[u8],
+    ) -> wgpu::Buffer {
+        let buffer = self.take(device, label, usage, contents.len() as u64);
+        queue.write_buffer(&buffer, 0, contents);
+        buffer
+    }
+
     /// Gives the buffers back to the pool, as far as its budget allows.
     pub fn recycle(mut self) {
         let mut idle = self.pool.idle.lock().unwrap_or_else(|e| e.into_inner());
