@@ -16,10 +16,10 @@ use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 /// `pub fn NAME(args) -> R` that runs `BODY` (a function's path, generic arguments and all) compiled for AVX-512 (as `AVX512`), for AVX2 (as
 /// `AVX2`) or for the baseline target, the widest the processor has.
 macro_rules! dispatch {
-    ($(#[$m:meta])* pub fn $name:ident($($arg:ident: $ty:ty),* $(,)?) -> $ret:ty
+    ($(#[$m:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) -> $ret:ty
         = $body:path, $avx512:ident, $avx2:ident;) => {
         $(#[$m])*
-        pub fn $name($($arg: $ty),*) -> $ret {
+        $vis fn $name($($arg: $ty),*) -> $ret {
             #[cfg(target_arch = "x86_64")]
             {
                 if std::arch::is_x86_feature_detected!("avx512f") {
@@ -36,17 +36,23 @@ macro_rules! dispatch {
 
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = "avx512f")]
+        $(#[$m])*
         fn $avx512($($arg: $ty),*) -> $ret {
             $body($($arg),*)
         }
 
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = "avx2")]
+        $(#[$m])*
         fn $avx2($($arg: $ty),*) -> $ret {
             $body($($arg),*)
         }
     };
 }
+
+/// For the winding fill's traversals, which run these kernels inlined: the bookkeeping between
+/// them is compiled for the same wide registers.
+pub(super) use dispatch;
 
 /// Lanes per call.
 pub const LANES: usize = 8;
@@ -207,36 +213,7 @@ fn form(c: &[f64; 6], rr: &[f64; 6]) -> f64 {
     c[0] * rr[0] + c[1] * rr[1] + c[2] * rr[2] + c[3] * rr[3] + c[4] * rr[4] + c[5] * rr[5]
 }
 
-dispatch! {
-    /// One node (centre, radius, area) seen from eight points q, for `spread` over the balls of
-    /// radius `rq` about them: d² = |centre − q|², the node's expansion at q (as [`far_one`]),
-    /// g = d − radius − rq, magnitude = area/g² and extra = the variation 2 rq · magnitude/g.
-    pub fn node_spread(
-        f: &Far,
-        centre: [f64; 3],
-        radius: f64,
-        area: f64,
-        rq: f64,
-        q: &[[f64; LANES]; 3],
-    ) -> NodeLanes
-        = node_body::<true>, node_spread_avx512, node_spread_avx2;
-}
-
-dispatch! {
-    /// [`node_spread`] for `taylor`: magnitude = area/g² and extra = area/g⁴, by 1/g² as
-    /// `taylor` takes them.
-    pub fn node_taylor(
-        f: &Far,
-        centre: [f64; 3],
-        radius: f64,
-        area: f64,
-        rq: f64,
-        q: &[[f64; LANES]; 3],
-    ) -> NodeLanes
-        = node_body::<false>, node_taylor_avx512, node_taylor_avx2;
-}
-
-/// See [`node_spread`].
+/// See [`node_body`].
 #[derive(Clone, Copy, Debug)]
 pub struct NodeLanes {
     pub d2: [f64; LANES],
@@ -246,8 +223,13 @@ pub struct NodeLanes {
     pub extra: [f64; LANES],
 }
 
+/// One node (centre, radius, area) seen from eight points q, over the balls of radius `rq`
+/// about them: d² = |centre − q|², the node's expansion at q (as [`far_one`]),
+/// g = d − radius − rq, magnitude = area/g², and extra: for `spread` (`SPREAD`) the variation
+/// 2 rq · magnitude/g, for `taylor` area/g⁴ (by 1/g² as `taylor` takes them). Inlined into the
+/// winding fill's traversals, which are compiled per instruction set (`dispatch!`).
 #[inline(always)]
-fn node_body<const SPREAD: bool>(
+pub(super) fn node_body<const SPREAD: bool>(
     f: &Far,
     centre: [f64; 3],
     radius: f64,
@@ -288,42 +270,19 @@ fn node_body<const SPREAD: bool>(
     out
 }
 
-dispatch! {
-    /// One cluster of the boundary chain seen from eight points q: the distances from q to its
-    /// centre m, and the first-order expansion of its Biot–Savart field at each
-    /// (`net × K + anti/d³ − 3 (M r) × r/d⁵`, r = m − q, K = r/d³; see `winding::EdgeTree::field`).
-    pub fn edge_node(
-        centre: [f64; 3],
-        net: [f64; 3],
-        moment: &[[f64; 3]; 3],
-        anti: [f64; 3],
-        q: &[[f64; LANES]; 3],
-    ) -> EdgeLanes
-        = edge_node_body, edge_node_avx512, edge_node_avx2;
-}
-
-/// See [`edge_node`].
+/// See [`edge_node_body`].
 #[derive(Clone, Copy, Debug)]
 pub struct EdgeLanes {
     pub d: [f64; LANES],
     pub field: [[f64; LANES]; 3],
 }
 
-dispatch! {
-    /// The segments `segs` of a leaf of the boundary chain's hierarchy, seen from eight points q:
-    /// `acc` plus their Biot–Savart fields ∫ dl × (x − q)/|x − q|³ (as `winding::segment_field`,
-    /// added one by one in order), and whether q lies on one of them (where the field is
-    /// infinite; NaN counts as on), lane by lane.
-    pub fn edge_leaf(
-        segs: &[[[f64; 3]; 2]],
-        q: &[[f64; LANES]; 3],
-        acc: [[f64; LANES]; 3],
-    ) -> ([[f64; LANES]; 3], [bool; LANES])
-        = edge_leaf_body, edge_leaf_avx512, edge_leaf_avx2;
-}
-
+/// The segments `segs` of a leaf of the boundary chain's hierarchy, seen from eight points q:
+/// `acc` plus their Biot–Savart fields ∫ dl × (x − q)/|x − q|³ (as `winding::segment_field`,
+/// added one by one in order), and whether q lies on one of them (where the field is
+/// infinite; NaN counts as on), lane by lane.
 #[inline(always)]
-fn edge_leaf_body(
+pub(super) fn edge_leaf_body(
     segs: &[[[f64; 3]; 2]],
     q: &[[f64; LANES]; 3],
     mut acc: [[f64; LANES]; 3],
@@ -347,8 +306,11 @@ fn edge_leaf_body(
     (acc, on)
 }
 
+/// One cluster of the boundary chain seen from eight points q: the distances from q to its
+/// centre m, and the first-order expansion of its Biot–Savart field at each
+/// (`net × K + anti/d³ − 3 (M r) × r/d⁵`, r = m − q, K = r/d³; see `winding::EdgeTree::field`).
 #[inline(always)]
-fn edge_node_body(
+pub(super) fn edge_node_body(
     centre: [f64; 3],
     net: [f64; 3],
     moment: &[[f64; 3]; 3],
@@ -392,7 +354,7 @@ fn leaf_body(l: &Leaf, q: [f64; 3]) -> ([f64; LANES], [f64; LANES]) {
 }
 
 #[inline(always)]
-fn leaf_spread_body(l: &Leaf, q: [f64; 3], rq: f64) -> LeafSpread {
+pub(super) fn leaf_spread_body(l: &Leaf, q: [f64; 3], rq: f64) -> LeafSpread {
     let mut out = LeafSpread {
         angle: [0.0; LANES],
         g: [0.0; LANES],
@@ -413,7 +375,7 @@ fn leaf_spread_body(l: &Leaf, q: [f64; 3], rq: f64) -> LeafSpread {
 }
 
 #[inline(always)]
-fn leaf_taylor_body(l: &Leaf, q: [f64; 3], rq: f64) -> LeafTaylor {
+pub(super) fn leaf_taylor_body(l: &Leaf, q: [f64; 3], rq: f64) -> LeafTaylor {
     let mut out = LeafTaylor {
         angle: [0.0; LANES],
         dist: [0.0; LANES],
@@ -742,8 +704,8 @@ mod tests {
             let (radius, area, rq) = (rng.next() * 0.5, rng.next(), rng.next() * 0.2);
             let qs = [0, 1, 2].map(|_| std::array::from_fn(|_| rng.next() * 6.0 - 3.0));
             let (sp, ta) = (
-                node_spread(&far, centre, radius, area, rq, &qs),
-                node_taylor(&far, centre, radius, area, rq, &qs),
+                node_body::<true>(&far, centre, radius, area, rq, &qs),
+                node_body::<false>(&far, centre, radius, area, rq, &qs),
             );
             for i in 0..LANES {
                 let r = [0, 1, 2].map(|a| centre[a] - qs[a][i]);
@@ -814,6 +776,56 @@ mod tests {
             }
         }
         assert!(saw_close, "no query came close to a plane");
+    }
+
+    // The node and cluster kernels run inlined into the winding fill's traversals; compiled
+    // here on their own, per instruction set, for the comparison below.
+    dispatch! {
+        #[allow(dead_code)]
+        fn node_spread(
+            f: &Far,
+            centre: [f64; 3],
+            radius: f64,
+            area: f64,
+            rq: f64,
+            q: &[[f64; LANES]; 3],
+        ) -> NodeLanes
+            = node_body::<true>, node_spread_avx512, node_spread_avx2;
+    }
+
+    dispatch! {
+        #[allow(dead_code)]
+        fn node_taylor(
+            f: &Far,
+            centre: [f64; 3],
+            radius: f64,
+            area: f64,
+            rq: f64,
+            q: &[[f64; LANES]; 3],
+        ) -> NodeLanes
+            = node_body::<false>, node_taylor_avx512, node_taylor_avx2;
+    }
+
+    dispatch! {
+        #[allow(dead_code)]
+        fn edge_node(
+            centre: [f64; 3],
+            net: [f64; 3],
+            moment: &[[f64; 3]; 3],
+            anti: [f64; 3],
+            q: &[[f64; LANES]; 3],
+        ) -> EdgeLanes
+            = edge_node_body, edge_node_avx512, edge_node_avx2;
+    }
+
+    dispatch! {
+        #[allow(dead_code)]
+        fn edge_leaf(
+            segs: &[[[f64; 3]; 2]],
+            q: &[[f64; LANES]; 3],
+            acc: [[f64; LANES]; 3],
+        ) -> ([[f64; LANES]; 3], [bool; LANES])
+            = edge_leaf_body, edge_leaf_avx512, edge_leaf_avx2;
     }
 
     #[test]
