@@ -224,7 +224,8 @@ pub struct NodeLanes {
 }
 
 /// One node (centre, radius, area) seen from eight points q, over the balls of radius `rq`
-/// about them: d² = |centre − q|², the node's expansion at q (as [`far_one`]),
+/// about them: d² = |centre − q|², the node's expansion at q (as [`far_one`]; 0 unless
+/// d² > `reach2` for some point),
 /// g = d − radius − rq, magnitude = area/g², and extra: for `spread` (`SPREAD`) the variation
 /// 2 rq · magnitude/g, for `taylor` area/g⁴ (by 1/g² as `taylor` takes them). Inlined into the
 /// winding fill's traversals, which are compiled per instruction set (`dispatch!`).
@@ -235,6 +236,7 @@ pub(super) fn node_body<const SPREAD: bool>(
     radius: f64,
     area: f64,
     rq: f64,
+    reach2: f64,
     q: &[[f64; LANES]; 3],
 ) -> NodeLanes {
     let mut out = NodeLanes {
@@ -244,15 +246,25 @@ pub(super) fn node_body<const SPREAD: bool>(
         magnitude: [0.0; LANES],
         extra: [0.0; LANES],
     };
-    for i in 0..LANES {
-        let r = [
+    let r = |i: usize| {
+        [
             centre[0] - q[0][i],
             centre[1] - q[1][i],
             centre[2] - q[2][i],
-        ];
-        let d2 = dot(r, r);
-        out.d2[i] = d2;
-        out.far[i] = far_one(f, r, d2);
+        ]
+    };
+    for i in 0..LANES {
+        out.d2[i] = dot(r(i), r(i));
+    }
+    // The expansion only where some point is beyond reach (the only lanes that read it); a node
+    // that every point opens (about half of those visited) skips it.
+    if out.d2.iter().any(|&d2| d2 > reach2) {
+        for i in 0..LANES {
+            out.far[i] = far_one(f, r(i), out.d2[i]);
+        }
+    }
+    for i in 0..LANES {
+        let d2 = out.d2[i];
         let g = d2.sqrt() - radius - rq;
         out.g[i] = g;
         if SPREAD {
@@ -703,22 +715,30 @@ mod tests {
             let centre = rng.point(1.0);
             let (radius, area, rq) = (rng.next() * 0.5, rng.next(), rng.next() * 0.2);
             let qs = [0, 1, 2].map(|_| std::array::from_fn(|_| rng.next() * 6.0 - 3.0));
+            // The expansion is computed where some point lies beyond `reach2` (and 0 elsewhere):
+            // from some cases' points, from all, from none.
+            let reach2 = [0.0, 4.0, 9.0, 1e9][case % 4];
             let (sp, ta) = (
-                node_body::<true>(&far, centre, radius, area, rq, &qs),
-                node_body::<false>(&far, centre, radius, area, rq, &qs),
+                node_body::<true>(&far, centre, radius, area, rq, reach2, &qs),
+                node_body::<false>(&far, centre, radius, area, rq, reach2, &qs),
             );
+            let any = (0..LANES).any(|i| {
+                let r = [0, 1, 2].map(|a| centre[a] - qs[a][i]);
+                dot(r, r) > reach2
+            });
             for i in 0..LANES {
                 let r = [0, 1, 2].map(|a| centre[a] - qs[a][i]);
                 let d2 = dot(r, r);
                 let g = d2.sqrt() - radius - rq;
+                let expansion = if any { far_one(&far, r, d2) } else { 0.0 };
                 let want = [
                     (sp.d2[i], d2),
-                    (sp.far[i], far_one(&far, r, d2)),
+                    (sp.far[i], expansion),
                     (sp.g[i], g),
                     (sp.magnitude[i], area / (g * g)),
                     (sp.extra[i], 2.0 * rq * area / (g * g * g)),
                     (ta.d2[i], d2),
-                    (ta.far[i], far_one(&far, r, d2)),
+                    (ta.far[i], expansion),
                     (ta.g[i], g),
                     (ta.magnitude[i], area / (g * g)),
                     (ta.extra[i], area / g.powi(4)),
@@ -788,6 +808,7 @@ mod tests {
             radius: f64,
             area: f64,
             rq: f64,
+            reach2: f64,
             q: &[[f64; LANES]; 3],
         ) -> NodeLanes
             = node_body::<true>, node_spread_avx512, node_spread_avx2;
@@ -801,6 +822,7 @@ mod tests {
             radius: f64,
             area: f64,
             rq: f64,
+            reach2: f64,
             q: &[[f64; LANES]; 3],
         ) -> NodeLanes
             = node_body::<false>, node_taylor_avx512, node_taylor_avx2;
@@ -861,8 +883,8 @@ mod tests {
                         leaf_spread_avx2(&leaf_, q, rq),
                         leaf_taylor_avx2(&leaf_, q, rq),
                         point_sums_avx2(&tris, &near, qs, 1e-9),
-                        node_spread_avx2(&far, centre, radius, area, rq, qs),
-                        node_taylor_avx2(&far, centre, radius, area, rq, qs),
+                        node_spread_avx2(&far, centre, radius, area, rq, 0.0, qs),
+                        node_taylor_avx2(&far, centre, radius, area, rq, 0.0, qs),
                         edge_node_avx2(centre, net, &moment, anti, qs),
                         edge_leaf_avx2(&segs, qs, acc),
                     ),
@@ -872,8 +894,8 @@ mod tests {
                         leaf_spread_avx512(&leaf_, q, rq),
                         leaf_taylor_avx512(&leaf_, q, rq),
                         point_sums_avx512(&tris, &near, qs, 1e-9),
-                        node_spread_avx512(&far, centre, radius, area, rq, qs),
-                        node_taylor_avx512(&far, centre, radius, area, rq, qs),
+                        node_spread_avx512(&far, centre, radius, area, rq, 0.0, qs),
+                        node_taylor_avx512(&far, centre, radius, area, rq, 0.0, qs),
                         edge_node_avx512(centre, net, &moment, anti, qs),
                         edge_leaf_avx512(&segs, qs, acc),
                     ),
@@ -882,8 +904,8 @@ mod tests {
                         leaf_spread_body(&leaf_, q, rq),
                         leaf_taylor_body(&leaf_, q, rq),
                         point_sums_body(&tris, &near, qs, 1e-9),
-                        node_body::<true>(&far, centre, radius, area, rq, qs),
-                        node_body::<false>(&far, centre, radius, area, rq, qs),
+                        node_body::<true>(&far, centre, radius, area, rq, 0.0, qs),
+                        node_body::<false>(&far, centre, radius, area, rq, 0.0, qs),
                         edge_node_body(centre, net, &moment, anti, qs),
                         edge_leaf_body(&segs, qs, acc),
                     ),

@@ -1253,8 +1253,8 @@ impl WindingTree {
                 continue;
             }
             let n = &self.nodes[index as usize];
-            let at = lanes::node_body::<true>(&n.far, n.centre, n.radius, n.area, rq, &q);
             let reach2 = (BETA * n.radius).powi(2);
+            let at = lanes::node_body::<true>(&n.far, n.centre, n.radius, n.area, rq, reach2, &q);
             let mut open = 0;
             for i in 0..LANES {
                 let on = mask >> i & 1 == 1 && at.g[i] > gap;
@@ -1470,8 +1470,8 @@ impl WindingTree {
                 continue;
             }
             let n = &self.nodes[index as usize];
-            let at = lanes::node_body::<false>(&n.far, n.centre, n.radius, n.area, rq, &q);
             let reach2 = (BETA * n.radius).powi(2);
+            let at = lanes::node_body::<false>(&n.far, n.centre, n.radius, n.area, rq, reach2, &q);
             let mut open = 0;
             for i in lanes_of(mask) {
                 let o = &mut out[i];
