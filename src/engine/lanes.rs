@@ -22,13 +22,12 @@ macro_rules! dispatch {
         $vis fn $name($($arg: $ty),*) -> $ret {
             #[cfg(target_arch = "x86_64")]
             {
-                if std::arch::is_x86_feature_detected!("avx512f") {
-                    // SAFETY: the processor has AVX-512F.
-                    return unsafe { $avx512($($arg),*) };
-                }
-                if std::arch::is_x86_feature_detected!("avx2") {
-                    // SAFETY: the processor has AVX2.
-                    return unsafe { $avx2($($arg),*) };
+                match $crate::engine::lanes::simd() {
+                    // SAFETY: the processor has AVX-512F (`simd` checked).
+                    $crate::engine::lanes::Simd::Avx512 => return unsafe { $avx512($($arg),*) },
+                    // SAFETY: the processor has AVX2 (`simd` checked).
+                    $crate::engine::lanes::Simd::Avx2 => return unsafe { $avx2($($arg),*) },
+                    $crate::engine::lanes::Simd::Baseline => {}
                 }
             }
             $body($($arg),*)
@@ -48,6 +47,39 @@ macro_rules! dispatch {
             $body($($arg),*)
         }
     };
+}
+
+/// The instruction sets the kernels are compiled for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Simd {
+    Baseline,
+    Avx2,
+    Avx512,
+}
+
+/// The widest instruction set this processor has, or narrower where `VOXD_SIMD` (`baseline`,
+/// `avx2`) asks for it: every path gives the same bits, so this only changes the speed (for
+/// benchmarks of the narrower paths on a wide machine). Decided once.
+pub fn simd() -> Simd {
+    static SIMD: std::sync::OnceLock<Simd> = std::sync::OnceLock::new();
+    *SIMD.get_or_init(|| {
+        #[allow(unused_mut)]
+        let mut has = Simd::Baseline;
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                has = Simd::Avx512;
+            } else if std::arch::is_x86_feature_detected!("avx2") {
+                has = Simd::Avx2;
+            }
+        }
+        let cap = match std::env::var("VOXD_SIMD").as_deref() {
+            Ok("baseline") => Simd::Baseline,
+            Ok("avx2") => Simd::Avx2,
+            _ => Simd::Avx512,
+        };
+        has.min(cap)
+    })
 }
 
 /// For the winding fill's traversals, which run these kernels inlined: the bookkeeping between
