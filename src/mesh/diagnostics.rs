@@ -59,13 +59,22 @@ pub(crate) fn merged_ids(mesh: &Mesh) -> Vec<u32> {
 /// equal to an earlier one (few, usually none). The hash is seeded per process, and a part
 /// that probes its table far more than a good hash would (positions made to collide) has the
 /// classes found by sorting instead: the same ids, in O(n log n) whatever the positions.
-fn first_equal(positions: &[[f64; 3]]) -> (Vec<u32>, bool) {
-    first_equal_within(positions, 16)
+fn first_equal(positions: &[[f64; 3]], parts: Option<usize>) -> (Vec<u32>, bool) {
+    first_equal_within(positions, 16, parts)
 }
 
+/// Below this many items (positions, triangles) the diagnosis runs as one part: its parts each go
+/// through all the items, so splitting a small mesh among threads that are busy with other
+/// meshes (a service's small jobs) only multiplies the work.
+const ONE_PART: usize = 1 << 16;
+
 /// [`first_equal`], falling back to sorting once a part probes more than `budget` slots per
-/// position.
-fn first_equal_within(positions: &[[f64; 3]], budget: usize) -> (Vec<u32>, bool) {
+/// position; `parts` (a power of two up to 64) overrides the split, for the tests.
+fn first_equal_within(
+    positions: &[[f64; 3]],
+    budget: usize,
+    parts: Option<usize>,
+) -> (Vec<u32>, bool) {
     let key = |p: &[f64; 3]| p.map(|c| if c == 0.0 { 0u64 } else { c.to_bits() });
     let seed = {
         let state = std::hash::RandomState::new();
@@ -83,9 +92,14 @@ fn first_equal_within(positions: &[[f64; 3]], budget: usize) -> (Vec<u32>, bool)
     };
     let hashes: Vec<u64> = positions.par_iter().map(|p| hash(key(p))).collect();
     // Parts of about 64 Ki positions (tables of a megabyte, which caches hold), at least one
-    // per thread.
-    let parts = (positions.len() >> 16)
-        .max(rayon::current_num_threads())
+    // per thread; one for a small mesh.
+    let threads = if positions.len() < ONE_PART {
+        1
+    } else {
+        rayon::current_num_threads()
+    };
+    let parts = parts
+        .unwrap_or_else(|| (positions.len() >> 16).max(threads))
         .clamp(1, 64)
         .next_power_of_two();
     let equal: Option<Vec<Vec<(u32, u32)>>> = (0..parts as u64)
@@ -163,11 +177,23 @@ fn first_equal_by_sorting(positions: &[[f64; 3]]) -> (Vec<u32>, bool) {
 /// Edges are bucketed by their lower end (counted, then placed: no sort of all of them), each
 /// bucket holding the higher ends, a few per vertex, sorted to count repeats. The range of lower
 /// ends is split among the threads; each goes through all triangles for its own edges.
-fn edge_counts(triangles: &[[u32; 3]], ids: &[u32], distinct: bool, n: usize) -> (usize, usize) {
-    if distinct {
-        edge_counts_by(triangles, |i| i, n)
+fn edge_counts(
+    triangles: &[[u32; 3]],
+    ids: &[u32],
+    distinct: bool,
+    n: usize,
+    parts: Option<usize>,
+) -> (usize, usize) {
+    // One part per thread; one for a small mesh (`parts` overrides, for the tests).
+    let parts = parts.unwrap_or(if triangles.len() < ONE_PART {
+        1
     } else {
-        edge_counts_by(triangles, |i| ids[i as usize], n)
+        rayon::current_num_threads()
+    });
+    if distinct {
+        edge_counts_by(triangles, |i| i, n, parts)
+    } else {
+        edge_counts_by(triangles, |i| ids[i as usize], n, parts)
     }
 }
 
@@ -175,8 +201,9 @@ fn edge_counts_by(
     triangles: &[[u32; 3]],
     id: impl Fn(u32) -> u32 + Copy + Sync,
     n: usize,
+    parts: usize,
 ) -> (usize, usize) {
-    let parts = rayon::current_num_threads().max(1);
+    let parts = parts.max(1);
     let per = n.div_ceil(parts).max(1);
     (0..parts)
         .into_par_iter()
@@ -245,9 +272,16 @@ fn edges_from(
 
 impl MeshDiagnostics {
     pub fn of(mesh: &Mesh) -> MeshDiagnostics {
-        let (ids, distinct) = first_equal(&mesh.positions);
+        Self::split(mesh, None)
+    }
+
+    /// [`Self::of`] with the positions and the edges in `parts` parts (`None`: by the mesh's
+    /// size and the threads), for the tests.
+    fn split(mesh: &Mesh, parts: Option<usize>) -> MeshDiagnostics {
+        let (ids, distinct) = first_equal(&mesh.positions, parts);
         let merged = |t: &[u32; 3]| t.map(|i| ids[i as usize]);
-        let (boundary, non_manifold) = edge_counts(&mesh.triangles, &ids, distinct, ids.len());
+        let (boundary, non_manifold) =
+            edge_counts(&mesh.triangles, &ids, distinct, ids.len(), parts);
         // One pass over the triangles for the rest: the degenerate ones, the vertices used,
         // and the bounding box as [`Mesh::bounds`] folds it: pieces of the triangles folded in
         // order, then the pieces' boxes in order (the same folds, as `min` and `max` are
@@ -454,6 +488,13 @@ mod tests {
             let m = Mesh::new(positions, triangles).unwrap();
             let (new, old) = (MeshDiagnostics::of(&m), MeshDiagnostics::by_sorting(&m));
             assert_eq!(new, old, "case {case}: {m:?}");
+            // Small meshes go as one part; split, they must give the same.
+            let parts = 1 << next(4);
+            assert_eq!(
+                MeshDiagnostics::split(&m, Some(parts)),
+                old,
+                "case {case}: {m:?}"
+            );
             // PartialEq takes -0.0 for 0.0: the box must be the same bits.
             let bits = |d: &MeshDiagnostics| [d.bbox_min, d.bbox_max].map(|b| b.map(f64::to_bits));
             assert_eq!(bits(&new), bits(&old), "case {case}: {m:?}");
@@ -498,15 +539,16 @@ mod tests {
         let m = Mesh::new(positions, triangles).unwrap();
         let d = MeshDiagnostics::of(&m);
         assert_eq!(d, MeshDiagnostics::by_sorting(&m));
+        assert_eq!(MeshDiagnostics::split(&m, Some(1)), d);
         // Sorting instead of hashing (what a part that probes too much falls back to) gives
         // the same ids.
-        let hashed = first_equal(&m.positions);
+        let hashed = first_equal(&m.positions, None);
         assert!(!hashed.1);
         assert_eq!(first_equal_by_sorting(&m.positions), hashed);
-        assert_eq!(first_equal_within(&m.positions, 0), hashed);
+        assert_eq!(first_equal_within(&m.positions, 0, None), hashed);
         let distinct = &m.positions[..(k + 1) * (k + 1)];
         assert_eq!(
-            first_equal(distinct),
+            first_equal(distinct, None),
             ((0..distinct.len() as u32).collect(), true)
         );
         assert!(d.non_manifold_edges > 0 && d.boundary_edges > 0);
