@@ -834,7 +834,7 @@ mod tests {
     // here on their own, per instruction set, for the comparison below.
     dispatch! {
         #[allow(dead_code)]
-        fn node_spread(
+        fn nodes(
             f: &Far,
             centre: [f64; 3],
             radius: f64,
@@ -842,22 +842,25 @@ mod tests {
             rq: f64,
             reach2: f64,
             q: &[[f64; LANES]; 3],
-        ) -> NodeLanes
-            = node_body::<true>, node_spread_avx512, node_spread_avx2;
+        ) -> (NodeLanes, NodeLanes)
+            = nodes_body, nodes_avx512, nodes_avx2;
     }
 
-    dispatch! {
-        #[allow(dead_code)]
-        fn node_taylor(
-            f: &Far,
-            centre: [f64; 3],
-            radius: f64,
-            area: f64,
-            rq: f64,
-            reach2: f64,
-            q: &[[f64; LANES]; 3],
-        ) -> NodeLanes
-            = node_body::<false>, node_taylor_avx512, node_taylor_avx2;
+    /// The node kernel for `spread` and for `taylor`.
+    #[inline(always)]
+    fn nodes_body(
+        f: &Far,
+        centre: [f64; 3],
+        radius: f64,
+        area: f64,
+        rq: f64,
+        reach2: f64,
+        q: &[[f64; LANES]; 3],
+    ) -> (NodeLanes, NodeLanes) {
+        (
+            node_body::<true>(f, centre, radius, area, rq, reach2, q),
+            node_body::<false>(f, centre, radius, area, rq, reach2, q),
+        )
     }
 
     dispatch! {
@@ -907,7 +910,7 @@ mod tests {
         // bits.
         let outputs = |path: u32, q: [f64; 3], qs: &[[f64; LANES]; 3]| -> Vec<u64> {
             // SAFETY: each path is run only where the processor has its instructions (below).
-            let (l, ls, lt, p, ns, nt, e, el) = unsafe {
+            let (l, ls, lt, p, (ns, nt), e, el) = unsafe {
                 match path {
                     #[cfg(target_arch = "x86_64")]
                     1 => (
@@ -915,8 +918,7 @@ mod tests {
                         leaf_spread_avx2(&leaf_, q, rq),
                         leaf_taylor_avx2(&leaf_, q, rq),
                         point_sums_avx2(&tris, &near, qs, 1e-9),
-                        node_spread_avx2(&far, centre, radius, area, rq, 0.0, qs),
-                        node_taylor_avx2(&far, centre, radius, area, rq, 0.0, qs),
+                        nodes_avx2(&far, centre, radius, area, rq, 0.0, qs),
                         edge_node_avx2(centre, net, &moment, anti, qs),
                         edge_leaf_avx2(&segs, qs, acc),
                     ),
@@ -926,8 +928,7 @@ mod tests {
                         leaf_spread_avx512(&leaf_, q, rq),
                         leaf_taylor_avx512(&leaf_, q, rq),
                         point_sums_avx512(&tris, &near, qs, 1e-9),
-                        node_spread_avx512(&far, centre, radius, area, rq, 0.0, qs),
-                        node_taylor_avx512(&far, centre, radius, area, rq, 0.0, qs),
+                        nodes_avx512(&far, centre, radius, area, rq, 0.0, qs),
                         edge_node_avx512(centre, net, &moment, anti, qs),
                         edge_leaf_avx512(&segs, qs, acc),
                     ),
@@ -936,8 +937,7 @@ mod tests {
                         leaf_spread_body(&leaf_, q, rq),
                         leaf_taylor_body(&leaf_, q, rq),
                         point_sums_body(&tris, &near, qs, 1e-9),
-                        node_body::<true>(&far, centre, radius, area, rq, 0.0, qs),
-                        node_body::<false>(&far, centre, radius, area, rq, 0.0, qs),
+                        nodes_body(&far, centre, radius, area, rq, 0.0, qs),
                         edge_node_body(centre, net, &moment, anti, qs),
                         edge_leaf_body(&segs, qs, acc),
                     ),

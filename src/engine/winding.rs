@@ -2636,47 +2636,31 @@ mod tests {
             // Each traversal's results as bits, by one path (0 the baseline, 1 AVX2, 2 AVX-512).
             let run = |path: u32| -> Vec<u64> {
                 let mut near: [Vec<(u32, f64)>; LANES] = Default::default();
+                // The three traversals by the functions given.
+                macro_rules! traverse {
+                    ($spread:path, $taylor:path, $field:path) => {
+                        (
+                            $spread(&tree, &qs, rq, 1e-9, &limit, small, &by_area),
+                            $taylor(&tree, &qs, lanes, rq, 10.0 * rq, 1e-9, small, &mut near),
+                            $field(&edges, &qs, lanes),
+                        )
+                    };
+                }
                 let (sp, ts, fs) = match path {
                     // SAFETY: each path is run only where the processor has its instructions.
                     #[cfg(target_arch = "x86_64")]
                     1 => unsafe {
-                        (
-                            spread_lanes_avx2(&tree, &qs, rq, 1e-9, &limit, small, &by_area),
-                            taylor_lanes_avx2(
-                                &tree,
-                                &qs,
-                                lanes,
-                                rq,
-                                10.0 * rq,
-                                1e-9,
-                                small,
-                                &mut near,
-                            ),
-                            field_lanes_avx2(&edges, &qs, lanes),
-                        )
+                        traverse!(spread_lanes_avx2, taylor_lanes_avx2, field_lanes_avx2)
                     },
                     // SAFETY: as above.
                     #[cfg(target_arch = "x86_64")]
                     2 => unsafe {
-                        (
-                            spread_lanes_avx512(&tree, &qs, rq, 1e-9, &limit, small, &by_area),
-                            taylor_lanes_avx512(
-                                &tree,
-                                &qs,
-                                lanes,
-                                rq,
-                                10.0 * rq,
-                                1e-9,
-                                small,
-                                &mut near,
-                            ),
-                            field_lanes_avx512(&edges, &qs, lanes),
-                        )
+                        traverse!(spread_lanes_avx512, taylor_lanes_avx512, field_lanes_avx512)
                     },
-                    _ => (
-                        tree.spread_lanes_body(&qs, rq, 1e-9, &limit, small, &by_area),
-                        tree.taylor_lanes_body(&qs, lanes, rq, 10.0 * rq, 1e-9, small, &mut near),
-                        edges.field_lanes_body(&qs, lanes),
+                    _ => traverse!(
+                        WindingTree::spread_lanes_body,
+                        WindingTree::taylor_lanes_body,
+                        EdgeTree::field_lanes_body
                     ),
                 };
                 let mut v = Vec::new();
