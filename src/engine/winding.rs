@@ -2514,14 +2514,7 @@ mod tests {
     fn taylor_model_holds_the_exact_sum_over_the_ball() {
         // A bumpy sheet as the caps: near triangles exact, the rest by value, boundary-field
         // gradient and remainder bound, against the exact sum at points of the ball.
-        let (p, t) = sheet(30);
-        let tree = WindingTree::new(&p, &t);
-        let tris: Vec<_> = t.iter().map(|t| t.map(|i| p[i as usize])).collect();
-        let segs: Vec<[[f64; 3]; 2]> = chain_boundary(&t)
-            .iter()
-            .map(|e| e.map(|i| p[i as usize]))
-            .collect();
-        let edges = EdgeTree::new(segs);
+        let (tree, edges, tris) = sheet_trees();
         let exact = |q: [f64; 3]| tris.iter().map(|t| solid_angle(t, q)).sum::<f64>();
         let mut rng = Rng(2718);
         let (mut checked, mut tightest, mut with_near): (u32, f64, u32) = (0, 0.0, 0);
@@ -2603,32 +2596,43 @@ mod tests {
         assert!(tightest > 0.5, "{tightest}");
     }
 
+    /// A bumpy sheet's hierarchy, its boundary's, and its triangles.
+    fn sheet_trees() -> (WindingTree, EdgeTree, Vec<[[f64; 3]; 3]>) {
+        let (p, t) = sheet(30);
+        let tris = t.iter().map(|t| t.map(|i| p[i as usize])).collect();
+        let segs: Vec<[[f64; 3]; 2]> = chain_boundary(&t)
+            .iter()
+            .map(|e| e.map(|i| p[i as usize]))
+            .collect();
+        (WindingTree::new(&p, &t), EdgeTree::new(segs), tris)
+    }
+
+    /// Eight balls at the centres of a small block's eight sub-blocks near the sheet, and their
+    /// radius.
+    fn eight_balls(rng: &mut Rng) -> ([[f64; 3]; LANES], f64) {
+        let centre = add(
+            [0.5, 0.5, 0.0],
+            rng.direction(),
+            10f64.powf(rng.range(-1.3, 0.3)),
+        );
+        let step = 10f64.powf(rng.range(-2.5, -1.3));
+        let qs = std::array::from_fn(|d| {
+            [0, 1, 2].map(|a| centre[a] + step * (((d >> a) & 1) as f64 - 0.5))
+        });
+        (qs, 0.5 * step * 3f64.sqrt())
+    }
+
     #[test]
     fn lane_traversals_give_the_same_bits_on_every_instruction_set() {
         // The traversals over eight points are compiled per instruction set with their kernels
         // inlined, bookkeeping and all: every path must give the baseline's bits, and
         // `winding_numbers` the one-point traversal's values.
-        let (p, t) = sheet(30);
-        let tree = WindingTree::new(&p, &t);
-        let segs: Vec<[[f64; 3]; 2]> = chain_boundary(&t)
-            .iter()
-            .map(|e| e.map(|i| p[i as usize]))
-            .collect();
-        let edges = EdgeTree::new(segs);
+        let (tree, edges, _) = sheet_trees();
         let mut rng = Rng(2718);
         let small = SMALL * 4.0 * PI;
         let (mut compared, mut open) = (0, 0);
         for case in 0..60 {
-            let centre = add(
-                [0.5, 0.5, 0.0],
-                rng.direction(),
-                10f64.powf(rng.range(-1.3, 0.3)),
-            );
-            let step = 10f64.powf(rng.range(-2.5, -1.3));
-            let rq = 0.5 * step * 3f64.sqrt();
-            let qs: [[f64; 3]; LANES] = std::array::from_fn(|d| {
-                [0, 1, 2].map(|a| centre[a] + step * (((d >> a) & 1) as f64 - 0.5))
-            });
+            let (qs, rq) = eight_balls(&mut rng);
             let by_area: [bool; LANES] = std::array::from_fn(|i| (i + case) % 3 != 0);
             let limit: [f64; LANES] =
                 std::array::from_fn(|i| if i % 2 == 0 { f64::INFINITY } else { 2.0 });
@@ -2715,28 +2719,12 @@ mod tests {
         // Eight balls at the centres of a 4³ block's 2³ blocks, near a bumpy sheet (the caps):
         // each lane's interval (`spread_lanes`) must hold the exact sum over its ball, its model
         // (`taylor_lanes`, `field_lanes`) the exact sum at each point, as the one-ball versions.
-        let (p, t) = sheet(30);
-        let tree = WindingTree::new(&p, &t);
-        let tris: Vec<_> = t.iter().map(|t| t.map(|i| p[i as usize])).collect();
-        let segs: Vec<[[f64; 3]; 2]> = chain_boundary(&t)
-            .iter()
-            .map(|e| e.map(|i| p[i as usize]))
-            .collect();
-        let edges = EdgeTree::new(segs);
+        let (tree, edges, tris) = sheet_trees();
         let exact = |q: [f64; 3]| tris.iter().map(|t| solid_angle(t, q)).sum::<f64>();
         let mut rng = Rng(31415);
         let (mut intervals, mut models, mut near_lanes) = (0u32, 0u32, 0u32);
         for case in 0..120 {
-            let centre = add(
-                [0.5, 0.5, 0.0],
-                rng.direction(),
-                10f64.powf(rng.range(-1.3, 0.3)),
-            );
-            let step = 10f64.powf(rng.range(-2.5, -1.3));
-            let rq = 0.5 * step * 3f64.sqrt();
-            let qs: [[f64; 3]; LANES] = std::array::from_fn(|d| {
-                [0, 1, 2].map(|a| centre[a] + step * (((d >> a) & 1) as f64 - 0.5))
-            });
+            let (qs, rq) = eight_balls(&mut rng);
             let by_area: [bool; LANES] = std::array::from_fn(|i| (i + case) % 3 != 0);
             let small = SMALL * 4.0 * PI;
             let spreads =
