@@ -326,7 +326,7 @@ impl Certifier<'_> {
 
     /// [`Self::decide`] for the eight blocks of edge `size` (2 or 4) of the block of edge
     /// 2·size at `lo` (inside the grid, with `blocks` on), by the caps' intervals of all eight
-    /// from one traversal ([`WindingTree::spread_lanes`]); where those leave a 4³ block open,
+    /// from one traversal ([`spread_lanes`]); where those leave a 4³ block open,
     /// by the mesh's interval, one by one.
     fn decide_lanes(&self, lo: [u32; 3], size: u32) -> [Option<Decision>; LANES] {
         let g = self.grid;
@@ -342,7 +342,8 @@ impl Certifier<'_> {
         let bs = centres.map(|c| rb * self.cap_edges.bound(c, rb, limit / rb));
         let by_edges = bs.map(|b| b < limit);
         let limits = by_edges.map(|e| if e { f64::INFINITY } else { limit });
-        let spreads = self.caps.spread_lanes(
+        let spreads = spread_lanes(
+            self.caps,
             &centres,
             rb,
             TIE * s,
@@ -492,7 +493,8 @@ impl Certifier<'_> {
         }
         let lanes = (1u32 << subs.len()) - 1;
         let mut near: [Vec<(u32, f64)>; LANES] = Default::default();
-        let models = self.caps.taylor_lanes(
+        let models = taylor_lanes(
+            self.caps,
             &centres,
             lanes,
             rb,
@@ -505,7 +507,7 @@ impl Certifier<'_> {
         let modelled = (0..subs.len())
             .filter(|&i| models[i].is_some())
             .fold(0, |m, i| m | 1 << i);
-        let fields = self.cap_edges.field_lanes(&centres, modelled);
+        let fields = field_lanes(self.cap_edges, &centres, modelled);
         for (i, &sub) in subs.iter().enumerate() {
             let model = models[i].zip(fields[i]);
             self.model_voxels(sub, 2, centres[i], model, &near[i], codes, col);
@@ -1036,10 +1038,11 @@ impl WindingTree {
         self.evaluate(q, -1.0).expect("no plane check")
     }
 
-    /// [`Self::winding_number`] at eight points, from one traversal ([`Self::spread_lanes`] over
+    /// [`Self::winding_number`] at eight points, from one traversal ([`spread_lanes`] over
     /// balls of radius 0, which opens and expands each point's nodes as `winding_number` does).
     fn winding_numbers(&self, qs: &[[f64; 3]; LANES]) -> [f64; LANES] {
-        let at = self.spread_lanes(
+        let at = spread_lanes(
+            self,
             qs,
             0.0,
             f64::NEG_INFINITY,
@@ -1202,19 +1205,6 @@ impl WindingTree {
     /// opens a node takes the node's children instead, which bound it as well; and the nodes
     /// left out as small are a different set, within the same budget. So each ball's result is a
     /// bound of the same kind, though not always the same numbers as its own traversal's.
-    #[allow(clippy::too_many_arguments)]
-    fn spread_lanes(
-        &self,
-        qs: &[[f64; 3]; LANES],
-        rq: f64,
-        gap: f64,
-        limit: &[f64; LANES],
-        small: f64,
-        by_area: &[bool; LANES],
-    ) -> [Option<Spread>; LANES] {
-        spread_lanes(self, qs, rq, gap, limit, small, by_area)
-    }
-
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     fn spread_lanes_body(
@@ -1416,22 +1406,8 @@ impl WindingTree {
     }
 
     /// [`Self::taylor`] for the balls of radius `rq` about `qs[i]`, for the lanes i in `lanes`,
-    /// in one traversal (as [`Self::spread_lanes`]: a node opened for one ball is taken through
+    /// in one traversal (as [`spread_lanes`]: a node opened for one ball is taken through
     /// its children by the others, which model them as well).
-    #[allow(clippy::too_many_arguments)]
-    fn taylor_lanes(
-        &self,
-        qs: &[[f64; 3]; LANES],
-        lanes: u32,
-        rq: f64,
-        near_dist: f64,
-        gap: f64,
-        small: f64,
-        near: &mut [Vec<(u32, f64)>; LANES],
-    ) -> [Option<Taylor>; LANES] {
-        taylor_lanes(self, qs, lanes, rq, near_dist, gap, small, near)
-    }
-
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     fn taylor_lanes_body(
@@ -1569,7 +1545,7 @@ impl WindingTree {
 // with its kernels inlined (see [`super::lanes`]): the same operations in the same order on
 // every path, so the same bits.
 lanes::dispatch! {
-    /// [`WindingTree::spread_lanes`].
+    /// [`WindingTree::spread_lanes_body`], on the widest instruction set.
     #[allow(clippy::too_many_arguments)]
     fn spread_lanes(
         tree: &WindingTree,
@@ -1584,7 +1560,7 @@ lanes::dispatch! {
 }
 
 lanes::dispatch! {
-    /// [`WindingTree::taylor_lanes`].
+    /// [`WindingTree::taylor_lanes_body`], on the widest instruction set.
     #[allow(clippy::too_many_arguments)]
     fn taylor_lanes(
         tree: &WindingTree,
@@ -1600,7 +1576,7 @@ lanes::dispatch! {
 }
 
 lanes::dispatch! {
-    /// [`EdgeTree::field_lanes`].
+    /// [`EdgeTree::field_lanes_body`], on the widest instruction set.
     fn field_lanes(
         tree: &EdgeTree,
         qs: &[[f64; 3]; LANES],
@@ -1847,10 +1823,6 @@ impl EdgeTree {
     /// [`Self::field`] at `qs[i]` for the lanes i in `lanes`, in one traversal (a cluster far
     /// enough from some points and not from others is opened for all of them, whose sums over
     /// its children are as exact).
-    fn field_lanes(&self, qs: &[[f64; 3]; LANES], lanes: u32) -> [Option<([f64; 3], f64)>; LANES] {
-        field_lanes(self, qs, lanes)
-    }
-
     #[inline(always)]
     fn field_lanes_body(
         &self,
@@ -2727,13 +2699,20 @@ mod tests {
             let (qs, rq) = eight_balls(&mut rng);
             let by_area: [bool; LANES] = std::array::from_fn(|i| (i + case) % 3 != 0);
             let small = SMALL * 4.0 * PI;
-            let spreads =
-                tree.spread_lanes(&qs, rq, 1e-9, &[f64::INFINITY; LANES], small, &by_area);
+            let spreads = spread_lanes(
+                &tree,
+                &qs,
+                rq,
+                1e-9,
+                &[f64::INFINITY; LANES],
+                small,
+                &by_area,
+            );
             // Some lanes only: the others' traversal must not be disturbed by them.
             let lanes = if case % 4 == 0 { 0b1010_0110 } else { 0xff };
             let mut near: [Vec<(u32, f64)>; LANES] = Default::default();
-            let ts = tree.taylor_lanes(&qs, lanes, rq, 10.0 * rq, 1e-9, small, &mut near);
-            let fields = edges.field_lanes(&qs, lanes);
+            let ts = taylor_lanes(&tree, &qs, lanes, rq, 10.0 * rq, 1e-9, small, &mut near);
+            let fields = field_lanes(&edges, &qs, lanes);
             for (i, &c) in qs.iter().enumerate() {
                 let points: Vec<[f64; 3]> = (0..6)
                     .map(|_| add(c, rng.direction(), rq * rng.next().sqrt()))
