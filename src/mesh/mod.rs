@@ -271,12 +271,20 @@ impl Mesh {
         }
         // The first bad vertex and the first bad triangle, looked for in parallel (a big mesh
         // has millions of each), reported as a front-to-back scan would.
-        if let Some(i) = positions.par_iter().position_first(bad_position) {
+        if let Some(i) = positions
+            .par_iter()
+            .with_min_len(1 << 12)
+            .position_first(bad_position)
+        {
             check_position(i, &positions[i])?;
         }
         let n = positions.len();
         let out = |tri: &[u32; 3]| tri.iter().any(|&i| i as usize >= n);
-        if let Some(t) = triangles.par_iter().position_first(out) {
+        if let Some(t) = triangles
+            .par_iter()
+            .with_min_len(1 << 12)
+            .position_first(out)
+        {
             let i = *triangles[t].iter().find(|&&i| i as usize >= n).unwrap();
             return Err(MeshError::IndexOutOfRange {
                 triangle: t,

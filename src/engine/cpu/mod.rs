@@ -53,6 +53,9 @@ impl Engine for CpuEngine {
     }
 }
 
+/// The fewest voxels of a band of [`for_each_band`] (but for a grid smaller than this).
+const BAND_VOXELS: u64 = 1 << 16;
+
 /// Runs `work(band, triangle indices, band words)` for every band of x-rows in parallel.
 /// `x_range(t)` gives the inclusive x-range of columns triangle `t` can touch, or `None`.
 /// `ctl` is checked before each band (bands not started once it says stop are skipped) and
@@ -67,13 +70,19 @@ fn for_each_band<F>(
 where
     F: Fn(Range<u32>, &[u32], &mut [u64]) + Sync,
 {
-    let [nx, ny, _] = mesh.grid.dims;
+    let [nx, ny, nz] = mesh.grid.dims;
     let threads = rayon::current_num_threads().max(1) as u32;
-    let band_len = nx.div_ceil(threads * 8).max(1);
+    // Eight bands per thread, of at least `BAND_VOXELS` each: a small grid (a service's typical
+    // job, its threads busy with other jobs) in few bands, since a triangle is binned (and
+    // walked) once per band it spans. The bands do not change the result.
+    let voxels = nx as u64 * ny as u64 * nz as u64;
+    let bands = (threads * 8).min(voxels.div_ceil(BAND_VOXELS).max(1) as u32);
+    let band_len = nx.div_ceil(bands).max(1);
     let nbands = nx.div_ceil(band_len) as usize;
     let ranges: Vec<Option<(u32, u32)>> = mesh
         .triangles
         .par_iter()
+        .with_min_len(1 << 12)
         .map(|t| x_range(&widen(t)))
         .collect();
     let mut bins: Vec<Vec<u32>> = vec![Vec::new(); nbands];
