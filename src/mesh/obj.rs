@@ -296,19 +296,14 @@ fn parse_chunk(
             Some(b"f") => {
                 let defined = (vbase + positions.len()) as i64;
                 poly.clear();
-                while let Some(token) = cur.face_index() {
-                    let n = match token {
-                        Ok(n) => n,
-                        Err(t) => {
-                            let idx = t.split(|&b| b == b'/').next().unwrap_or(t);
-                            parse_index(idx).ok_or_else(|| {
-                                err(&format!(
-                                    "{:?} is not a vertex index",
-                                    String::from_utf8_lossy(t)
-                                ))
-                            })?
-                        }
-                    };
+                while let Some(t) = cur.token() {
+                    let idx = t.split(|&b| b == b'/').next().unwrap_or(t);
+                    let n = parse_index(idx).ok_or_else(|| {
+                        err(&format!(
+                            "{:?} is not a vertex index",
+                            String::from_utf8_lossy(t)
+                        ))
+                    })?;
                     // 1-based from the start, or negative: relative to the vertices defined so far.
                     let abs = if n > 0 { n - 1 } else { defined + n };
                     let out = match total {
@@ -374,55 +369,16 @@ impl<'a> Cursor<'a> {
         (i > start).then(|| &t[start..i])
     }
 
-    /// The next token of the current line as a face's vertex reference, in one pass: `Ok` with
-    /// its index (the part before any `/`) where that is 1 to 18 digits after an optional sign,
-    /// as [`parse_index`] reads them; `Err` with the whole token otherwise (for the caller to
-    /// read as before); `None` at the line's end.
-    #[inline]
-    fn face_index(&mut self) -> Option<Result<i64, &'a [u8]>> {
-        let t = self.text;
-        let mut i = self.at;
-        while i < t.len() && t[i] != b'\n' && t[i].is_ascii_whitespace() {
-            i += 1;
-        }
-        let start = i;
-        let neg = i < t.len() && t[i] == b'-';
-        if i < t.len() && (t[i] == b'-' || t[i] == b'+') {
-            i += 1;
-        }
-        let digits = i;
-        let mut n: i64 = 0;
-        while i < t.len() && i - digits < 18 && t[i].is_ascii_digit() {
-            n = n * 10 + (t[i] - b'0') as i64;
-            i += 1;
-        }
-        let plain = i > digits && (i == t.len() || t[i] == b'/' || t[i].is_ascii_whitespace());
-        while i < t.len() && !t[i].is_ascii_whitespace() {
-            i += 1;
-        }
-        self.at = i;
-        if i == start {
-            None
-        } else if plain {
-            Some(Ok(if neg { -n } else { n }))
-        } else {
-            Some(Err(&t[start..i]))
-        }
-    }
-
     /// Moves to the start of the next line; `false` when the text ends on this one.
     #[inline]
     fn next_line(&mut self) -> bool {
-        match memchr::memchr(b'\n', &self.text[self.at.min(self.text.len())..]) {
-            Some(k) => {
-                self.at += k + 1;
-                true
-            }
-            None => {
-                self.at = self.text.len() + 1;
-                false
-            }
+        let t = self.text;
+        let mut i = self.at;
+        while i < t.len() && t[i] != b'\n' {
+            i += 1;
         }
+        self.at = i + 1;
+        i < t.len()
     }
 }
 
@@ -874,53 +830,6 @@ mod tests {
                 c.bad,
             )
         })
-    }
-
-    #[test]
-    fn face_indices_read_as_before_at_the_edges() {
-        // The one-pass face reader against the reader before it, on tokens at the edges of its
-        // fast path (18 and 19 digits, signs alone or doubled, slashes, other bytes after the
-        // digits), at the end of the text too.
-        let tokens = [
-            "1",
-            "+2",
-            "-1",
-            "3/1/2",
-            "2//9",
-            "1/",
-            "/1",
-            "/",
-            "+",
-            "-",
-            "+-1",
-            "--1",
-            "1x",
-            "1x/2",
-            "00000000000000000001",
-            "000000000000000001",
-            "123456789012345678",
-            "1234567890123456789",
-            "123456789012345678/1",
-            "1234567890123456789/1",
-            "-000000000000000003",
-            "1\u{a0}",
-            "\u{663}",
-            "9223372036854775807",
-            "99999999999999999999",
-        ];
-        let mut compared = 0;
-        for t in tokens {
-            for end in ["\n", "", " \r\n", "\t2\n"] {
-                let text = format!("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 {t} 2{end}f {t} 3 1{end}");
-                for total in [None, Some(3)] {
-                    let new = run(parse_chunk, text.as_bytes(), 0, total, usize::MAX);
-                    let old = run(parse_chunk_std, text.as_bytes(), 0, total, usize::MAX);
-                    assert_eq!(new, old, "{text:?}");
-                    compared += 1;
-                }
-            }
-        }
-        assert_eq!(compared, tokens.len() * 8);
     }
 
     #[test]
