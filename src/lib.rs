@@ -27,6 +27,11 @@ pub mod service;
 pub mod store;
 pub mod volume;
 
+/// The fewest items (positions, triangles) one parallel task takes in the passes over a mesh:
+/// a small mesh, a service's typical job, goes in one piece on one thread, since splitting it
+/// among threads busy with other jobs only adds hand-offs.
+pub(crate) const PAR_PIECE: usize = 1 << 12;
+
 pub use engine::Method;
 pub use grid::{Grid, GridLimits, GridSpec};
 pub use mesh::Mesh;

@@ -56,19 +56,14 @@ pub struct GridMesh {
     pub triangles: Vec<[[i32; 3]; 3]>,
 }
 
-/// The fewest positions or triangles snapped by one task.
-const PIECE: usize = 1 << 12;
-
 impl GridMesh {
     pub fn new(mesh: &Mesh, grid: &Grid) -> Result<GridMesh, EngineError> {
         // Unrounded, because the culling below looks at the exact positions; the coordinates
         // kept are these rounded, i.e. `to_lattice`.
-        // Pieces of at least `PIECE` (a small mesh, a service's typical job, in one: split
-        // among threads busy with other jobs, it only costs more).
         let g: Vec<[f64; 3]> = mesh
             .positions()
             .par_iter()
-            .with_min_len(PIECE)
+            .with_min_len(crate::PAR_PIECE)
             .map(|&p| lattice_units(grid, p))
             .collect();
         let d = grid.dims.map(|d| d as f64 * FIXED_ONE as f64);
@@ -77,7 +72,7 @@ impl GridMesh {
         let snapped: Vec<Result<Option<[[i32; 3]; 3]>, EngineError>> = mesh
             .triangles()
             .par_iter()
-            .with_min_len(PIECE)
+            .with_min_len(crate::PAR_PIECE)
             .map(|tri| {
                 let v = tri.map(|i| g[i as usize]);
                 let lo = [0, 1, 2].map(|a| v[0][a].min(v[1][a]).min(v[2][a]));

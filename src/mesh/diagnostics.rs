@@ -63,10 +63,16 @@ fn first_equal(positions: &[[f64; 3]], parts: Option<usize>) -> (Vec<u32>, bool)
     first_equal_within(positions, 16, parts)
 }
 
-/// Below this many items (positions, triangles) the diagnosis runs as one part: its parts each go
-/// through all the items, so splitting a small mesh among threads that are busy with other
-/// meshes (a service's small jobs) only multiplies the work.
-const ONE_PART: usize = 1 << 16;
+/// The threads a diagnosis pass over `items` positions or triangles is split among: one below
+/// 64 Ki items, since each part goes through all of them, so splitting a small mesh among
+/// threads that are busy with other meshes (a service's small jobs) only multiplies the work.
+fn threads_for(items: usize) -> usize {
+    if items < 1 << 16 {
+        1
+    } else {
+        rayon::current_num_threads()
+    }
+}
 
 /// [`first_equal`], falling back to sorting once a part probes more than `budget` slots per
 /// position; `parts` (a power of two up to 64) overrides the split, for the tests.
@@ -93,13 +99,8 @@ fn first_equal_within(
     let hashes: Vec<u64> = positions.par_iter().map(|p| hash(key(p))).collect();
     // Parts of about 64 Ki positions (tables of a megabyte, which caches hold), at least one
     // per thread; one for a small mesh.
-    let threads = if positions.len() < ONE_PART {
-        1
-    } else {
-        rayon::current_num_threads()
-    };
     let parts = parts
-        .unwrap_or_else(|| (positions.len() >> 16).max(threads))
+        .unwrap_or_else(|| (positions.len() >> 16).max(threads_for(positions.len())))
         .clamp(1, 64)
         .next_power_of_two();
     let equal: Option<Vec<Vec<(u32, u32)>>> = (0..parts as u64)
@@ -185,11 +186,7 @@ fn edge_counts(
     parts: Option<usize>,
 ) -> (usize, usize) {
     // One part per thread; one for a small mesh (`parts` overrides, for the tests).
-    let parts = parts.unwrap_or(if triangles.len() < ONE_PART {
-        1
-    } else {
-        rayon::current_num_threads()
-    });
+    let parts = parts.unwrap_or_else(|| threads_for(triangles.len()));
     if distinct {
         edge_counts_by(triangles, |i| i, n, parts)
     } else {

@@ -273,7 +273,7 @@ impl Mesh {
         // has millions of each), reported as a front-to-back scan would.
         if let Some(i) = positions
             .par_iter()
-            .with_min_len(1 << 12)
+            .with_min_len(crate::PAR_PIECE)
             .position_first(bad_position)
         {
             check_position(i, &positions[i])?;
@@ -282,7 +282,7 @@ impl Mesh {
         let out = |tri: &[u32; 3]| tri.iter().any(|&i| i as usize >= n);
         if let Some(t) = triangles
             .par_iter()
-            .with_min_len(1 << 12)
+            .with_min_len(crate::PAR_PIECE)
             .position_first(out)
         {
             let i = *triangles[t].iter().find(|&&i| i as usize >= n).unwrap();

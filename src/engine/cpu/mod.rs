@@ -82,7 +82,7 @@ where
     let ranges: Vec<Option<(u32, u32)>> = mesh
         .triangles
         .par_iter()
-        .with_min_len(1 << 12)
+        .with_min_len(crate::PAR_PIECE)
         .map(|t| x_range(&widen(t)))
         .collect();
     let mut bins: Vec<Vec<u32>> = vec![Vec::new(); nbands];
