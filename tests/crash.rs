@@ -4,14 +4,16 @@
 //! directory. After every restart:
 //!
 //! - no temporary file (a name starting with `.`) is left in `volumes/` or `jobs/`, and every
-//!   `{id}.vxl` has its `{id}.json` and the other way round;
+//!   `{id}.vxl` has its `{id}.json` and the other way round, and no pack ends in a torn record
+//!   (read by the test's own reader of the pack format);
 //! - the volumes listed by `GET /v1/volumes` (paged) are exactly those on disk; each downloads,
 //!   its length, sha256 and ETag agree with its metadata, and it decodes to its grid;
 //! - every volume the service acknowledged (a `201`, a job seen succeeded) is still there unless
 //!   this test deleted it, and a volume whose delete was answered is gone;
 //! - every job id the service answered with is known and terminal (succeeded, failed, canceled)
 //!   or queued, and a succeeded job's volume exists;
-//! - `/readyz`'s `stored_bytes` is the sum of the sizes of the files in `volumes/`.
+//! - `/readyz`'s `stored_bytes` is the sum of the sizes of the volume files in `volumes/` and
+//!   of the live records in its packs.
 //!
 //! The kill points are drawn from a seeded generator (`VOXD_CRASH_SEED`, `VOXD_CRASH_ROUNDS`
 //! for longer runs on demand). Loopback only, every loop bounded; timeouts are safety bounds,
@@ -199,11 +201,12 @@ impl Known {
             }
             _ => {}
         }
-        if what.starts_with("GET /v1/jobs/") && v["state"] == "succeeded" {
-            if let (Some(j), Some(vol)) = (v["id"].as_str(), v["volume_id"].as_str()) {
-                self.succeeded.insert(j.into(), vol.into());
-                self.acked.insert(vol.into());
-            }
+        if what.starts_with("GET /v1/jobs/")
+            && v["state"] == "succeeded"
+            && let (Some(j), Some(vol)) = (v["id"].as_str(), v["volume_id"].as_str())
+        {
+            self.succeeded.insert(j.into(), vol.into());
+            self.acked.insert(vol.into());
         }
     }
 }
@@ -445,6 +448,54 @@ fn files(dir: &Path) -> BTreeMap<String, u64> {
         .collect()
 }
 
+/// The volume packs of `dir` (`volumes/*.pack`), read by this test's own reader of the record
+/// format (src/store/packs.rs's table): the live volumes (id → record bytes) and whether some
+/// pack ends in bytes that are not a whole, valid record (a torn tail).
+fn packs(dir: &Path) -> (BTreeMap<String, u64>, bool) {
+    let mut puts = BTreeMap::new();
+    let mut removed = BTreeSet::new();
+    let mut torn = false;
+    for (name, _) in files(dir) {
+        if !name.ends_with(".pack") {
+            continue;
+        }
+        let b = std::fs::read(dir.join(&name)).unwrap();
+        let mut at = 0usize;
+        while b.len() - at >= 32 {
+            let h = &b[at..at + 32];
+            let id_len = u32::from_le_bytes(h[8..12].try_into().unwrap()) as usize;
+            let meta_len = u32::from_le_bytes(h[12..16].try_into().unwrap()) as usize;
+            let data_len = u64::from_le_bytes(h[16..24].try_into().unwrap()) as usize;
+            let end = at + 32 + id_len + meta_len + data_len;
+            if &h[..4] != b"VXP1" || h[4] > 1 || id_len > 128 || end > b.len() {
+                break;
+            }
+            let mut hashed = h[..24].to_vec();
+            hashed.extend_from_slice(&b[at + 32..at + 32 + id_len + meta_len]);
+            let want: String = h[24..32].iter().map(|x| format!("{x:02x}")).collect();
+            if voxd::app::sha256_hex(&hashed)[..16] != want {
+                break;
+            }
+            let id = String::from_utf8(b[at + 32..at + 32 + id_len].to_vec()).unwrap();
+            if h[4] == 0 {
+                let data = &b[end - data_len..end];
+                let meta: Value =
+                    serde_json::from_slice(&b[at + 32 + id_len..end - data_len]).unwrap();
+                if meta["sha256"].as_str() != Some(&voxd::app::sha256_hex(data)) {
+                    break;
+                }
+                puts.insert(id, (end - at) as u64);
+            } else {
+                removed.insert(id);
+            }
+            at = end;
+        }
+        torn |= at < b.len();
+    }
+    puts.retain(|id, _| !removed.contains(id));
+    (puts, torn)
+}
+
 /// Every check of a restarted server on `dir` (before any new write).
 fn check(srv: &Server, dir: &Path, known: &mut Known, round: usize) {
     let vols = files(&dir.join("volumes"));
@@ -459,6 +510,18 @@ fn check(srv: &Server, dir: &Path, known: &mut Known, round: usize) {
     let data: BTreeSet<String> = vols.keys().filter_map(|n| stem(n, ".vxl")).collect();
     let metas: BTreeSet<String> = vols.keys().filter_map(|n| stem(n, ".json")).collect();
     assert_eq!(data, metas, "round {round}: a volume file without its pair");
+    let (packed, torn) = packs(&dir.join("volumes"));
+    assert!(
+        !torn,
+        "round {round}: a pack's torn end was not cut off at open"
+    );
+    let mut stored: BTreeSet<String> = metas.clone();
+    for id in packed.keys() {
+        assert!(
+            stored.insert(id.clone()),
+            "round {round}: {id} is in a pack and in files"
+        );
+    }
     // Paged listing.
     let mut listed = vec![];
     let mut next = Some("/v1/volumes?limit=3".to_string());
@@ -481,7 +544,7 @@ fn check(srv: &Server, dir: &Path, known: &mut Known, round: usize) {
     );
     let ids: BTreeSet<String> = ids.into_iter().collect();
     assert_eq!(
-        ids, metas,
+        ids, stored,
         "round {round}: listed volumes differ from those on disk"
     );
     // Each volume reads back whole.
@@ -574,8 +637,13 @@ fn check(srv: &Server, dir: &Path, known: &mut Known, round: usize) {
         // `finish`): a kill in between loses the state change, never the volume (checked above).
         eprintln!("NOTICE: crash round {round}: job states regressed: {regressed:?}");
     }
-    // The quota counts every byte stored.
-    let on_disk: u64 = vols.values().sum();
+    // The quota counts every byte stored: volume files and live pack records.
+    let on_disk: u64 = vols
+        .iter()
+        .filter(|(n, _)| n.ends_with(".vxl") || n.ends_with(".json"))
+        .map(|(_, len)| len)
+        .sum::<u64>()
+        + packed.values().sum::<u64>();
     let ready = srv.must("GET", "/readyz", b"");
     assert_eq!(
         ready.status,
@@ -638,8 +706,14 @@ fn sigkill_and_aborts_inside_writes_lose_nothing_acknowledged() {
                     n.strip_suffix(".vxl")
                         .is_some_and(|id| !vols.contains_key(&format!("{id}.json")))
                 });
+                let (_, torn) = packs(&dir.join("volumes"));
+                let packed = vols.keys().any(|n| n.ends_with(".pack"));
                 match site {
-                    "mid-data" => assert!(temp(&vols), "no temporary .vxl after {f}"),
+                    // Small volumes go to packs: half a group's records, or half a file.
+                    "mid-data" => assert!(
+                        temp(&vols) || torn,
+                        "no temporary .vxl and no torn pack after {f}"
+                    ),
                     "mid-job-record" => {
                         let log = std::fs::read(dir.join("jobs/records.log")).unwrap();
                         assert!(
@@ -647,7 +721,11 @@ fn sigkill_and_aborts_inside_writes_lose_nothing_acknowledged() {
                             "no torn line at the end of jobs/records.log after {f}"
                         )
                     }
-                    "after-data" => assert!(orphan, "no uncommitted .vxl after {f}"),
+                    // A pack's records written, not yet synced (nothing to see on disk).
+                    "after-data" => assert!(
+                        orphan || packed,
+                        "no uncommitted .vxl and no pack after {f}"
+                    ),
                     _ => {}
                 }
             }

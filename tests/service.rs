@@ -676,10 +676,9 @@ fn router_and_openapi_agree() {
         } else if let (Some(p), Some(m)) = (
             &path,
             line.strip_prefix("    ").and_then(|l| l.strip_suffix(':')),
-        ) {
-            if ["get", "post", "delete", "put", "patch"].contains(&m) {
-                documented.insert((p.clone(), m.to_uppercase()));
-            }
+        ) && ["get", "post", "delete", "put", "patch"].contains(&m)
+        {
+            documented.insert((p.clone(), m.to_uppercase()));
         }
     }
     let routed: std::collections::BTreeSet<(String, String)> = voxd::service::ROUTES
@@ -725,10 +724,10 @@ fn validate(doc: &Value, schema: &Value, v: &Value, at: &str) -> Result<(), Stri
     if !ok {
         return Err(format!("{at}: {v} is not of type {}", schema["type"]));
     }
-    if let Some(e) = schema.get("enum").and_then(Value::as_array) {
-        if !e.contains(v) {
-            return Err(format!("{at}: {v} is not one of {e:?}"));
-        }
+    if let Some(e) = schema.get("enum").and_then(Value::as_array)
+        && !e.contains(v)
+    {
+        return Err(format!("{at}: {v} is not one of {e:?}"));
     }
     for r in schema
         .get("required")
@@ -801,10 +800,10 @@ fn real_responses_match_the_openapi_schemas() {
                 r.status
             )
         });
-        if ct.ends_with("json") {
-            if let Err(e) = validate(&doc, &media["schema"], &r.json(), "body") {
-                panic!("{method} {template} {}: {e}", r.status);
-            }
+        if ct.ends_with("json")
+            && let Err(e) = validate(&doc, &media["schema"], &r.json(), "body")
+        {
+            panic!("{method} {template} {}: {e}", r.status);
         }
         checked += 1;
     };

@@ -53,15 +53,15 @@ pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshErro
         },
     )?;
     let total = st.positions.len();
-    if let Some((line, n, abs)) = st.forward {
-        if abs >= total {
-            return Err(malformed(
-                "OBJ",
-                format!(
-                    "line {line}: vertex index {n} is out of range (the file has {total} vertices)"
-                ),
-            ));
-        }
+    if let Some((line, n, abs)) = st.forward
+        && abs >= total
+    {
+        return Err(malformed(
+            "OBJ",
+            format!(
+                "line {line}: vertex index {n} is out of range (the file has {total} vertices)"
+            ),
+        ));
     }
     if st.triangles.is_empty() {
         return Err(MeshError::NoTriangles(
@@ -216,10 +216,10 @@ impl State {
             self.positions.extend_from_slice(&c.positions);
             self.triangles.extend_from_slice(&c.triangles);
             self.bad = self.bad.or(c.bad);
-            if let Some(f) = c.forward {
-                if self.forward.is_none_or(|g| f.2 > g.2) {
-                    self.forward = Some(f);
-                }
+            if let Some(f) = c.forward
+                && self.forward.is_none_or(|g| f.2 > g.2)
+            {
+                self.forward = Some(f);
             }
         }
         self.lines = l;

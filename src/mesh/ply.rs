@@ -397,10 +397,10 @@ fn read_body<S: Source>(
                 match p.list {
                     None => {
                         let v = src.value(p.ty)?;
-                        if let Some(xyz) = xyz {
-                            if let Some(a) = xyz.iter().position(|&i| i == pi) {
-                                vals[a] = v;
-                            }
+                        if let Some(xyz) = xyz
+                            && let Some(a) = xyz.iter().position(|&i| i == pi)
+                        {
+                            vals[a] = v;
                         }
                     }
                     Some(ct) => {

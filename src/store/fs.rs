@@ -22,6 +22,7 @@
 //! chosen point inside a write (see [`fault`]), so crash tests can stop it there.
 
 use std::collections::BTreeMap;
+use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -30,6 +31,7 @@ use async_trait::async_trait;
 use bytes::Bytes;
 
 use super::joblog::JobLog;
+use super::packs::{self, Loc, Packs};
 use super::{
     ByteStream, StoreError, Usage, VolumeMeta, VolumeStore, atomic, check, safe_id, verified,
 };
@@ -47,8 +49,29 @@ pub struct FsStore {
     uploads: PathBuf,
     limit: u64,
     inner: Arc<Mutex<Inner>>,
+    /// The packs small volumes are kept in ([`super::packs`]). Lock order: the packs, then
+    /// `inner`.
+    packs: Arc<Mutex<Packs>>,
+    /// Does this process write the packs (hold their lock)?
+    pack_writer: bool,
     /// Puts go to the committer thread ([`commit_volumes`]), which writes them in groups.
     commits: std::sync::mpsc::Sender<Pending>,
+    /// The committer, joined on drop: once a store is dropped its writes are done and the packs'
+    /// lock is free for the next store opened on the directory.
+    committer: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Drop for FsStore {
+    fn drop(&mut self) {
+        // Closing the channel ends the committer after the group it is writing.
+        drop(std::mem::replace(
+            &mut self.commits,
+            std::sync::mpsc::channel().0,
+        ));
+        if let Some(t) = self.committer.take() {
+            let _ = t.join();
+        }
+    }
 }
 
 /// The most volumes one group commit writes.
@@ -61,7 +84,10 @@ const GROUP_THREADS: usize = 8;
 struct Pending {
     meta: VolumeMeta,
     vxl: Bytes,
+    /// The metadata: compact JSON for a pack's record, else the `{id}.json` file's bytes.
     json: Vec<u8>,
+    /// Goes to a pack (else to its own two files).
+    packed: bool,
     need: u64,
     done: tokio::sync::oneshot::Sender<Result<(), StoreError>>,
 }
@@ -77,11 +103,27 @@ struct Inner {
     last_write_failed: bool,
 }
 
-/// A catalogue entry: the metadata and what the volume's two files take on disk.
+/// A catalogue entry: the metadata, what the volume takes on disk, and where.
 struct Entry {
     meta: VolumeMeta,
-    /// Bytes of `{id}.vxl` + `{id}.json`, as counted against the quota.
+    /// Bytes of `{id}.vxl` + `{id}.json`, or of its pack record, as counted against the quota.
     stored: u64,
+    /// Its record in a pack (`None`: its own files).
+    at: Option<Loc>,
+}
+
+/// Where a volume's bytes are: its own file, or a record in a pack.
+enum Place {
+    File(PathBuf),
+    Pack(PathBuf, Loc),
+}
+
+/// A volume's bytes, open: `len` bytes of `file` from `at`.
+#[derive(Clone)]
+struct Data {
+    file: Arc<std::fs::File>,
+    at: u64,
+    len: u64,
 }
 
 /// Runs blocking file work off the async runtime.
@@ -97,6 +139,17 @@ impl FsStore {
     /// Opens (creating) `data_dir/volumes` and `data_dir/jobs`, removes leftovers of interrupted
     /// writes and indexes what is there. Blocking: call it before serving, or off the runtime.
     pub fn open(data_dir: &Path, limit: u64) -> Result<FsStore, StoreError> {
+        FsStore::open_as(data_dir, limit, true)
+    }
+
+    /// Opens as a process that does not write the packs (as when another holds their lock):
+    /// every volume it stores gets its own files. For tests of that layout.
+    #[cfg(test)]
+    pub(crate) fn open_files(data_dir: &Path, limit: u64) -> Result<FsStore, StoreError> {
+        FsStore::open_as(data_dir, limit, false)
+    }
+
+    fn open_as(data_dir: &Path, limit: u64, packs: bool) -> Result<FsStore, StoreError> {
         let volumes = data_dir.join("volumes");
         let jobs = data_dir.join("jobs");
         let uploads = data_dir.join("uploads");
@@ -134,7 +187,15 @@ impl FsStore {
                             );
                         }
                         let stored = data.len() + json_len;
-                        index.insert(m.id.clone(), Entry { meta: m, stored });
+                        let at = None;
+                        index.insert(
+                            m.id.clone(),
+                            Entry {
+                                meta: m,
+                                stored,
+                                at,
+                            },
+                        );
                     }
                     (Some((m, _)), Some(Err(e))) if e.kind() == std::io::ErrorKind::NotFound => {
                         // Metadata whose data file is missing: a group commit interrupted before
@@ -164,6 +225,13 @@ impl FsStore {
                 let _ = std::fs::remove_file(&p);
             }
         }
+        let (packs, found) = Packs::open(&volumes, packs)?;
+        let pack_writer = packs.writer();
+        for (meta, loc) in found {
+            let (stored, at) = (loc.len, Some(loc));
+            index.insert(meta.id.clone(), Entry { meta, stored, at });
+        }
+        let packs = Arc::new(Mutex::new(packs));
         let records = Arc::new(Mutex::new(JobLog::open(&jobs)?));
         tracing::info!(volumes = index.len(), dir = %volumes.display(), "store opened");
         let used = index.values().map(|e| e.stored).sum();
@@ -175,18 +243,21 @@ impl FsStore {
             last_write_failed: false,
         }));
         let (commits, queued) = std::sync::mpsc::channel();
-        let (dir, shared) = (volumes.clone(), inner.clone());
+        let (dir, shared, packs_) = (volumes.clone(), inner.clone(), packs.clone());
         // Ends when the store (the channel's only sender) is dropped.
-        std::thread::Builder::new()
+        let committer = std::thread::Builder::new()
             .name("voxd-commit".into())
-            .spawn(move || commit_volumes(&dir, &shared, &queued))?;
+            .spawn(move || commit_volumes(&dir, &packs_, &shared, &queued))?;
         Ok(FsStore {
             volumes,
             records,
             uploads,
             limit,
             inner,
+            packs,
+            pack_writer,
             commits,
+            committer: Some(committer),
         })
     }
 
@@ -194,10 +265,10 @@ impl FsStore {
         lock(&self.inner)
     }
 
-    /// The metadata of volume `id`: from the catalogue, or else from its committed files (a
-    /// volume another process sharing this directory stored, as replicas do in tests), which
-    /// then join the catalogue. Listing shows only the catalogue: a directory is not a store
-    /// for replicas (an object store is).
+    /// The metadata of volume `id`: from the catalogue, or else from its committed files or
+    /// the packs (a volume another process sharing this directory stored, as replicas do in
+    /// tests), which then join the catalogue. Listing shows only the catalogue: a directory is
+    /// not a store for replicas (an object store is).
     async fn lookup(&self, id: &str) -> Result<Option<VolumeMeta>, StoreError> {
         if let Some(e) = self.lock().index.get(id) {
             return Ok(Some(e.meta.clone()));
@@ -221,20 +292,162 @@ impl FsStore {
         })
         .await?;
         let Some((meta, stored)) = found.filter(|(m, _)| m.id == id) else {
-            return Ok(None);
+            if self.pack_writer {
+                return Ok(None);
+            }
+            self.refresh_packs().await?;
+            return Ok(self.lock().index.get(id).map(|e| e.meta.clone()));
         };
         let mut i = self.lock();
         if !i.index.contains_key(id) {
             i.used += stored;
-            i.index.insert(
-                id.to_string(),
-                Entry {
-                    meta: meta.clone(),
-                    stored,
-                },
-            );
+            let at = None;
+            let meta = meta.clone();
+            i.index.insert(id.to_string(), Entry { meta, stored, at });
         }
         Ok(Some(meta))
+    }
+
+    /// A process that does not write the packs reads what the writer appended since it last
+    /// looked: new volumes join the catalogue (a moved one at its new place), removed ones
+    /// leave it.
+    async fn refresh_packs(&self) -> Result<(), StoreError> {
+        let (packs, inner) = (self.packs.clone(), self.inner.clone());
+        blocking(move || {
+            let mut p = lock(&packs);
+            let (found, removed) = p.refresh()?;
+            let mut i = lock(&inner);
+            for id in removed {
+                if let Some(e) = i.index.get(&id)
+                    && e.at.is_some()
+                {
+                    let old = i.index.remove(&id).expect("listed");
+                    i.used -= old.stored;
+                }
+            }
+            for (meta, loc) in found {
+                let (stored, at) = (loc.len, Some(loc));
+                i.used += stored;
+                if let Some(old) = i.index.insert(meta.id.clone(), Entry { meta, stored, at }) {
+                    i.used -= old.stored;
+                }
+            }
+            Ok(())
+        })
+        .await
+    }
+
+    /// Where volume `id`'s bytes are: its file, or its pack record. `None`: not stored.
+    async fn place(&self, id: &str) -> Result<Option<(VolumeMeta, Place)>, StoreError> {
+        let Some(meta) = self.lookup(id).await? else {
+            return Ok(None);
+        };
+        let place = match self.lock().index.get(id).and_then(|e| e.at) {
+            Some(loc) => Place::Pack(self.volumes.join(packs::name(loc.pack)), loc),
+            None => Place::File(self.volumes.join(format!("{id}.vxl"))),
+        };
+        Ok(Some((meta, place)))
+    }
+
+    /// Opens volume `id`'s bytes (its file, or its pack at its record's data), checking their
+    /// length against the metadata: `Corrupt` when they are missing or of another length. A
+    /// pack a compaction removed in between is looked up again.
+    async fn open_data(&self, id: &str) -> Result<Option<(VolumeMeta, Data)>, StoreError> {
+        for _ in 0..3 {
+            let Some((meta, place)) = self.place(id).await? else {
+                return Ok(None);
+            };
+            let (want, id_) = (meta.bytes, id.to_string());
+            let moved = matches!(place, Place::Pack(..));
+            let opened = blocking(move || {
+                let (path, at, len) = match &place {
+                    Place::File(p) => (p, 0, None),
+                    Place::Pack(p, loc) => (p, loc.data, Some(loc.len - (loc.data - loc.record))),
+                };
+                let file = match std::fs::File::open(path) {
+                    Ok(f) => f,
+                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+                    Err(e) => return Err(e.into()),
+                };
+                let len = match len {
+                    Some(len) => len,
+                    None => file.metadata()?.len(),
+                };
+                if len != want {
+                    return Err(StoreError::Corrupt(format!(
+                        "volume {id_}: the data is {len} bytes but its metadata says {want} (a torn or damaged file)"
+                    )));
+                }
+                Ok(Some(Data {
+                    file: Arc::new(file),
+                    at,
+                    len,
+                }))
+            })
+            .await
+            .inspect_err(|e| {
+                if matches!(e, StoreError::Corrupt(_)) {
+                    tracing::error!("{e}")
+                }
+            })?;
+            match opened {
+                Some(data) => return Ok(Some((meta, data))),
+                // Moved by a compaction: look again (a process that does not write the packs
+                // reads where the writer put it).
+                None if moved && self.lock().index.contains_key(id) => {
+                    if !self.pack_writer {
+                        self.refresh_packs().await?;
+                    }
+                }
+                // Gone although still listed: lost, not deleted (a delete unlists first).
+                None if self.lock().index.contains_key(id) => break,
+                None => return Ok(None),
+            }
+        }
+        let e = StoreError::Corrupt(format!("volume {id}: its data is missing"));
+        tracing::error!("{e}");
+        Err(e)
+    }
+
+    /// Removes a volume kept in a pack: unlisted and a removal record appended (both under the
+    /// packs' lock, so no compaction moves it in between; listed again if the append fails),
+    /// then the packs are compacted if they are due.
+    async fn delete_packed(&self, id: &str) -> Result<bool, StoreError> {
+        if !self.pack_writer {
+            return Err(StoreError::Io(std::io::Error::other(format!(
+                "volume {id} is kept in a pack, which only the process holding {} removes from",
+                self.volumes.join(packs::LOCK).display()
+            ))));
+        }
+        let (packs, inner, id) = (self.packs.clone(), self.inner.clone(), id.to_string());
+        let removed = blocking(move || {
+            let mut p = lock(&packs);
+            let old = {
+                let mut i = lock(&inner);
+                match i.index.remove(&id) {
+                    Some(old) => {
+                        i.used -= old.stored;
+                        old
+                    }
+                    None => return Ok(false),
+                }
+            };
+            let loc = old.at.expect("a packed volume");
+            if let Err(e) = p.remove(&id, loc) {
+                let mut i = lock(&inner);
+                i.used += old.stored;
+                i.index.insert(id, old);
+                return Err(e.into());
+            }
+            if let Err(e) = compact(&mut p, &inner) {
+                // The removal stands; the garbage waits for the next one.
+                tracing::error!("compacting the volume packs: {e}");
+            }
+            Ok(true)
+        })
+        .await;
+        self.note_write(removed.is_ok());
+        removed
     }
 
     /// One job record written (`Some`) or removed, as a batch of one.
@@ -270,13 +483,28 @@ impl VolumeStore for FsStore {
         // The metadata must describe the bytes (or every later read would fail), and the
         // metadata file counts against the quota as much as the data: both are known before
         // anything is written.
-        let (m, data) = (meta.clone(), vxl.clone());
-        let json = blocking(move || {
+        let (m, data, pack) = (meta.clone(), vxl.clone(), self.pack_writer);
+        let (json, packed) = blocking(move || {
             check(&m.id, &data, &m)?;
-            Ok(serde_json::to_vec_pretty(&m).expect("metadata serialises"))
+            // A small volume goes to a pack (one record: its metadata and data), a large one
+            // to its own two files.
+            if pack {
+                let json = serde_json::to_vec(&m).expect("metadata serialises");
+                let len = packs::record_len(&m.id, &json, data.len() as u64);
+                if json.len() <= packs::META_MAX && len <= packs::RECORD_MAX {
+                    return Ok((json, true));
+                }
+            }
+            Ok((
+                serde_json::to_vec_pretty(&m).expect("metadata serialises"),
+                false,
+            ))
         })
         .await?;
-        let need = (vxl.len() + json.len()) as u64;
+        let need = match packed {
+            true => packs::record_len(&meta.id, &json, vxl.len() as u64),
+            false => (vxl.len() + json.len()) as u64,
+        };
         {
             let mut i = self.lock();
             let used = i.used + i.reserved;
@@ -296,6 +524,7 @@ impl VolumeStore for FsStore {
             meta,
             vxl,
             json,
+            packed,
             need,
             done,
         };
@@ -317,80 +546,50 @@ impl VolumeStore for FsStore {
     }
 
     /// The bytes, checked against the metadata's length and sha256: a mismatch, a torn file
-    /// or a missing one is `Corrupt`. (Ids are never reused, so the file under a listed id
-    /// changes only by damage.)
+    /// or a missing one is `Corrupt`. (Ids are never reused, so the bytes under a listed id
+    /// change only by damage.)
     async fn read(&self, id: &str) -> Result<Option<Bytes>, StoreError> {
-        let Some(meta) = self.lookup(id).await? else {
+        let Some((meta, data)) = self.open_data(id).await? else {
             return Ok(None);
         };
-        let p = self.volumes.join(format!("{id}.vxl"));
-        let read = blocking(move || match std::fs::read(&p) {
-            Ok(b) => {
-                check(&meta.id, &b, &meta)?;
-                Ok(Some(Bytes::from(b)))
-            }
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
-            Err(e) => Err(e.into()),
+        let read = blocking(move || {
+            let mut b = vec![0u8; data.len as usize];
+            data.file.read_exact_at(&mut b, data.at)?;
+            check(&meta.id, &b, &meta)?;
+            Ok(Bytes::from(b))
         })
         .await;
-        match read {
-            // Gone although still listed: lost, not deleted (a delete unlists first).
-            Ok(None) if self.lock().index.contains_key(id) => {
-                let e =
-                    StoreError::Corrupt(format!("volume {id}: its data file {id}.vxl is missing"));
-                tracing::error!("{e}");
-                Err(e)
-            }
-            Err(e @ StoreError::Corrupt(_)) => {
-                tracing::error!("{e}");
-                Err(e)
-            }
-            other => other,
+        if let Err(e @ StoreError::Corrupt(_)) = &read {
+            tracing::error!("{e}");
         }
+        read.map(Some)
     }
 
-    /// Chunks of `{id}.vxl` read on the blocking pool, checked by [`verified`]; a file of
-    /// another length than the metadata's is `Corrupt` before anything streams.
+    /// Chunks of the volume's bytes read on the blocking pool, checked by [`verified`]; data
+    /// of another length than the metadata's is `Corrupt` before anything streams.
     async fn read_stream(&self, id: &str) -> Result<Option<ByteStream>, StoreError> {
-        let Some(meta) = self.lookup(id).await? else {
+        let Some((meta, data)) = self.open_data(id).await? else {
             return Ok(None);
         };
-        let p = self.volumes.join(format!("{id}.vxl"));
-        let (id, want) = (id.to_string(), meta.bytes);
-        let file = blocking(move || match std::fs::File::open(&p) {
-            Ok(f) => {
-                let len = f.metadata()?.len();
-                if len != want {
-                    return Err(StoreError::Corrupt(format!(
-                        "volume {id}: the data is {len} bytes but its metadata says {want} (a torn or damaged file)"
-                    )));
-                }
-                Ok(f)
+        let chunks = futures_util::stream::unfold(Some(data), |data| async move {
+            let data = data?;
+            if data.len == 0 {
+                return None;
             }
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Err(StoreError::Corrupt(
-                format!("volume {id}: its data file {id}.vxl is missing"),
-            )),
-            Err(e) => Err(e.into()),
-        })
-        .await
-        .inspect_err(|e| {
-            if matches!(e, StoreError::Corrupt(_)) {
-                tracing::error!("{e}")
-            }
-        })?;
-        let chunks = futures_util::stream::unfold(Some(file), |file| async move {
-            let mut f = file?;
             let r = blocking(move || {
-                use std::io::Read;
-                let mut buf = vec![0u8; CHUNK];
-                let n = f.read(&mut buf)?;
-                buf.truncate(n);
-                Ok((f, buf))
+                let n = data.len.min(CHUNK as u64) as usize;
+                let mut buf = vec![0u8; n];
+                data.file.read_exact_at(&mut buf, data.at)?;
+                let rest = Data {
+                    at: data.at + n as u64,
+                    len: data.len - n as u64,
+                    ..data
+                };
+                Ok((rest, buf))
             })
             .await;
             match r {
-                Ok((_, buf)) if buf.is_empty() => None,
-                Ok((f, buf)) => Some((Ok(Bytes::from(buf)), Some(f))),
+                Ok((rest, buf)) => Some((Ok(Bytes::from(buf)), Some(rest))),
                 Err(e) => Some((Err(e), None)),
             }
         });
@@ -415,6 +614,9 @@ impl VolumeStore for FsStore {
 
     async fn delete(&self, id: &str) -> Result<bool, StoreError> {
         self.lookup(id).await?;
+        if self.lock().index.get(id).is_some_and(|e| e.at.is_some()) {
+            return self.delete_packed(id).await;
+        }
         {
             let mut i = self.lock();
             let Some(old) = i.index.remove(id) else {
@@ -544,10 +746,48 @@ fn lock<T>(inner: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     inner.lock().unwrap_or_else(|p| p.into_inner())
 }
 
+/// Compacts the packs while they are due ([`Packs::due`]; at most 4 packs at a time, each at
+/// most [`packs::PACK_MAX`] and a volume): their live volumes move to the newest pack and the
+/// catalogue follows them.
+fn compact(p: &mut Packs, inner: &Mutex<Inner>) -> Result<(), StoreError> {
+    for _ in 0..4 {
+        let packed = || {
+            let i = lock(inner);
+            i.index
+                .values()
+                .filter(|e| e.at.is_some())
+                .map(|e| e.stored)
+                .sum()
+        };
+        let Some(n) = p.due(packed) else {
+            return Ok(());
+        };
+        let live: std::collections::HashMap<String, Loc> = lock(inner)
+            .index
+            .iter()
+            .filter_map(|(id, e)| e.at.filter(|l| l.pack == n).map(|l| (id.clone(), l)))
+            .collect();
+        p.compact(n, &live, |moved| {
+            let mut i = lock(inner);
+            for (id, loc) in moved {
+                if let Some(e) = i.index.get_mut(&id) {
+                    e.at = Some(loc);
+                }
+            }
+        })?;
+    }
+    Ok(())
+}
+
 /// The committer thread: takes the puts queued while the previous group was being written (up
 /// to [`GROUP_MAX`], without waiting for more) and writes them as one group ([`commit_group`]),
 /// until the store is dropped. A lone put is written as soon as it arrives.
-fn commit_volumes(dir: &Path, inner: &Mutex<Inner>, queued: &std::sync::mpsc::Receiver<Pending>) {
+fn commit_volumes(
+    dir: &Path,
+    packs: &Mutex<Packs>,
+    inner: &Mutex<Inner>,
+    queued: &std::sync::mpsc::Receiver<Pending>,
+) {
     while let Ok(first) = queued.recv() {
         let mut group = vec![first];
         while group.len() < GROUP_MAX {
@@ -556,23 +796,24 @@ fn commit_volumes(dir: &Path, inner: &Mutex<Inner>, queued: &std::sync::mpsc::Re
                 Err(_) => break,
             }
         }
-        let outcomes = commit_group(dir, &group);
+        let outcomes = commit_group(dir, packs, &group);
         let mut i = lock(inner);
         i.note_write(outcomes.iter().all(Result::is_ok));
         let mut replies = Vec::with_capacity(group.len());
         for (p, outcome) in group.into_iter().zip(outcomes) {
             i.reserved -= p.need;
-            if outcome.is_ok() {
+            if let Ok(at) = outcome {
                 i.used += p.need;
                 let entry = Entry {
                     meta: p.meta,
                     stored: p.need,
+                    at,
                 };
                 if let Some(old) = i.index.insert(entry.meta.id.clone(), entry) {
                     i.used -= old.stored;
                 }
             }
-            replies.push((p.done, outcome));
+            replies.push((p.done, outcome.map(drop)));
         }
         drop(i);
         for (done, outcome) in replies {
@@ -606,6 +847,57 @@ fn in_parallel<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec
         .collect()
 }
 
+/// Writes a group of volumes, each durable when its outcome is `Ok` (with its place in a
+/// pack, or `None` for its own files): those that go to a pack in one append
+/// ([`Packs::put`]), the others by [`commit_files`].
+fn commit_group(
+    dir: &Path,
+    packs: &Mutex<Packs>,
+    group: &[Pending],
+) -> Vec<Result<Option<Loc>, StoreError>> {
+    let mut outcomes: Vec<Option<Result<Option<Loc>, StoreError>>> =
+        (0..group.len()).map(|_| None).collect();
+    let packed: Vec<usize> = (0..group.len()).filter(|&k| group[k].packed).collect();
+    if !packed.is_empty() {
+        let records: Vec<(&str, &[u8], &[u8])> = packed
+            .iter()
+            .map(|&k| {
+                (
+                    group[k].meta.id.as_str(),
+                    &group[k].json[..],
+                    &group[k].vxl[..],
+                )
+            })
+            .collect();
+        let put = lock(packs).put(&records);
+        match put {
+            Ok(locs) => {
+                for (&k, loc) in packed.iter().zip(locs) {
+                    fault::point(fault::Site::AfterCommit);
+                    outcomes[k] = Some(Ok(Some(loc)));
+                }
+            }
+            Err(e) => {
+                for &k in &packed {
+                    let e = std::io::Error::new(e.kind(), e.to_string());
+                    outcomes[k] = Some(Err(e.into()));
+                }
+            }
+        }
+    }
+    let files: Vec<usize> = (0..group.len()).filter(|&k| !group[k].packed).collect();
+    if !files.is_empty() {
+        let each: Vec<&Pending> = files.iter().map(|&k| &group[k]).collect();
+        for (&k, o) in files.iter().zip(commit_files(dir, &each)) {
+            outcomes[k] = Some(o.map(|()| None));
+        }
+    }
+    outcomes
+        .into_iter()
+        .map(|o| o.expect("every volume written"))
+        .collect()
+}
+
 /// Writes a group of volumes with the guarantees of one atomic put each and a fraction of the
 /// syncs: every volume's two files are written to temporary files and fsynced (on up to
 /// [`GROUP_THREADS`] threads, so the file system can fold their syncs into shared journal
@@ -616,8 +908,8 @@ fn in_parallel<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec
 /// those volumes were never acknowledged, and [`FsStore::open`] removes whichever half is left
 /// (data without metadata, or metadata whose data is missing). A volume whose files could not be
 /// written fails alone; a failed directory sync fails the group.
-fn commit_group(dir: &Path, group: &[Pending]) -> Vec<Result<(), StoreError>> {
-    let stage = |p: &Pending| -> Result<(atomic::Staged, atomic::Staged), StoreError> {
+fn commit_files(dir: &Path, group: &[&Pending]) -> Vec<Result<(), StoreError>> {
+    let stage = |p: &&Pending| -> Result<(atomic::Staged, atomic::Staged), StoreError> {
         let id = &p.meta.id;
         let data = atomic::stage_with(&dir.join(format!("{id}.vxl")), |w| {
             fault::write(fault::Site::MidData, w, &p.vxl)
@@ -841,7 +1133,7 @@ mod tests {
         let data = vec![0u8; 30];
         let per = 30 + serde_json::to_vec_pretty(&meta("v0", &data)).unwrap().len() as u64;
         let limit = 3 * per + per / 2;
-        let store = std::sync::Arc::new(FsStore::open(&dir, limit).unwrap());
+        let store = std::sync::Arc::new(FsStore::open_files(&dir, limit).unwrap());
         // Eight concurrent puts into room for three and a half: exactly three fit.
         let puts: Vec<_> = (0..8)
             .map(|n| {
@@ -866,7 +1158,7 @@ mod tests {
         assert_eq!(bytes_on_disk(&dir), 3 * per);
         assert!(store.health().await.is_ok());
         // Reopened, the same three are there and count the same.
-        let again = FsStore::open(&dir, limit).unwrap();
+        let again = FsStore::open_files(&dir, limit).unwrap();
         assert_eq!(again.list(None, 10).await.unwrap().0.len(), 3);
         assert_eq!(again.usage().await.unwrap().bytes, 3 * per);
         let listed = store.list(None, 10).await.unwrap().0;
@@ -884,7 +1176,7 @@ mod tests {
         let plain_json = serde_json::to_vec_pretty(&plain).unwrap().len() as u64;
         // Room for the data and a small metadata file, not for 100 KB of provenance.
         let limit = 2 * (1000 + plain_json) + 10_000;
-        let store = FsStore::open(&dir, limit).unwrap();
+        let store = FsStore::open_files(&dir, limit).unwrap();
         let mut big = meta("big", &data);
         big.provenance = Some(serde_json::json!({
             "op": "union",
@@ -908,7 +1200,7 @@ mod tests {
         store.put(plain, Bytes::from(data.clone())).await.unwrap();
         assert_eq!(store.usage().await.unwrap().bytes, 1000 + plain_json);
         assert_eq!(bytes_on_disk(&dir), 1000 + plain_json);
-        let again = FsStore::open(&dir, limit).unwrap();
+        let again = FsStore::open_files(&dir, limit).unwrap();
         assert_eq!(again.usage().await.unwrap().bytes, 1000 + plain_json);
         std::fs::remove_dir_all(&dir).unwrap();
     }
@@ -917,7 +1209,7 @@ mod tests {
     async fn streamed_reads_are_checked_before_their_last_byte() {
         use futures_util::StreamExt;
         let dir = scratch("stream");
-        let store = FsStore::open(&dir, 16 << 20).unwrap();
+        let store = FsStore::open_files(&dir, 16 << 20).unwrap();
         let data: Vec<u8> = (0..3 * CHUNK as u32 + 17)
             .map(|i| (i % 253) as u8)
             .collect();
@@ -986,7 +1278,7 @@ mod tests {
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn reads_verify_length_and_checksum() {
         let dir = scratch("checksum");
-        let store = FsStore::open(&dir, 1 << 20).unwrap();
+        let store = FsStore::open_files(&dir, 1 << 20).unwrap();
         let data: Vec<u8> = (0..4096u32).map(|i| (i * 7 % 251) as u8).collect();
         for id in ["a", "b", "c", "d"] {
             store
@@ -1012,7 +1304,7 @@ mod tests {
         std::fs::remove_file(dir.join("volumes/c.vxl")).unwrap();
         corrupt(store.read("c").await, "missing");
         // Still corrupt after a reopen (it is listed, and says so when read).
-        let again = FsStore::open(&dir, 1 << 20).unwrap();
+        let again = FsStore::open_files(&dir, 1 << 20).unwrap();
         corrupt(again.read("a").await, "sha256");
         corrupt(again.read("b").await, "1000 bytes");
         assert_eq!(again.read("d").await.unwrap().unwrap(), data);
@@ -1049,8 +1341,8 @@ mod tests {
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn a_volume_another_process_stored_is_found_on_disk() {
         let dir = scratch("shared");
-        let a = FsStore::open(&dir, 1 << 20).unwrap();
-        let b = FsStore::open(&dir, 1 << 20).unwrap();
+        let a = FsStore::open_files(&dir, 1 << 20).unwrap();
+        let b = FsStore::open_files(&dir, 1 << 20).unwrap();
         let data = vec![5u8; 300];
         a.put(meta("v1", &data), Bytes::from(data.clone()))
             .await
@@ -1087,6 +1379,7 @@ mod tests {
                 let (done, reply) = tokio::sync::oneshot::channel();
                 replies.push(reply);
                 Pending {
+                    packed: false,
                     need: (data.len() + json.len()) as u64,
                     meta: m,
                     vxl: Bytes::from(data),
@@ -1095,7 +1388,11 @@ mod tests {
                 }
             })
             .collect();
-        let outcomes = commit_group(&volumes, &group);
+        let outcomes = commit_group(
+            &volumes,
+            &Mutex::new(Packs::open(&volumes, false).unwrap().0),
+            &group,
+        );
         assert_eq!(outcomes.len(), group.len());
         for (n, o) in outcomes.iter().enumerate() {
             let (vxl, json) = (
@@ -1119,7 +1416,7 @@ mod tests {
             .collect();
         assert!(leftovers.is_empty(), "{leftovers:?}");
         // Reopened, the store has every committed volume and reads each whole.
-        let store = FsStore::open(&dir, 1 << 30).unwrap();
+        let store = FsStore::open_files(&dir, 1 << 30).unwrap();
         let rt = tokio::runtime::Builder::new_current_thread()
             .build()
             .unwrap();
@@ -1157,10 +1454,11 @@ mod tests {
                 std::fs::write(volumes.join(format!("{id}.json")), m).unwrap();
             }
         }
-        let store = FsStore::open(&dir, 1 << 20).unwrap();
+        let store = FsStore::open_files(&dir, 1 << 20).unwrap();
         let mut names: Vec<String> = std::fs::read_dir(&volumes)
             .unwrap()
             .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n != packs::LOCK)
             .collect();
         names.sort();
         assert_eq!(names, ["whole.json", "whole.vxl"]);
@@ -1178,7 +1476,7 @@ mod tests {
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn concurrent_puts_each_hear_their_own_outcome() {
         let dir = scratch("concurrent");
-        let store = std::sync::Arc::new(FsStore::open(&dir, 1 << 30).unwrap());
+        let store = std::sync::Arc::new(FsStore::open_files(&dir, 1 << 30).unwrap());
         std::fs::create_dir_all(dir.join("volumes/v5.vxl")).unwrap();
         let puts: Vec<_> = (0..40u8)
             .map(|n| {

@@ -10,6 +10,7 @@
 pub mod atomic;
 pub mod fs;
 mod joblog;
+mod packs;
 pub mod s3;
 
 use std::path::PathBuf;

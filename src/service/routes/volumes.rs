@@ -247,10 +247,10 @@ pub async fn etag_per_coding(mut r: Response) -> Response {
         .get(header::CONTENT_ENCODING)
         .and_then(|v| v.to_str().ok())
         .map(str::to_string);
-    if let (Some(c), Some(tag)) = (coding, r.headers().get(header::ETAG)) {
-        if let Ok(v) = HeaderValue::from_str(&coded_etag(tag.to_str().unwrap_or(""), &c)) {
-            r.headers_mut().insert(header::ETAG, v);
-        }
+    if let (Some(c), Some(tag)) = (coding, r.headers().get(header::ETAG))
+        && let Ok(v) = HeaderValue::from_str(&coded_etag(tag.to_str().unwrap_or(""), &c))
+    {
+        r.headers_mut().insert(header::ETAG, v);
     }
     r
 }
