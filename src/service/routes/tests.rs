@@ -567,6 +567,21 @@ async fn contract_edges() {
 /// Downloads stream: a conversion arrives in bounded chunks with its exact length announced
 /// (the whole response is never built in memory), and a damaged stored volume ends its stream
 /// with an error instead of arriving whole.
+/// Flips a bit of byte `at` of a stored volume's bytes `data` where the directory store keeps
+/// them: in a pack record or in the volume's own file (found by content).
+fn damage(dir: &std::path::Path, data: &[u8], at: usize) {
+    for e in std::fs::read_dir(dir.join("volumes")).unwrap() {
+        let path = e.unwrap().path();
+        let mut bytes = std::fs::read(&path).unwrap();
+        if let Some(start) = bytes.windows(data.len()).position(|w| w == data) {
+            bytes[start + at] ^= 0x40;
+            std::fs::write(&path, &bytes).unwrap();
+            return;
+        }
+    }
+    panic!("the stored bytes are in no file");
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn downloads_stream_in_bounded_chunks() {
     use futures_util::StreamExt;
@@ -613,12 +628,9 @@ async fn downloads_stream_in_bounded_chunks() {
     assert_eq!(got, crate::codec::npy::encode(&v));
     // Stored bytes damaged on disk: a volume within the first chunk is a problem document; a
     // longer one fails before its last chunk (never arrives whole).
-    let file = h.dir.join(format!("volumes/{id}.vxl"));
-    let mut bytes = std::fs::read(&file).unwrap();
-    assert!(bytes.len() < 256 << 10);
-    let last = bytes.len() - 1;
-    bytes[last] ^= 0x40;
-    std::fs::write(&file, &bytes).unwrap();
+    assert!(stored.len() < 256 << 10);
+    let last = stored.len() - 1;
+    damage(&h.dir, &stored, last);
     call(&h.app, "GET", &format!("/v1/volumes/{id}/data"), None, b"")
         .await
         .problem(500, "internal");
@@ -647,10 +659,7 @@ async fn downloads_stream_in_bounded_chunks() {
     meta.bytes = vxl.len() as u64;
     meta.sha256 = crate::app::sha256_hex(&vxl);
     h.app.store.put(meta, vxl.clone().into()).await.unwrap();
-    let file = h.dir.join("volumes/big.vxl");
-    let mut bytes = vxl.clone();
-    bytes[last] ^= 0x40;
-    std::fs::write(&file, &bytes).unwrap();
+    damage(&h.dir, &vxl, last);
     let res = get("/v1/volumes/big/data".into()).await;
     assert_eq!(res.status(), StatusCode::OK);
     let mut body = res.into_body().into_data_stream();
