@@ -213,24 +213,35 @@ fn read_record(f: &File, pack: u64, at: u64, len: u64) -> std::io::Result<Option
     }))
 }
 
-/// The records of a pack from `from`, and where the valid ones end. With `verify`, a record's
-/// data is read and must match its metadata (else it ends the pack too).
+/// The records of a pack from `from`, and where the valid ones end. With `verify` (the
+/// writer, on the newest pack at open), each volume's data is read and checked against its
+/// metadata too: records that fail it at the end of the pack end it (a group a crash
+/// interrupted after its length reached the disk but before all its bytes did); one followed by
+/// a record that checks is kept (damaged after it was acknowledged: listed, its reads say so).
 fn scan(f: &File, pack: u64, from: u64, verify: bool) -> std::io::Result<(Vec<Record>, u64)> {
     let len = f.metadata()?.len();
     let mut out = vec![];
-    let mut at = from;
+    let mut bad = vec![];
+    let (mut at, mut end, mut whole) = (from, from, 0);
     while let Some(r) = read_record(f, pack, at, len)? {
-        if verify && let Some(m) = &r.meta {
-            let mut data = vec![0u8; r.loc.len as usize - (r.loc.data - r.loc.record) as usize];
+        at += r.loc.len;
+        if let (Some(m), true) = (&r.meta, verify) {
+            let mut data = vec![0u8; (r.loc.record + r.loc.len - r.loc.data) as usize];
             f.read_exact_at(&mut data, r.loc.data)?;
-            if check(&r.id, &data, m).is_err() {
-                break;
+            if let Err(e) = check(&r.id, &data, m) {
+                bad.push((out.len(), e));
+                out.push(r);
+                continue;
             }
         }
-        at += r.loc.len;
         out.push(r);
+        (end, whole) = (at, out.len());
     }
-    Ok((out, at))
+    for (_, e) in bad.iter().filter(|(k, _)| *k < whole) {
+        tracing::error!(pack = %name(pack), "{e}");
+    }
+    out.truncate(whole);
+    Ok((out, end))
 }
 
 /// The volumes found by [`Packs::open`] or [`Packs::refresh`].
@@ -776,6 +787,51 @@ mod tests {
             assert_eq!(std::fs::metadata(&path).unwrap().len(), whole);
             holds(&store, &want).await;
         }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A volume damaged after it was stored (its data no longer matches its metadata) and
+    /// followed by whole ones is not taken for a torn end: it stays listed and its reads say
+    /// it is damaged; the volumes after it stay.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn damage_inside_a_pack_cuts_nothing_off() {
+        let dir = scratch("damaged");
+        let mut want = BTreeMap::new();
+        {
+            let store = FsStore::open(&dir, 1 << 30).unwrap();
+            for n in 0..4 {
+                let (id, data) = (format!("v{n}"), bytes(n, 2000 + n));
+                store
+                    .put(meta(&id, &data), Bytes::from(data.clone()))
+                    .await
+                    .unwrap();
+                want.insert(id, data);
+            }
+        }
+        let (name, whole) = pack_files(&dir).into_iter().next().unwrap();
+        let path = dir.join("volumes").join(&name);
+        let mut b = std::fs::read(&path).unwrap();
+        let at = b
+            .windows(want["v1"].len())
+            .position(|w| w == &want["v1"][..])
+            .unwrap();
+        b[at + 100] ^= 1;
+        std::fs::write(&path, &b).unwrap();
+        let store = FsStore::open(&dir, 1 << 30).unwrap();
+        assert_eq!(std::fs::metadata(&path).unwrap().len(), whole);
+        assert!(matches!(
+            store.read("v1").await,
+            Err(StoreError::Corrupt(_))
+        ));
+        want.remove("v1");
+        for (id, data) in &want {
+            assert_eq!(
+                &store.read(id).await.unwrap().unwrap()[..],
+                &data[..],
+                "{id}"
+            );
+        }
+        assert_eq!(store.list(None, 10).await.unwrap().0.len(), 4);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
