@@ -882,6 +882,57 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
+    /// Reads running while deletes compact the pack under them each get their whole, right
+    /// volume (a stress test of the catalogue's moves; the retry of a read whose pack was removed
+    /// is pinned down by `a_second_process_reads_the_packs_and_writes_files`, where the stale
+    /// location is certain).
+    #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+    async fn reads_during_compaction_get_whole_volumes() {
+        let dir = scratch("racing");
+        let store = std::sync::Arc::new(FsStore::open(&dir, 1 << 32).unwrap());
+        let mut kept = vec![];
+        for n in 0..80 {
+            let (id, data) = (format!("v{n:03}"), bytes(n, (900 << 10) + n));
+            store
+                .put(meta(&id, &data), Bytes::from(data.clone()))
+                .await
+                .unwrap();
+            if n % 8 == 0 {
+                kept.push((id, data));
+            }
+        }
+        let kept = std::sync::Arc::new(kept);
+        let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let readers: Vec<_> = (0..3)
+            .map(|r| {
+                let (store, kept, done) = (store.clone(), kept.clone(), done.clone());
+                tokio::spawn(async move {
+                    let mut reads = 0;
+                    for round in 0..10_000 {
+                        if done.load(std::sync::atomic::Ordering::SeqCst) && round > 0 {
+                            break;
+                        }
+                        let (id, data) = &kept[(round + r) % kept.len()];
+                        let got = store.read(id).await.unwrap().unwrap();
+                        assert!(got[..] == data[..], "{id}");
+                        reads += 1;
+                    }
+                    reads
+                })
+            })
+            .collect();
+        let first = pack_files(&dir).keys().next().unwrap().clone();
+        for n in (0..80).filter(|n| n % 8 != 0) {
+            assert!(store.delete(&format!("v{n:03}")).await.unwrap());
+        }
+        done.store(true, std::sync::atomic::Ordering::SeqCst);
+        for r in readers {
+            assert!(r.await.unwrap() > 0);
+        }
+        assert!(!pack_files(&dir).contains_key(&first), "no compaction ran");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
     /// A second process on the directory (here a second store in this one: the lock is per
     /// open file) does not write the packs: its volumes get their own files, it finds the
     /// writer's volumes in the packs, also after the writer moved them, and it cannot remove
