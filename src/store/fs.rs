@@ -1078,12 +1078,12 @@ pub mod fault {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::store::{SourceInfo, sha256_hex};
 
     /// Metadata that describes `data` truthfully.
-    fn meta(id: &str, data: &[u8]) -> VolumeMeta {
+    pub(crate) fn meta(id: &str, data: &[u8]) -> VolumeMeta {
         VolumeMeta {
             id: id.into(),
             name: None,

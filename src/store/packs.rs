@@ -590,37 +590,10 @@ impl Packs {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::store::VolumeStore;
     use crate::store::fs::FsStore;
-    use crate::store::{SourceInfo, VolumeStore, sha256_hex};
+    use crate::store::fs::tests::meta;
     use bytes::Bytes;
-
-    fn meta(id: &str, data: &[u8]) -> VolumeMeta {
-        VolumeMeta {
-            id: id.into(),
-            name: None,
-            kind: "bits".into(),
-            method: "solid".into(),
-            grid: crate::Grid {
-                origin: [0.0; 3],
-                voxel_size: 1.0,
-                dims: [1; 3],
-            },
-            solid_voxels: 0,
-            volume: 0.0,
-            source: SourceInfo {
-                format: "obj".into(),
-                sha256: String::new(),
-                triangles: 1,
-            },
-            diagnostics: None,
-            fill: None,
-            engine: "cpu".into(),
-            created: String::new(),
-            bytes: data.len() as u64,
-            sha256: sha256_hex(data),
-            provenance: None,
-        }
-    }
 
     fn scratch(name: &str) -> PathBuf {
         let dir = std::env::temp_dir().join(format!("voxd-packs-{}-{name}", std::process::id()));
@@ -631,6 +604,24 @@ mod tests {
     /// Volume `n`'s bytes: `len` bytes that differ from every other volume's.
     fn bytes(n: usize, len: usize) -> Vec<u8> {
         (0..len).map(|k| (k * 31 + n * 7 + k / 251) as u8).collect()
+    }
+
+    /// A store on `dir` given volumes `v0`.. of `lens` bytes, then closed: the volumes, and
+    /// the one pack's path and length.
+    async fn stored(dir: &Path, lens: &[usize]) -> (BTreeMap<String, Vec<u8>>, PathBuf, u64) {
+        let mut want = BTreeMap::new();
+        let store = FsStore::open(dir, 1 << 30).unwrap();
+        for (n, &len) in lens.iter().enumerate() {
+            let (id, data) = (format!("v{n}"), bytes(n, len));
+            store
+                .put(meta(&id, &data), Bytes::from(data.clone()))
+                .await
+                .unwrap();
+            want.insert(id, data);
+        }
+        drop(store);
+        let (name, whole) = pack_files(dir).into_iter().next().unwrap();
+        (want, dir.join("volumes").join(name), whole)
     }
 
     /// Pack files of `dir/volumes`: name → length.
@@ -741,20 +732,7 @@ mod tests {
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn a_torn_tail_is_cut_off_at_open() {
         let dir = scratch("torn");
-        let mut want = BTreeMap::new();
-        {
-            let store = FsStore::open(&dir, 1 << 30).unwrap();
-            for n in 0..5 {
-                let (id, data) = (format!("v{n}"), bytes(n, 1000 + n));
-                store
-                    .put(meta(&id, &data), Bytes::from(data.clone()))
-                    .await
-                    .unwrap();
-                want.insert(id, data);
-            }
-        }
-        let (name, whole) = pack_files(&dir).into_iter().next().unwrap();
-        let path = dir.join("volumes").join(&name);
+        let (want, path, whole) = stored(&dir, &[1000, 1001, 1002, 1003, 1004]).await;
         let record = |id: &str, data: &[u8]| {
             let mut buf = vec![];
             encode(
@@ -796,20 +774,7 @@ mod tests {
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn damage_inside_a_pack_cuts_nothing_off() {
         let dir = scratch("damaged");
-        let mut want = BTreeMap::new();
-        {
-            let store = FsStore::open(&dir, 1 << 30).unwrap();
-            for n in 0..4 {
-                let (id, data) = (format!("v{n}"), bytes(n, 2000 + n));
-                store
-                    .put(meta(&id, &data), Bytes::from(data.clone()))
-                    .await
-                    .unwrap();
-                want.insert(id, data);
-            }
-        }
-        let (name, whole) = pack_files(&dir).into_iter().next().unwrap();
-        let path = dir.join("volumes").join(&name);
+        let (mut want, path, whole) = stored(&dir, &[2000, 2001, 2002, 2003]).await;
         let mut b = std::fs::read(&path).unwrap();
         let at = b
             .windows(want["v1"].len())
