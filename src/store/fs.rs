@@ -119,9 +119,8 @@ enum Place {
 }
 
 /// A volume's bytes, open: `len` bytes of `file` from `at`.
-#[derive(Clone)]
 struct Data {
-    file: Arc<std::fs::File>,
+    file: std::fs::File,
     at: u64,
     len: u64,
 }
@@ -362,7 +361,7 @@ impl FsStore {
             let opened = blocking(move || {
                 let (path, at, len) = match &place {
                     Place::File(p) => (p, 0, None),
-                    Place::Pack(p, loc) => (p, loc.data, Some(loc.len - (loc.data - loc.record))),
+                    Place::Pack(p, loc) => (p, loc.data, Some(loc.data_len())),
                 };
                 let file = match std::fs::File::open(path) {
                     Ok(f) => f,
@@ -379,7 +378,7 @@ impl FsStore {
                     )));
                 }
                 Ok(Some(Data {
-                    file: Arc::new(file),
+                    file,
                     at,
                     len,
                 }))
@@ -484,7 +483,7 @@ impl VolumeStore for FsStore {
         // metadata file counts against the quota as much as the data: both are known before
         // anything is written.
         let (m, data, pack) = (meta.clone(), vxl.clone(), self.pack_writer);
-        let (json, packed) = blocking(move || {
+        let (json, packed, need) = blocking(move || {
             check(&m.id, &data, &m)?;
             // A small volume goes to a pack (one record: its metadata and data), a large one
             // to its own two files.
@@ -492,19 +491,14 @@ impl VolumeStore for FsStore {
                 let json = serde_json::to_vec(&m).expect("metadata serialises");
                 let len = packs::record_len(&m.id, &json, data.len() as u64);
                 if json.len() <= packs::META_MAX && len <= packs::RECORD_MAX {
-                    return Ok((json, true));
+                    return Ok((json, true, len));
                 }
             }
-            Ok((
-                serde_json::to_vec_pretty(&m).expect("metadata serialises"),
-                false,
-            ))
+            let json = serde_json::to_vec_pretty(&m).expect("metadata serialises");
+            let need = (data.len() + json.len()) as u64;
+            Ok((json, false, need))
         })
         .await?;
-        let need = match packed {
-            true => packs::record_len(&meta.id, &json, vxl.len() as u64),
-            false => (vxl.len() + json.len()) as u64,
-        };
         {
             let mut i = self.lock();
             let used = i.used + i.reserved;
@@ -1111,7 +1105,7 @@ pub(crate) mod tests {
         }
     }
 
-    fn scratch(name: &str) -> PathBuf {
+    pub(crate) fn scratch(name: &str) -> PathBuf {
         let dir = std::env::temp_dir().join(format!("voxd-fsstore-{}-{name}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         dir

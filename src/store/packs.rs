@@ -87,10 +87,17 @@ pub struct Loc {
     pub len: u64,
 }
 
+impl Loc {
+    /// Bytes of the volume's data (the record's tail from `data`).
+    pub fn data_len(&self) -> u64 {
+        self.record + self.len - self.data
+    }
+}
+
 /// One record read back from a pack.
 struct Record {
-    kind: u8,
     id: String,
+    /// `None`: a removal record.
     meta: Option<VolumeMeta>,
     loc: Loc,
 }
@@ -201,7 +208,6 @@ fn read_record(f: &File, pack: u64, at: u64, len: u64) -> std::io::Result<Option
         None
     };
     Ok(Some(Record {
-        kind: head[4],
         id,
         meta,
         loc: Loc {
@@ -226,7 +232,7 @@ fn scan(f: &File, pack: u64, from: u64, verify: bool) -> std::io::Result<(Vec<Re
     while let Some(r) = read_record(f, pack, at, len)? {
         at += r.loc.len;
         if let (Some(m), true) = (&r.meta, verify) {
-            let mut data = vec![0u8; (r.loc.record + r.loc.len - r.loc.data) as usize];
+            let mut data = vec![0u8; r.loc.data_len() as usize];
             f.read_exact_at(&mut data, r.loc.data)?;
             if let Err(e) = check(&r.id, &data, m) {
                 bad.push((out.len(), e));
@@ -244,13 +250,28 @@ fn scan(f: &File, pack: u64, from: u64, verify: bool) -> std::io::Result<(Vec<Re
     Ok((out, end))
 }
 
+/// The numbers of the packs in `dir`, in order.
+fn pack_numbers(dir: &Path) -> std::io::Result<Vec<u64>> {
+    let mut numbers = vec![];
+    for e in std::fs::read_dir(dir)? {
+        let n = e?.file_name();
+        if let Some(n) = n.to_str().and_then(|n| n.strip_suffix(&format!(".{EXT}")))
+            && n.len() == 12
+            && let Ok(n) = n.parse()
+        {
+            numbers.push(n);
+        }
+    }
+    numbers.sort_unstable();
+    Ok(numbers)
+}
+
 /// The volumes found by [`Packs::open`] or [`Packs::refresh`].
 pub type Found = Vec<(VolumeMeta, Loc)>;
 
 impl Packs {
-    /// Reads the packs of `dir`, taking the writer's lock when it is free (and `write`). The writer cuts off
-    /// a torn tail (checking the newest pack's data too); a reader leaves the files alone.
-    /// Returns the live volumes.
+    /// Reads the packs of `dir` ([`Packs::refresh`]), taking the writer's lock when it is free
+    /// (and `write`). Returns the live volumes.
     pub fn open(dir: &Path, write: bool) -> Result<(Packs, Found), StoreError> {
         let lock = OpenOptions::new()
             .create(true)
@@ -271,32 +292,8 @@ impl Packs {
             removed: HashMap::new(),
             removals: HashMap::new(),
         };
-        let mut numbers: Vec<u64> = std::fs::read_dir(dir)?
-            .filter_map(|e| {
-                let n = e.ok()?.file_name();
-                let n = n.to_str()?.strip_suffix(&format!(".{EXT}"))?.to_string();
-                (n.len() == 12).then(|| n.parse().ok()).flatten()
-            })
-            .collect();
-        numbers.sort_unstable();
-        let newest = numbers.last().copied();
-        for n in numbers {
+        for n in pack_numbers(dir)? {
             packs.packs.insert(n, PackInfo::default());
-            if packs.lock.is_some() {
-                let f = OpenOptions::new()
-                    .read(true)
-                    .write(true)
-                    .open(dir.join(name(n)))?;
-                let (_, end) = scan(&f, n, 0, Some(n) == newest)?;
-                if end < f.metadata()?.len() {
-                    tracing::warn!(
-                        pack = %name(n),
-                        "cutting off the torn end of a pack at byte {end} (a write a crash interrupted, never acknowledged)"
-                    );
-                    f.set_len(end)?;
-                    f.sync_all()?;
-                }
-            }
         }
         let (found, _) = packs.refresh()?;
         if packs.lock.is_some()
@@ -318,32 +315,28 @@ impl Packs {
         self.lock.is_some()
     }
 
-    /// Reads what was appended to the packs since the last read (at open, everything; later,
-    /// for a reader, other processes' writes): the live volumes among the new records (a
-    /// volume the writer moved appears again, at its new place) and the ids whose removal was
-    /// read.
+    /// Reads what was appended to the packs since the last read (the writer: everything, once,
+    /// at open, cutting off torn ends and checking the newest pack's data; a reader: also later,
+    /// other processes' writes): the live volumes among the new records (a volume the writer
+    /// moved appears again, at its new place) and the ids whose removal was read.
     pub fn refresh(&mut self) -> Result<(Found, Vec<String>), StoreError> {
-        let mut numbers: Vec<u64> = self.packs.keys().copied().collect();
         if !self.writer() {
             // New packs the writer started.
-            for e in std::fs::read_dir(&self.dir)? {
-                let n = e?.file_name();
-                if let Some(n) = n.to_str().and_then(|n| n.strip_suffix(&format!(".{EXT}")))
-                    && n.len() == 12
-                    && let Ok(n) = n.parse::<u64>()
-                    && !self.packs.contains_key(&n)
-                {
-                    self.packs.insert(n, PackInfo::default());
-                    numbers.push(n);
-                }
+            for n in pack_numbers(&self.dir)? {
+                self.packs.entry(n).or_default();
             }
-            numbers.sort_unstable();
         }
+        let numbers: Vec<u64> = self.packs.keys().copied().collect();
+        let newest = numbers.last().copied();
         let mut puts: Vec<(VolumeMeta, Loc)> = vec![];
         let mut removed_ids = vec![];
         for n in numbers {
             let from = self.packs[&n].scanned;
-            let f = match File::open(self.dir.join(name(n))) {
+            let opened = OpenOptions::new()
+                .read(true)
+                .write(self.writer())
+                .open(self.dir.join(name(n)));
+            let f = match opened {
                 Ok(f) => f,
                 Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
                     self.packs.remove(&n); // compacted away by the writer
@@ -351,7 +344,16 @@ impl Packs {
                 }
                 Err(e) => return Err(e.into()),
             };
-            let (records, end) = scan(&f, n, from, false)?;
+            let verify = self.writer() && Some(n) == newest;
+            let (records, end) = scan(&f, n, from, verify)?;
+            if self.writer() && end < f.metadata()?.len() {
+                tracing::warn!(
+                    pack = %name(n),
+                    "cutting off the torn end of a pack at byte {end} (a write a crash interrupted, never acknowledged)"
+                );
+                f.set_len(end)?;
+                f.sync_all()?;
+            }
             self.packs.get_mut(&n).expect("listed").scanned = end;
             for r in records {
                 match r.meta {
@@ -541,9 +543,9 @@ impl Packs {
         let mut moved = vec![];
         let mut kept = vec![];
         for r in &records {
-            let keep = match r.kind {
-                PUT => live.get(&r.id) == Some(&r.loc),
-                _ => {
+            let keep = match r.meta {
+                Some(_) => live.get(&r.id) == Some(&r.loc),
+                None => {
                     self.removals.get(&r.id) == Some(&r.loc)
                         && self.removed.get(&r.id).is_some_and(|&p| p != n)
                 }
@@ -555,7 +557,7 @@ impl Packs {
             buf.resize(buf.len() + r.loc.len as usize, 0);
             f.read_exact_at(&mut buf[start as usize..], r.loc.record)?;
             let to = (r.id.clone(), start, r.loc.data - r.loc.record, r.loc.len);
-            if r.kind == PUT {
+            if r.meta.is_some() {
                 moved.push(to);
             } else {
                 kept.push(to);
@@ -592,14 +594,8 @@ mod tests {
     use super::*;
     use crate::store::VolumeStore;
     use crate::store::fs::FsStore;
-    use crate::store::fs::tests::meta;
+    use crate::store::fs::tests::{meta, scratch};
     use bytes::Bytes;
-
-    fn scratch(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("voxd-packs-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        dir
-    }
 
     /// Volume `n`'s bytes: `len` bytes that differ from every other volume's.
     fn bytes(n: usize, len: usize) -> Vec<u8> {
