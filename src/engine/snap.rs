@@ -58,13 +58,17 @@ pub struct GridMesh {
 
 impl GridMesh {
     pub fn new(mesh: &Mesh, grid: &Grid) -> Result<GridMesh, EngineError> {
-        // Unrounded, because the culling below looks at the exact positions; the coordinates
-        // kept are these rounded, i.e. `to_lattice`.
-        let g: Vec<[f64; 3]> = mesh
+        // Unrounded, because the culling below looks at the exact positions, and rounded
+        // (`to_lattice`), the coordinates kept: both once per vertex (rounding is a call, and
+        // a vertex is in six triangles on average).
+        let g: Vec<([f64; 3], [f64; 3])> = mesh
             .positions()
             .par_iter()
             .with_min_len(crate::PAR_PIECE)
-            .map(|&p| lattice_units(grid, p))
+            .map(|&p| {
+                let u = lattice_units(grid, p);
+                (u, u.map(f64::round))
+            })
             .collect();
         let d = grid.dims.map(|d| d as f64 * FIXED_ONE as f64);
         let one = FIXED_ONE as f64;
@@ -74,7 +78,7 @@ impl GridMesh {
             .par_iter()
             .with_min_len(crate::PAR_PIECE)
             .map(|tri| {
-                let v = tri.map(|i| g[i as usize]);
+                let v = tri.map(|i| g[i as usize].0);
                 let lo = [0, 1, 2].map(|a| v[0][a].min(v[1][a]).min(v[2][a]));
                 let hi = [0, 1, 2].map(|a| v[0][a].max(v[1][a]).max(v[2][a]));
                 if hi[0] < -one
@@ -87,13 +91,14 @@ impl GridMesh {
                 }
                 let below = hi[2] < -one;
                 let mut out = [[0i32; 3]; 3];
-                for (c, (p, &vi)) in v.iter().zip(tri).enumerate() {
+                for (c, &vi) in tri.iter().enumerate() {
+                    let rounded = &g[vi as usize].1;
                     for a in 0..3 {
                         if a == 2 && below {
                             out[c][a] = -(FIXED_ONE as i32);
                             continue;
                         }
-                        let r = p[a].round();
+                        let r = rounded[a];
                         if r.abs() > MAX_FIXED as f64 {
                             return Err(EngineError::OutOfRange {
                                 vertex: vi as usize,

@@ -256,9 +256,11 @@ const REPORT_EVERY: usize = 1 << 12;
 /// file with `total` vertices (when known: else indices past the vertices read so far are
 /// kept in `forward`, checked at the end).
 ///
-/// One pass over the bytes: a line's tokens are the runs of bytes that are not ASCII
-/// whitespace, numbers are read by [`parse_f64`] and [`parse_index`] (what `str::parse` gives,
-/// bit for bit), and a line is skipped once what matters of it is read.
+/// One pass over the bytes, a line at a time (the line ends found by `memchr`): a line's
+/// tokens are the runs of bytes that are not ASCII whitespace; a `v` or `f` line's numbers are
+/// read as they are scanned, plain decimals and short indices on the spot and anything else as
+/// a whole token by [`parse_f64`] and [`parse_index`] (what `str::parse` gives, bit for bit);
+/// the rest of a line is skipped once what matters of it is read.
 fn parse_chunk(
     text: &[u8],
     vbase: usize,
@@ -273,32 +275,42 @@ fn parse_chunk(
     let mut forward: Option<(usize, i64, usize)> = None;
     let mut reported = 0;
     let mut bad = None;
-    let mut cur = Cursor { text, at: 0 };
+    let mut ends = memchr::memchr_iter(b'\n', text);
+    let mut start = 0;
     let mut i = 0;
     loop {
+        let end = ends.next();
+        let mut line = Line {
+            text,
+            end: end.unwrap_or(text.len()),
+            at: start,
+        };
         let err = |what: &str| malformed("OBJ", format!("line {}: {what}", lbase + i + 1));
-        match cur.token() {
-            Some(b"v") => {
+        match line.keyword() {
+            b'v' => {
                 let mut p = [0.0; 3];
                 for c in &mut p {
-                    let t = cur
-                        .token()
-                        .ok_or_else(|| err("a vertex needs x, y and z"))?;
-                    *c = parse_f64(t).ok_or_else(|| {
-                        err(&format!("{:?} is not a number", String::from_utf8_lossy(t)))
-                    })?;
+                    *c = match line.float() {
+                        Some(Ok(v)) => v,
+                        Some(Err(t)) => {
+                            return Err(err(&format!(
+                                "{:?} is not a number",
+                                String::from_utf8_lossy(t)
+                            )));
+                        }
+                        None => return Err(err("a vertex needs x, y and z")),
+                    };
                 }
                 if bad.is_none() && bad_position(&p) {
                     bad = Some(vbase + positions.len());
                 }
                 positions.push(p);
             }
-            Some(b"f") => {
+            b'f' => {
                 let defined = (vbase + positions.len()) as i64;
                 poly.clear();
-                while let Some(t) = cur.token() {
-                    let idx = t.split(|&b| b == b'/').next().unwrap_or(t);
-                    let n = parse_index(idx).ok_or_else(|| {
+                while let Some(n) = line.index() {
+                    let n = n.map_err(|t| {
                         err(&format!(
                             "{:?} is not a vertex index",
                             String::from_utf8_lossy(t)
@@ -330,10 +342,10 @@ fn parse_chunk(
             }
             _ => {} // comments, vt, vn, o, g, s, usemtl, mtllib, l, p, ...
         }
-        if !cur.next_line() {
-            break;
+        match end {
+            Some(e) => (start, i) = (e + 1, i + 1),
+            None => break,
         }
-        i += 1;
     }
     shared.add(triangles.len() - reported)?;
     Ok(Chunk {
@@ -344,41 +356,207 @@ fn parse_chunk(
     })
 }
 
-/// Tokens of one line at a time.
-struct Cursor<'a> {
+/// The tokens of one line, read from the left. The line is `text[..end]` from where reading
+/// started; `text` goes on past it (to the end of the chunk), so eight bytes at a time can be
+/// looked at near the line's end: the `\n` at `end` is neither a digit nor part of a token, so
+/// no run found that way goes past the line.
+struct Line<'a> {
     text: &'a [u8],
-    /// Where the next token is looked for; never past the end of the current line.
+    end: usize,
+    /// Where the next token is looked for.
     at: usize,
 }
 
-impl<'a> Cursor<'a> {
-    /// The next token of the current line (a run of bytes that are not ASCII whitespace), or
-    /// `None` at its end.
+const ONES: u64 = 0x0101_0101_0101_0101;
+const HIGHS: u64 = ONES * 0x80;
+
+/// The eight bytes of `t` from `i` as a little-endian word (the first byte lowest), if there
+/// are eight.
+#[inline]
+fn word(t: &[u8], i: usize) -> Option<u64> {
+    let w: [u8; 8] = t.get(i..i + 8)?.try_into().ok()?;
+    Some(u64::from_le_bytes(w))
+}
+
+/// How many of the bytes of `w` (from its lowest) are ASCII digits before the first that is
+/// not, and `w` with `b'0'` taken from every byte (each digit byte then holds its value).
+#[inline]
+fn leading_digits(w: u64) -> (usize, u64) {
+    let t = w ^ (ONES * b'0' as u64); // b'0'..=b'9' become 0..=9, every other byte 10 or more
+    // The high bit of a byte is set when its low seven bits are 10 or more (adding 0x76 to at
+    // most 0x7f carries into no other byte), or when it was set already.
+    let not_digit = (((t & !HIGHS) + ONES * 0x76) | t) & HIGHS;
+    ((not_digit.trailing_zeros() / 8) as usize, t)
+}
+
+/// The number written by the first `n` (1 to 8) digit values of `t` (as [`leading_digits`]
+/// gives them): the other bytes are shifted out and zeros (leading zeros of the number)
+/// shifted in, then the eight digits are combined in three multiplications (as the standard
+/// library's float parser does).
+#[inline]
+fn digits_value(t: u64, n: usize) -> u64 {
+    debug_assert!((1..=8).contains(&n));
+    let v = t << (8 * (8 - n));
+    let v = v * 10 + (v >> 8); // pairs of digits, in every other byte
+    let v1 = (v & 0x0000_00ff_0000_00ff).wrapping_mul(100 + (1_000_000 << 32));
+    let v2 = ((v >> 16) & 0x0000_00ff_0000_00ff).wrapping_mul(1 + (10_000 << 32));
+    (v1.wrapping_add(v2) >> 32) as u32 as u64
+}
+
+/// 10^0 to 10^19, the powers of ten that u64 holds.
+const POW10_U64: [u64; 20] = {
+    let mut p = [1u64; 20];
+    let mut i = 1;
+    while i < 20 {
+        p[i] = p[i - 1] * 10;
+        i += 1;
+    }
+    p
+};
+
+impl<'a> Line<'a> {
+    /// Moves past the whitespace at `at`.
     #[inline]
-    fn token(&mut self) -> Option<&'a [u8]> {
-        let t = self.text;
-        let mut i = self.at;
-        while i < t.len() && t[i] != b'\n' && t[i].is_ascii_whitespace() {
-            i += 1;
+    fn skip_space(&mut self) {
+        while self.at < self.end && self.text[self.at].is_ascii_whitespace() {
+            self.at += 1;
         }
-        let start = i;
-        while i < t.len() && !t[i].is_ascii_whitespace() {
-            i += 1;
-        }
-        self.at = i;
-        (i > start).then(|| &t[start..i])
     }
 
-    /// Moves to the start of the next line; `false` when the text ends on this one.
+    /// The end of the token that `i` is in (or starts): the first whitespace from `i` on, or
+    /// the end of the line.
     #[inline]
-    fn next_line(&mut self) -> bool {
+    fn token_end(&self, mut i: usize) -> usize {
         let t = self.text;
-        let mut i = self.at;
-        while i < t.len() && t[i] != b'\n' {
+        while i < self.end {
+            let Some(w) = word(t, i) else {
+                while i < self.end && !t[i].is_ascii_whitespace() {
+                    i += 1;
+                }
+                return i;
+            };
+            // The first byte below 0x21 (every whitespace is): the lowest flag of this
+            // classic test is exact (a borrow only reaches the bytes above the one it came from).
+            let low = w.wrapping_sub(ONES * 0x21) & !w & HIGHS;
+            if low == 0 {
+                i += 8;
+                continue;
+            }
+            i += (low.trailing_zeros() / 8) as usize;
+            if i >= self.end || t[i].is_ascii_whitespace() {
+                return i.min(self.end);
+            }
+            i += 1; // a control byte that is not whitespace: part of the token
+        }
+        self.end
+    }
+
+    /// Whether a token that was being read ends at `i` (whitespace or the end of the line).
+    #[inline]
+    fn ends_token(&self, i: usize) -> bool {
+        i >= self.end || self.text[i].is_ascii_whitespace()
+    }
+
+    /// The ASCII digits from `i`: how many, and the number they write (modulo 2^64 when
+    /// there are more than 19).
+    #[inline]
+    fn digits(&self, mut i: usize) -> (usize, u64) {
+        let (start, t) = (i, self.text);
+        let mut m: u64 = 0;
+        while let Some(w) = word(t, i) {
+            let (n, d) = leading_digits(w);
+            if n > 0 {
+                m = m
+                    .wrapping_mul(POW10_U64[n])
+                    .wrapping_add(digits_value(d, n));
+                i += n;
+            }
+            if n < 8 {
+                return (i - start, m);
+            }
+        }
+        while i < self.end && t[i].is_ascii_digit() {
+            m = m.wrapping_mul(10).wrapping_add((t[i] - b'0') as u64);
             i += 1;
         }
-        self.at = i + 1;
-        i < t.len()
+        (i - start, m)
+    }
+
+    /// Reads the first token: `b'v'` or `b'f'` when it is that one letter, else 0.
+    #[inline]
+    fn keyword(&mut self) -> u8 {
+        self.skip_space();
+        if self.at < self.end {
+            let k = self.text[self.at];
+            if (k == b'v' || k == b'f') && self.ends_token(self.at + 1) {
+                self.at += 1;
+                return k;
+            }
+        }
+        0
+    }
+
+    /// The next token as a number (`Err`: the token, which is not one), or `None` at the end
+    /// of the line. A plain decimal is read as it is scanned, with [`plain_decimal`]'s rules;
+    /// any other token by [`parse_f64`].
+    #[inline]
+    fn float(&mut self) -> Option<Result<f64, &'a [u8]>> {
+        self.skip_space();
+        let (t, start) = (self.text, self.at);
+        if start >= self.end {
+            return None;
+        }
+        let neg = t[start] == b'-';
+        let mut i = start + (neg || t[start] == b'+') as usize;
+        let (whole, mut m) = self.digits(i);
+        i += whole;
+        let mut frac = 0;
+        if i < self.end && t[i] == b'.' {
+            let (n, f) = self.digits(i + 1);
+            // Only used when there are 19 digits or fewer in all (so 10^n does not matter
+            // otherwise).
+            m = m.wrapping_mul(POW10_U64[n.min(19)]).wrapping_add(f);
+            (frac, i) = (n, i + 1 + n);
+        }
+        let digits = whole + frac;
+        // The conditions of `plain_decimal` (19 digits cannot overflow u64).
+        if self.ends_token(i) && digits > 0 && digits <= 19 && m <= 1 << 53 && frac <= 22 {
+            self.at = i;
+            // `-v` is `v` with the sign bit set (v is not negative): set without a branch, as
+            // the signs of coordinates are as good as random.
+            let v = m as f64 / POW10[frac];
+            return Some(Ok(f64::from_bits(v.to_bits() | (neg as u64) << 63)));
+        }
+        let end = self.token_end(i);
+        self.at = end;
+        let tok = &t[start..end];
+        Some(parse_f64(tok).ok_or(tok))
+    }
+
+    /// The vertex index of the next token (what comes before its first `/`; `Err`: the token,
+    /// whose index is not a number), or `None` at the end of the line. Up to 18 digits with an
+    /// optional sign are read as they are scanned, anything else by [`parse_index`].
+    #[inline]
+    fn index(&mut self) -> Option<Result<i64, &'a [u8]>> {
+        self.skip_space();
+        let (t, start) = (self.text, self.at);
+        if start >= self.end {
+            return None;
+        }
+        let neg = t[start] == b'-';
+        let mut i = start + (neg || t[start] == b'+') as usize;
+        let (digits, n) = self.digits(i);
+        i += digits;
+        if digits > 0 && digits <= 18 && (self.ends_token(i) || t[i] == b'/') {
+            self.at = self.token_end(i);
+            let n = n as i64;
+            return Some(Ok(if neg { -n } else { n }));
+        }
+        let end = self.token_end(i);
+        self.at = end;
+        let tok = &t[start..end];
+        let idx = tok.split(|&c| c == b'/').next().unwrap_or(tok);
+        Some(parse_index(idx).ok_or(tok))
     }
 }
 
@@ -598,6 +776,8 @@ mod tests {
                     "1.2.3",
                     "١",
                     "1\u{a0}",
+                    "1\x0b",
+                    "1.5\x00",
                 ])
                 .to_string(),
             1 => {
@@ -764,7 +944,19 @@ mod tests {
                             1 => format!("{n}//{n}"),
                             2 => format!("{n}/1/2"),
                             3 => format!("+{n}"),
-                            4 if r.below(4) == 0 => r.pick(&["x", "/1", "1x", "-", ""]).into(),
+                            4 if r.below(4) == 0 => r
+                                .pick(&[
+                                    "x", "/1", "1x", "-", "", "+/", "-/2", "1x/2", "1/x",
+                                    "1/\x0b2", "1\x0b", "\x00", "1/2\x01x",
+                                ])
+                                .into(),
+                            // Long digit runs, around where the fast path hands over.
+                            5 if r.below(4) == 0 => {
+                                let sign = r.pick(&["", "-", "+"]);
+                                let n = 16 + r.below(6);
+                                let tail = r.pick(&["", "/1", "//2", "x"]);
+                                format!("{sign}{}{tail}", digits(r, n))
+                            }
                             _ => format!("{n}"),
                         };
                     }
