@@ -38,7 +38,24 @@ pub(crate) fn lattice_units(grid: &Grid, p: [f64; 3]) -> [f64; 3] {
 /// The snap: world point `p` on the fixed-point lattice, [`lattice_units`] rounded half away
 /// from zero. Every engine sees a vertex at exactly these coordinates.
 pub(crate) fn to_lattice(grid: &Grid, p: [f64; 3]) -> [f64; 3] {
-    lattice_units(grid, p).map(f64::round)
+    lattice_units(grid, p).map(round)
+}
+
+/// `x.round()` (half away from zero), bit for bit, without a call into the maths library
+/// (the build targets x86-64 without SSE4.1, which has no rounding instruction): below 2^52
+/// in magnitude, the integer part by truncation, plus one when the fraction (exact: the bits
+/// of `x` below the point) is at least a half, with `x`'s sign (so −0.3 gives −0.0); every
+/// larger, infinite or NaN `x` by `f64::round`.
+#[inline]
+pub(crate) fn round(x: f64) -> f64 {
+    let a = x.abs();
+    if a < (1u64 << 52) as f64 {
+        let i = a as u64;
+        let r = i + (a - i as f64 >= 0.5) as u64;
+        (r as f64).copysign(x)
+    } else {
+        x.round()
+    }
 }
 
 /// `p` moved onto the lattice, in world coordinates: the point the engines see for `p`,
@@ -67,57 +84,177 @@ impl GridMesh {
             .with_min_len(crate::PAR_PIECE)
             .map(|&p| {
                 let u = lattice_units(grid, p);
-                (u, u.map(f64::round))
+                (u, u.map(round))
             })
             .collect();
         let d = grid.dims.map(|d| d as f64 * FIXED_ONE as f64);
         let one = FIXED_ONE as f64;
-        // Indexed collect (direct writes), then one pass for errors and dropped triangles.
-        let snapped: Vec<Result<Option<[[i32; 3]; 3]>, EngineError>> = mesh
-            .triangles()
-            .par_iter()
-            .with_min_len(crate::PAR_PIECE)
-            .map(|tri| {
-                let v = tri.map(|i| g[i as usize].0);
-                let lo = [0, 1, 2].map(|a| v[0][a].min(v[1][a]).min(v[2][a]));
-                let hi = [0, 1, 2].map(|a| v[0][a].max(v[1][a]).max(v[2][a]));
-                if hi[0] < -one
-                    || lo[0] > d[0] + one
-                    || hi[1] < -one
-                    || lo[1] > d[1] + one
-                    || lo[2] > d[2] + one
-                {
-                    return Ok(None);
-                }
-                let below = hi[2] < -one;
-                let mut out = [[0i32; 3]; 3];
-                for (c, &vi) in tri.iter().enumerate() {
-                    let rounded = &g[vi as usize].1;
-                    for a in 0..3 {
-                        if a == 2 && below {
-                            out[c][a] = -(FIXED_ONE as i32);
-                            continue;
-                        }
-                        let r = rounded[a];
-                        if r.abs() > MAX_FIXED as f64 {
-                            return Err(EngineError::OutOfRange {
-                                vertex: vi as usize,
-                                voxels: (r / one).abs(),
-                            });
-                        }
-                        out[c][a] = r as i32;
+        let snap = |tri: &[u32; 3]| -> Result<Option<[[i32; 3]; 3]>, EngineError> {
+            let v = tri.map(|i| g[i as usize].0);
+            let lo = [0, 1, 2].map(|a| v[0][a].min(v[1][a]).min(v[2][a]));
+            let hi = [0, 1, 2].map(|a| v[0][a].max(v[1][a]).max(v[2][a]));
+            if hi[0] < -one
+                || lo[0] > d[0] + one
+                || hi[1] < -one
+                || lo[1] > d[1] + one
+                || lo[2] > d[2] + one
+            {
+                return Ok(None);
+            }
+            let below = hi[2] < -one;
+            let mut out = [[0i32; 3]; 3];
+            for (c, &vi) in tri.iter().enumerate() {
+                let rounded = &g[vi as usize].1;
+                for a in 0..3 {
+                    if a == 2 && below {
+                        out[c][a] = -(FIXED_ONE as i32);
+                        continue;
                     }
+                    let r = rounded[a];
+                    if r.abs() > MAX_FIXED as f64 {
+                        return Err(EngineError::OutOfRange {
+                            vertex: vi as usize,
+                            voxels: (r / one).abs(),
+                        });
+                    }
+                    out[c][a] = r as i32;
                 }
-                Ok(Some(out))
+            }
+            Ok(Some(out))
+        };
+        // Pieces in parallel, each in order up to its first error: the first error of the
+        // first piece that has one is the mesh's first, in triangle order.
+        let pieces: Vec<Result<Vec<[[i32; 3]; 3]>, EngineError>> = mesh
+            .triangles()
+            .par_chunks(crate::PAR_PIECE)
+            .map(|piece| {
+                let mut out = Vec::with_capacity(piece.len());
+                for tri in piece {
+                    out.extend(snap(tri)?);
+                }
+                Ok(out)
             })
             .collect();
-        let mut triangles = Vec::with_capacity(snapped.len());
-        for t in snapped {
-            triangles.extend(t?);
+        let mut triangles = Vec::with_capacity(mesh.triangles().len());
+        for p in pieces {
+            triangles.extend_from_slice(&p?);
         }
         Ok(GridMesh {
             grid: *grid,
             triangles,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A grid of 8³ unit voxels at the origin.
+    fn grid() -> Grid {
+        Grid {
+            origin: [0.0; 3],
+            voxel_size: 1.0,
+            dims: [8; 3],
+        }
+    }
+
+    /// `n` small triangles inside the grid, each on its own three vertices, then the vertex
+    /// `far` (an x and y inside the grid, z = −10^7 voxels: beyond the lattice's range) put in
+    /// place of the first vertex of each triangle in `bad`, and a triangle left of the grid
+    /// (culled, so its far vertex is no error) at index 0.
+    fn mesh(n: usize, bad: &[usize]) -> (Mesh, Vec<usize>) {
+        let mut positions = Vec::new();
+        let mut triangles = Vec::new();
+        for t in 0..n {
+            let z = (t % 7) as f64 + 0.5;
+            let b = positions.len() as u32;
+            positions.extend([[1.0, 1.0, z], [3.0, 1.5, z], [2.0, 3.0, z + 0.5]]);
+            triangles.push([b, b + 1, b + 2]);
+        }
+        // Culled: entirely left of the grid, however far its z.
+        positions.extend([[-5.0, 1.0, -1e7], [-4.0, 1.0, 1.0], [-5.0, 2.0, 1.0]]);
+        let c = positions.len() as u32 - 3;
+        triangles[0] = [c, c + 1, c + 2];
+        let mut far = Vec::new();
+        for &t in bad {
+            positions.push([2.0, 2.0, -1e7]);
+            far.push(positions.len() - 1);
+            triangles[t][0] = positions.len() as u32 - 1;
+        }
+        (Mesh::new(positions, triangles).unwrap(), far)
+    }
+
+    #[test]
+    fn round_is_std_round() {
+        let mut fixed = vec![
+            0.0,
+            0.5,
+            1.5,
+            2.5,
+            0.49999999999999994,
+            0.5000000000000001,
+            1.0 - f64::EPSILON / 2.0,
+            4503599627370495.5,
+            4503599627370496.0,
+            4503599627370497.0,
+            9007199254740993.0,
+            1e300,
+            f64::MAX,
+            f64::MIN_POSITIVE,
+            5e-324,
+            f64::INFINITY,
+        ];
+        fixed.extend(fixed.clone().iter().map(|x| -x));
+        fixed.push(f64::NAN);
+        let mut r: u64 = 0x2545_f491_4f6c_dd1d;
+        let mut next = move || {
+            r ^= r << 13;
+            r ^= r >> 7;
+            r ^= r << 17;
+            r
+        };
+        for _ in 0..1_000_000 {
+            // Any bits, and values near halves and integers of lattice size.
+            let n = next();
+            fixed.push(f64::from_bits(n));
+            let k = (n >> 12) as i64 % (1 << 40) - (1 << 39);
+            fixed.push(k as f64 / 2.0);
+            fixed.push(k as f64 / 1024.0);
+            fixed.push(f64::from_bits((k as f64 / 2.0).to_bits() ^ (n & 1)));
+        }
+        for x in fixed {
+            assert_eq!(round(x).to_bits(), x.round().to_bits(), "{x:e}");
+        }
+    }
+
+    #[test]
+    fn the_first_out_of_range_vertex_in_triangle_order_is_reported() {
+        let piece = crate::PAR_PIECE;
+        let n = 3 * piece + 5;
+        // Errors in one piece, in several, and the first in the last piece.
+        let cases: [&[usize]; 4] = [
+            &[piece + 3],
+            &[2 * piece + 1, piece + 7, 3 * piece + 2],
+            &[3 * piece + 4],
+            &[5, 6],
+        ];
+        for bad in cases {
+            let (m, far) = mesh(n, bad);
+            let first = bad.iter().zip(&far).min().unwrap().1;
+            match GridMesh::new(&m, &grid()) {
+                Err(EngineError::OutOfRange { vertex, voxels }) => {
+                    assert_eq!(vertex, *first, "{bad:?}");
+                    assert_eq!(voxels, 1e7);
+                }
+                other => panic!("{bad:?}: {other:?}"),
+            }
+        }
+        // Only the culled triangle has a far vertex: no error, and it is dropped.
+        let (m, _) = mesh(n, &[]);
+        let g = GridMesh::new(&m, &grid()).unwrap();
+        assert_eq!(g.triangles.len(), n - 1);
+        // Kept in order, on the lattice: triangle 1 is the second of the mesh.
+        assert_eq!(g.triangles[0][0], [256, 256, (1.5 * 256.0) as i32]);
     }
 }

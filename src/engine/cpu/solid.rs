@@ -133,6 +133,17 @@ fn for_each_crossing(
     v: &[[i64; 3]; 3],
     xs: Range<u32>,
     ny: u32,
+    f: impl FnMut(u32, u32, i64, i32),
+) {
+    crossings::<true>(v, xs, ny, f)
+}
+
+/// [`for_each_crossing`], with `k` found only when `DEPTH` (else 0: for counts per column,
+/// which need no depth, and the depth is a 128-bit division).
+fn crossings<const DEPTH: bool>(
+    v: &[[i64; 3]; 3],
+    xs: Range<u32>,
+    ny: u32,
     mut f: impl FnMut(u32, u32, i64, i32),
 ) {
     let Some((v, area2, sign)) = oriented_signed(*v) else {
@@ -161,7 +172,12 @@ fn for_each_crossing(
         let mut w = [0, 1, 2].map(|i| edges[i].at(px, py0));
         for y in y0..=y1 {
             if (0..3).all(|i| w[i] >= edges[i].bias) {
-                f(x, y, first_voxel_above(&v, w, area2), sign);
+                let k = if DEPTH {
+                    first_voxel_above(&v, w, area2)
+                } else {
+                    0
+                };
+                f(x, y, k, sign);
             }
             for i in 0..3 {
                 w[i] += edges[i].ex * FIXED_ONE;
@@ -246,7 +262,7 @@ pub fn odd_parity_columns(mesh: &crate::mesh::Mesh, grid: &crate::grid::Grid) ->
         let (Some(a), Some(b), Some(c)) = (v[0], v[1], v[2]) else {
             continue;
         };
-        for_each_crossing(&[a, b, c], 0..nx, ny, |x, y, _, _| {
+        crossings::<false>(&[a, b, c], 0..nx, ny, |x, y, _, _| {
             let i = x as usize * ny as usize + y as usize;
             bits[i / 64] ^= 1 << (i % 64);
         });
