@@ -379,7 +379,7 @@ fn word(t: &[u8], i: usize) -> Option<u64> {
 }
 
 /// How many of the bytes of `w` (from its lowest) are ASCII digits before the first that is
-/// not, and `w` with `b'0'` taken from every byte (each digit byte then holds its value).
+/// not, and `w` with every byte XORed with `b'0'` (a digit byte then holds its value).
 #[inline]
 fn leading_digits(w: u64) -> (usize, u64) {
     let t = w ^ (ONES * b'0' as u64); // b'0'..=b'9' become 0..=9, every other byte 10 or more
