@@ -496,22 +496,50 @@ impl<'a> Line<'a> {
         0
     }
 
-    /// The next token as a number (`Err`: the token, which is not one), or `None` at the end
-    /// of the line. A plain decimal is read as it is scanned, with [`plain_decimal`]'s rules;
-    /// any other token by [`parse_f64`].
-    #[inline]
-    fn float(&mut self) -> Option<Result<f64, &'a [u8]>> {
+    /// The next token's start, whether it has a minus sign, and the run of digits after its
+    /// sign (as [`Self::digits`] reads it), or `None` at the end of the line. Always inlined:
+    /// left to the compiler it was not, and the parse of spot took 12 % longer.
+    #[inline(always)]
+    fn signed_digits(&mut self) -> Option<Signed> {
         self.skip_space();
         let (t, start) = (self.text, self.at);
         if start >= self.end {
             return None;
         }
         let neg = t[start] == b'-';
-        let mut i = start + (neg || t[start] == b'+') as usize;
-        let (whole, mut m) = self.digits(i);
-        i += whole;
+        let first = start + (neg || t[start] == b'+') as usize;
+        let (count, value) = self.digits(first);
+        Some(Signed {
+            start,
+            neg,
+            end: first + count,
+            count,
+            value,
+        })
+    }
+
+    /// The token from `start` (through `i`, where its fast reading stopped), moving past it:
+    /// for the standard parsers.
+    #[inline]
+    fn whole_token(&mut self, start: usize, i: usize) -> &'a [u8] {
+        self.at = self.token_end(i);
+        &self.text[start..self.at]
+    }
+
+    /// The next token as a number (`Err`: the token, which is not one), or `None` at the end
+    /// of the line. A plain decimal is read as it is scanned, with [`plain_decimal`]'s rules;
+    /// any other token by [`parse_f64`].
+    #[inline]
+    fn float(&mut self) -> Option<Result<f64, &'a [u8]>> {
+        let Signed {
+            start,
+            neg,
+            end: mut i,
+            count: whole,
+            value: mut m,
+        } = self.signed_digits()?;
         let mut frac = 0;
-        if i < self.end && t[i] == b'.' {
+        if i < self.end && self.text[i] == b'.' {
             let (n, f) = self.digits(i + 1);
             // Only used when there are 19 digits or fewer in all (so 10^n does not matter
             // otherwise).
@@ -527,9 +555,7 @@ impl<'a> Line<'a> {
             let v = m as f64 / POW10[frac];
             return Some(Ok(f64::from_bits(v.to_bits() | (neg as u64) << 63)));
         }
-        let end = self.token_end(i);
-        self.at = end;
-        let tok = &t[start..end];
+        let tok = self.whole_token(start, i);
         Some(parse_f64(tok).ok_or(tok))
     }
 
@@ -538,26 +564,33 @@ impl<'a> Line<'a> {
     /// optional sign are read as they are scanned, anything else by [`parse_index`].
     #[inline]
     fn index(&mut self) -> Option<Result<i64, &'a [u8]>> {
-        self.skip_space();
-        let (t, start) = (self.text, self.at);
-        if start >= self.end {
-            return None;
-        }
-        let neg = t[start] == b'-';
-        let mut i = start + (neg || t[start] == b'+') as usize;
-        let (digits, n) = self.digits(i);
-        i += digits;
-        if digits > 0 && digits <= 18 && (self.ends_token(i) || t[i] == b'/') {
+        let Signed {
+            start,
+            neg,
+            end: i,
+            count,
+            value,
+        } = self.signed_digits()?;
+        if count > 0 && count <= 18 && (self.ends_token(i) || self.text[i] == b'/') {
             self.at = self.token_end(i);
-            let n = n as i64;
+            let n = value as i64;
             return Some(Ok(if neg { -n } else { n }));
         }
-        let end = self.token_end(i);
-        self.at = end;
-        let tok = &t[start..end];
+        let tok = self.whole_token(start, i);
         let idx = tok.split(|&c| c == b'/').next().unwrap_or(tok);
         Some(parse_index(idx).ok_or(tok))
     }
+}
+
+/// What [`Line::signed_digits`] read of a token.
+struct Signed {
+    start: usize,
+    neg: bool,
+    /// Where the digits after the sign end.
+    end: usize,
+    /// How many digits, and the number they write (modulo 2^64 past 19 of them).
+    count: usize,
+    value: u64,
 }
 
 /// 10^0 to 10^22, the powers of ten that f64 holds exactly.
