@@ -259,8 +259,8 @@ const REPORT_EVERY: usize = 1 << 12;
 /// One pass over the bytes, a line at a time (the line ends found by `memchr`): a line's
 /// tokens are the runs of bytes that are not ASCII whitespace; a `v` or `f` line's numbers are
 /// read as they are scanned, plain decimals and short indices on the spot and anything else as
-/// a whole token by [`parse_f64`] and [`parse_index`] (what `str::parse` gives, bit for bit);
-/// the rest of a line is skipped once what matters of it is read.
+/// a whole token by the standard parser ([`Line::float`], [`Line::index`]: what `str::parse`
+/// gives, bit for bit); the rest of a line is skipped once what matters of it is read.
 fn parse_chunk(
     text: &[u8],
     vbase: usize,
@@ -527,8 +527,14 @@ impl<'a> Line<'a> {
     }
 
     /// The next token as a number (`Err`: the token, which is not one), or `None` at the end
-    /// of the line. A plain decimal is read as it is scanned, with [`plain_decimal`]'s rules;
-    /// any other token by [`parse_f64`].
+    /// of the line, bit for bit what `str::parse::<f64>` makes of the token.
+    ///
+    /// A plain decimal (`[+-]digits[.digits]`, 19 digits at most, whose digits as an integer
+    /// are at most 2^53 and with at most 22 after the point), what OBJ files are made of, is
+    /// read as it is scanned: the digits and the power of ten are both exact in f64, so their
+    /// quotient is the correctly rounded value, which is what the standard parser computes for
+    /// them too (its own fast path). Any other token (exponents, more digits, `inf`, `nan`,
+    /// garbage) goes to the standard parser.
     #[inline]
     fn float(&mut self) -> Option<Result<f64, &'a [u8]>> {
         let Signed {
@@ -547,7 +553,7 @@ impl<'a> Line<'a> {
             (frac, i) = (n, i + 1 + n);
         }
         let digits = whole + frac;
-        // The conditions of `plain_decimal` (19 digits cannot overflow u64).
+        // A plain decimal, as above (19 digits cannot overflow u64).
         if self.ends_token(i) && digits > 0 && digits <= 19 && m <= 1 << 53 && frac <= 22 {
             self.at = i;
             // `-v` is `v` with the sign bit set (v is not negative): set without a branch, as
@@ -556,12 +562,13 @@ impl<'a> Line<'a> {
             return Some(Ok(f64::from_bits(v.to_bits() | (neg as u64) << 63)));
         }
         let tok = self.whole_token(start, i);
-        Some(parse_f64(tok).ok_or(tok))
+        Some(std_parse(tok).ok_or(tok))
     }
 
     /// The vertex index of the next token (what comes before its first `/`; `Err`: the token,
-    /// whose index is not a number), or `None` at the end of the line. Up to 18 digits with an
-    /// optional sign are read as they are scanned, anything else by [`parse_index`].
+    /// whose index is not a number, as `str::parse::<i64>` reads it), or `None` at the end of
+    /// the line. Up to 18 digits with an optional sign are read as they are scanned, anything
+    /// else by the standard parser.
     #[inline]
     fn index(&mut self) -> Option<Result<i64, &'a [u8]>> {
         let Signed {
@@ -578,7 +585,7 @@ impl<'a> Line<'a> {
         }
         let tok = self.whole_token(start, i);
         let idx = tok.split(|&c| c == b'/').next().unwrap_or(tok);
-        Some(parse_index(idx).ok_or(tok))
+        Some(std_parse(idx).ok_or(tok))
     }
 }
 
@@ -599,66 +606,10 @@ const POW10: [f64; 23] = [
     1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
 ];
 
-/// `t` read as `str::parse::<f64>` reads it (`None` where that refuses it), bit for bit.
-///
-/// Plain decimals (`[+-]digits[.digits]`, 19 digits at most, whose digits as an integer are
-/// at most 2^53 and with at most 22 after the point), what OBJ files are made of, are read
-/// here: the digits and the power of ten are both exact in f64, so their quotient is the
-/// correctly rounded value, which is what the standard parser computes for them too (its own
-/// fast path). Everything else (exponents, more digits, `inf`, `nan`, garbage) goes to the
-/// standard parser.
-#[inline]
-fn parse_f64(t: &[u8]) -> Option<f64> {
-    plain_decimal(t).or_else(|| std::str::from_utf8(t).ok()?.parse().ok())
-}
-
-#[inline]
-fn plain_decimal(t: &[u8]) -> Option<f64> {
-    let (neg, d) = match t.first()? {
-        b'-' => (true, &t[1..]),
-        b'+' => (false, &t[1..]),
-        _ => (false, t),
-    };
-    let mut m: u64 = 0;
-    let mut i = 0;
-    while i < d.len() && d[i].is_ascii_digit() {
-        m = m.wrapping_mul(10).wrapping_add((d[i] - b'0') as u64);
-        i += 1;
-    }
-    let whole = i;
-    let mut frac = 0;
-    if i < d.len() && d[i] == b'.' {
-        i += 1;
-        let start = i;
-        while i < d.len() && d[i].is_ascii_digit() {
-            m = m.wrapping_mul(10).wrapping_add((d[i] - b'0') as u64);
-            i += 1;
-        }
-        frac = i - start;
-    }
-    // 19 digits cannot overflow u64 (so the wrapping above never wraps when this holds).
-    let digits = whole + frac;
-    if i != d.len() || digits == 0 || digits > 19 || m > 1 << 53 || frac > 22 {
-        return None;
-    }
-    let v = m as f64 / POW10[frac];
-    Some(if neg { -v } else { v })
-}
-
-/// `t` read as `str::parse::<i64>` reads it: 18 digits or fewer with an optional sign here,
-/// anything else by the standard parser.
-#[inline]
-fn parse_index(t: &[u8]) -> Option<i64> {
-    let (neg, d) = match t.first()? {
-        b'-' => (true, &t[1..]),
-        b'+' => (false, &t[1..]),
-        _ => (false, t),
-    };
-    if d.is_empty() || d.len() > 18 || !d.iter().all(u8::is_ascii_digit) {
-        return std::str::from_utf8(t).ok()?.parse().ok();
-    }
-    let n = d.iter().fold(0i64, |n, &b| n * 10 + (b - b'0') as i64);
-    Some(if neg { -n } else { n })
+/// `t` read by the standard parser (`str::parse`), `None` where it refuses it: the tokens
+/// that [`Line::float`] and [`Line::index`] do not read themselves.
+fn std_parse<T: std::str::FromStr>(t: &[u8]) -> Option<T> {
+    std::str::from_utf8(t).ok()?.parse().ok()
 }
 
 #[cfg(test)]
@@ -773,6 +724,60 @@ mod tests {
         std::str::from_utf8(t).ok()?.parse().ok()
     }
 
+    /// A line holding the token `t`.
+    fn line(t: &[u8]) -> Line<'_> {
+        Line {
+            text: t,
+            end: t.len(),
+            at: 0,
+        }
+    }
+
+    /// What [`Line::float`] makes of the token `t`.
+    fn read_float(t: &[u8]) -> Option<f64> {
+        line(t).float()?.ok()
+    }
+
+    /// What [`Line::index`] makes of the token `t`.
+    fn read_index(t: &[u8]) -> Option<i64> {
+        line(t).index()?.ok()
+    }
+
+    /// The plain decimals that [`Line::float`] reads itself, written plainly over a whole token
+    /// (`None` for any other token): the test counts the tokens it takes, so that it is known
+    /// to exercise that path, and checks its value too.
+    fn plain_decimal(t: &[u8]) -> Option<f64> {
+        let (neg, d) = match t.first()? {
+            b'-' => (true, &t[1..]),
+            b'+' => (false, &t[1..]),
+            _ => (false, t),
+        };
+        let mut m: u64 = 0;
+        let mut i = 0;
+        while i < d.len() && d[i].is_ascii_digit() {
+            m = m.wrapping_mul(10).wrapping_add((d[i] - b'0') as u64);
+            i += 1;
+        }
+        let whole = i;
+        let mut frac = 0;
+        if i < d.len() && d[i] == b'.' {
+            i += 1;
+            let start = i;
+            while i < d.len() && d[i].is_ascii_digit() {
+                m = m.wrapping_mul(10).wrapping_add((d[i] - b'0') as u64);
+                i += 1;
+            }
+            frac = i - start;
+        }
+        // 19 digits cannot overflow u64 (so the wrapping above never wraps when this holds).
+        let digits = whole + frac;
+        if i != d.len() || digits == 0 || digits > 19 || m > 1 << 53 || frac > 22 {
+            return None;
+        }
+        let v = m as f64 / POW10[frac];
+        Some(if neg { -v } else { v })
+    }
+
     fn digits(r: &mut Rng, n: usize) -> String {
         (0..n).map(|_| (b'0' + r.below(10) as u8) as char).collect()
     }
@@ -880,23 +885,26 @@ mod tests {
             "1e23",
         ];
         for t in fixed {
-            let (a, b) = (parse_f64(t.as_bytes()), std_f64(t.as_bytes()));
+            let (a, b) = (read_float(t.as_bytes()), std_f64(t.as_bytes()));
             assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits), "{t:?}");
         }
         let mut r = Rng(0x9e37_79b9_7f4a_7c15);
         let mut fast = 0;
         for _ in 0..300_000 {
             let t = number_token(&mut r);
-            let (a, b) = (parse_f64(t.as_bytes()), std_f64(t.as_bytes()));
+            let (a, b) = (read_float(t.as_bytes()), std_f64(t.as_bytes()));
             // NaN == NaN by bits: the standard parser's NaN is one value.
             assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits), "{t:?}");
-            fast += plain_decimal(t.as_bytes()).is_some() as usize;
+            if let Some(p) = plain_decimal(t.as_bytes()) {
+                assert_eq!(Some(p.to_bits()), b.map(f64::to_bits), "{t:?}");
+                fast += 1;
+            }
         }
         // The fast path is taken for most of them (so it is what is being tested).
         assert!(fast > 100_000, "{fast}");
         // Not UTF-8: refused like the standard parser refuses it.
-        assert_eq!(parse_f64(b"1\xff"), None);
-        assert_eq!(parse_f64(b"\xff"), None);
+        assert_eq!(read_float(b"1\xff"), None);
+        assert_eq!(read_float(b"\xff"), None);
     }
 
     #[test]
@@ -935,7 +943,9 @@ mod tests {
             tokens.push(format!("{sign}{}{tail}", digits(&mut r, n)));
         }
         for t in tokens {
-            assert_eq!(parse_index(t.as_bytes()), std_i64(t.as_bytes()), "{t:?}");
+            // A line's token has no whitespace around it (" 1" is the token "1").
+            let token = t.as_bytes().trim_ascii();
+            assert_eq!(read_index(t.as_bytes()), std_i64(token), "{t:?}");
         }
     }
 
