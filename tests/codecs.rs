@@ -159,6 +159,27 @@ fn damaged_files_are_refused() {
             .to_string()
             .contains("data bytes")
     );
+    // A shape whose voxel count does not fit in u64 (the fuzzer's find: the count overflowed
+    // before it was compared with the bytes present) is refused, not multiplied out.
+    for shape in [
+        "4294967295, 4294967295, 4294967295",
+        "29999999, 9999999, 900000000",
+    ] {
+        let mut h = format!("{{'descr': '|u1', 'fortran_order': False, 'shape': ({shape}), }}");
+        while (10 + h.len() + 1) % 64 != 0 {
+            h.push(' ');
+        }
+        h.push('\n');
+        let mut f = b"\x93NUMPY\x01\x00".to_vec();
+        f.extend_from_slice(&(h.len() as u16).to_le_bytes());
+        f.extend_from_slice(h.as_bytes());
+        f.extend_from_slice(&[1; 8]);
+        let e = npy::decode(&f).unwrap_err().to_string();
+        assert!(
+            e.contains("data bytes") && e.contains("got 8"),
+            "{shape}: {e}"
+        );
+    }
     let b = binvox::encode(&vol).unwrap();
     assert!(
         binvox::decode(&b[..b.len() - 2])

@@ -110,22 +110,24 @@ pub fn decode(bytes: &[u8]) -> Result<Volume, CodecError> {
             format!("shape must have 3 axes, got ({shape})"),
         ));
     };
+    // Three u32 axes can multiply past u64 (and a wrapped product could match a short file and
+    // then allocate the full grid), so the count is taken in u128 and must equal the bytes present.
+    let voxels = x as u128 * y as u128 * z as u128;
+    let data = &bytes[start + hlen..];
+    if data.len() as u128 != voxels || voxels == 0 {
+        return Err(malformed(
+            "npy",
+            format!(
+                "expected {voxels} data bytes for shape ({shape}), got {}",
+                data.len()
+            ),
+        ));
+    }
     let grid = Grid {
         origin: [0.0; 3],
         voxel_size: 1.0,
         dims: [x, y, z],
     };
-    let data = &bytes[start + hlen..];
-    if (data.len() as u64) != grid.voxel_count() || grid.voxel_count() == 0 {
-        return Err(malformed(
-            "npy",
-            format!(
-                "expected {} data bytes for shape ({shape}), got {}",
-                grid.voxel_count(),
-                data.len()
-            ),
-        ));
-    }
     let max = data.iter().copied().max().unwrap_or(0);
     if max > 1 {
         let m = if max <= 8 { 8 } else { 64 };
