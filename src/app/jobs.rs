@@ -198,7 +198,11 @@ async fn work_with(
         let (queue, store, observer) = (queue.clone(), store.clone(), observer.clone());
         let end = async move {
             let result = match built {
-                Ok(built) => keep(&*store, volume_id.as_deref(), guard.as_deref(), built).await,
+                Ok(built) => {
+                    // The queue may write the job's success while the volume is stored.
+                    queue.storing(&id, volume_id.as_deref().unwrap_or(&built.meta.id));
+                    keep(&*store, volume_id.as_deref(), guard.as_deref(), built).await
+                }
                 Err(e) => Err(e),
             };
             let secs = t.elapsed().as_secs_f64();

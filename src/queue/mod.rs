@@ -215,6 +215,11 @@ pub trait JobQueue: Send + Sync {
     async fn cancel(&self, id: &str) -> Result<Option<JobRecord>>;
     /// The next job by the scheduling policy; `None` once the queue is closed and drained.
     async fn next(&self) -> Option<Claim>;
+    /// Says that the worker of job `id` is about to store its volume as `volume_id`, so that
+    /// the queue may write the job's final record while the volume is written rather than after
+    /// it (see [`crate::queue::local`]). Writes nothing the job's state depends on before
+    /// [`JobQueue::finish`]. By default: nothing.
+    fn storing(&self, _id: &str, _volume_id: &str) {}
     /// Records the end of a job a worker took: its volume's id, or why it failed.
     async fn finish(&self, id: &str, result: Result<String>);
     /// Stops accepting jobs and fails the queued ones with `why`; running jobs finish. The
