@@ -408,8 +408,9 @@ mod tests {
         async fn put_job_records(
             &self,
             batch: Vec<(String, Option<Bytes>)>,
+            durable: bool,
         ) -> Vec<StoreResult<()>> {
-            self.inner.put_job_records(batch).await
+            self.inner.put_job_records(batch, durable).await
         }
         async fn job_records(&self) -> StoreResult<Vec<Bytes>> {
             self.inner.job_records().await

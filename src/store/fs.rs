@@ -452,7 +452,7 @@ impl FsStore {
     /// One job record written (`Some`) or removed, as a batch of one.
     async fn one_job_record(&self, id: &str, bytes: Option<Bytes>) -> Result<(), StoreError> {
         let batch = vec![(id.to_string(), bytes)];
-        VolumeStore::put_job_records(self, batch)
+        VolumeStore::put_job_records(self, batch, true)
             .await
             .pop()
             .expect("one result per record")
@@ -670,10 +670,11 @@ impl VolumeStore for FsStore {
     async fn put_job_records(
         &self,
         batch: Vec<(String, Option<Bytes>)>,
+        durable: bool,
     ) -> Vec<Result<(), StoreError>> {
         let log = self.records.clone();
         let n = batch.len();
-        let r = blocking(move || Ok(lock(&log).append(&batch))).await;
+        let r = blocking(move || Ok(lock(&log).append(&batch, durable))).await;
         let r = match r {
             Ok(each) => each,
             Err(e) => (0..n)

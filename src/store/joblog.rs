@@ -56,6 +56,8 @@ pub struct JobLog {
     live: HashMap<String, Bytes>,
     /// Bytes of `live`'s lines.
     live_bytes: u64,
+    /// Appends synced so far (the tests count them).
+    syncs: u64,
 }
 
 /// One log line for `id`: its record, or a removal.
@@ -149,6 +151,7 @@ impl JobLog {
             len: bytes.len() as u64,
             live: HashMap::new(),
             live_bytes: 0,
+            syncs: 0,
         };
         for (id, record) in live {
             if let Some(r) = record {
@@ -190,10 +193,16 @@ impl JobLog {
         self.live.len()
     }
 
-    /// Appends a batch of changes (a record, or `None`: removed) in one write and one
-    /// `fdatasync`: one result per change, all failing together when the write does (a bad id
-    /// or a record with a line break fails alone, before anything is written).
-    pub fn append(&mut self, batch: &[(String, Option<Bytes>)]) -> Vec<Result<(), StoreError>> {
+    /// Appends a batch of changes (a record, or `None`: removed) in one write and, when
+    /// `durable`, one `fdatasync` (else the next durable batch's sync covers it: a sync makes
+    /// every earlier write of the file durable): one result per change, all failing together
+    /// when the write does (a bad id or a record with a line break fails alone, before anything
+    /// is written).
+    pub fn append(
+        &mut self,
+        batch: &[(String, Option<Bytes>)],
+        durable: bool,
+    ) -> Vec<Result<(), StoreError>> {
         let mut out: Vec<Result<(), StoreError>> = Vec::with_capacity(batch.len());
         let mut buf = vec![];
         let mut lines = vec![];
@@ -217,7 +226,7 @@ impl JobLog {
         if lines.is_empty() {
             return out;
         }
-        if let Err(e) = self.write(&buf) {
+        if let Err(e) = self.write(&buf, durable) {
             let msg = e.to_string();
             for (i, ..) in &lines {
                 out[*i] = Err(StoreError::Io(std::io::Error::new(e.kind(), msg.clone())));
@@ -246,9 +255,9 @@ impl JobLog {
         self.len > COMPACT_MIN && self.len > COMPACT_RATIO * self.live_bytes
     }
 
-    /// Appends `buf` and syncs it. On failure the file is cut back to its last whole line, or,
-    /// when even that fails, rewritten before the next append.
-    fn write(&mut self, buf: &[u8]) -> std::io::Result<()> {
+    /// Appends `buf` and, when `durable`, syncs it. On failure the file is cut back to its last
+    /// whole line, or, when even that fails, rewritten before the next append.
+    fn write(&mut self, buf: &[u8], durable: bool) -> std::io::Result<()> {
         if self.file.is_none() {
             self.compact()?;
         }
@@ -263,7 +272,14 @@ impl JobLog {
             let _ = f.sync_data();
             fault::abort(fault::Site::MidJobRecord);
         }
-        let r = f.write_all(buf).and_then(|()| f.sync_data());
+        let r = f.write_all(buf).and_then(|()| {
+            if durable {
+                self.syncs += 1;
+                f.sync_data()
+            } else {
+                Ok(())
+            }
+        });
         match r {
             Ok(()) => {
                 self.len += buf.len() as u64;
@@ -334,9 +350,12 @@ mod tests {
         let d = dir("reopen");
         let mut log = JobLog::open(&d.0).unwrap();
         assert!(log.records().is_empty());
-        let r = log.append(&[rec("a1", 1), rec("b2", 1), rec("a1", 2)]);
+        let r = log.append(&[rec("a1", 1), rec("b2", 1), rec("a1", 2)], true);
         assert!(r.iter().all(Result::is_ok));
-        let r = log.append(&[("b2".into(), None), rec("c3", 1), ("zz".into(), None)]);
+        let r = log.append(
+            &[("b2".into(), None), rec("c3", 1), ("zz".into(), None)],
+            true,
+        );
         assert!(r.iter().all(Result::is_ok));
         let want = vec![
             "{\"id\":\"a1\",\"v\":2}".to_string(),
@@ -355,16 +374,45 @@ mod tests {
         assert_eq!(names, vec![LOG.to_string()]);
     }
 
+    /// A batch nobody waits on is appended without a sync, and read back like any other; the
+    /// next durable batch's sync covers it (one sync for both).
+    #[test]
+    fn batches_nobody_waits_on_are_written_without_a_sync() {
+        let d = dir("lazy");
+        let mut log = JobLog::open(&d.0).unwrap();
+        let before = log.syncs;
+        assert!(log.append(&[rec("a1", 1)], false).iter().all(Result::is_ok));
+        assert!(
+            log.append(&[rec("b2", 1), ("a1".into(), None)], false)
+                .iter()
+                .all(Result::is_ok)
+        );
+        assert_eq!(log.syncs, before);
+        assert!(log.append(&[rec("c3", 1)], true).iter().all(Result::is_ok));
+        assert_eq!(log.syncs, before + 1);
+        drop(log);
+        assert_eq!(
+            sorted(&JobLog::open(&d.0).unwrap()),
+            vec![
+                "{\"id\":\"b2\",\"v\":1}".to_string(),
+                "{\"id\":\"c3\",\"v\":1}".to_string()
+            ]
+        );
+    }
+
     #[test]
     fn bad_ids_and_line_breaks_fail_alone() {
         let d = dir("bad");
         let mut log = JobLog::open(&d.0).unwrap();
-        let r = log.append(&[
-            ("../x".into(), Some(Bytes::from_static(b"{}"))),
-            ("a1".into(), Some(Bytes::from_static(b"{\n}"))),
-            rec("b2", 7),
-            ("../y".into(), None),
-        ]);
+        let r = log.append(
+            &[
+                ("../x".into(), Some(Bytes::from_static(b"{}"))),
+                ("a1".into(), Some(Bytes::from_static(b"{\n}"))),
+                rec("b2", 7),
+                ("../y".into(), None),
+            ],
+            true,
+        );
         assert!(matches!(r[0], Err(StoreError::Corrupt(_))));
         assert!(matches!(r[1], Err(StoreError::Corrupt(_))));
         assert!(r[2].is_ok() && r[3].is_ok());
@@ -382,7 +430,7 @@ mod tests {
         let d = dir("torn");
         let mut log = JobLog::open(&d.0).unwrap();
         assert!(
-            log.append(&[rec("a1", 1), rec("b2", 1)])
+            log.append(&[rec("a1", 1), rec("b2", 1)], true)
                 .iter()
                 .all(Result::is_ok)
         );
@@ -399,7 +447,7 @@ mod tests {
         assert_eq!(sorted(&log), vec!["{\"id\":\"a1\",\"v\":1}".to_string()]);
         let after_open = std::fs::read(&p).unwrap();
         assert_eq!(after_open.last(), Some(&b'\n'));
-        assert!(log.append(&[rec("d4", 1)]).iter().all(Result::is_ok));
+        assert!(log.append(&[rec("d4", 1)], true).iter().all(Result::is_ok));
         drop(log);
         assert_eq!(
             sorted(&JobLog::open(&d.0).unwrap()),
@@ -450,7 +498,7 @@ mod tests {
                     (id, Some(Bytes::from(body)))
                 })
                 .collect();
-            assert!(log.append(&batch).iter().all(Result::is_ok));
+            assert!(log.append(&batch, true).iter().all(Result::is_ok));
             max_len = max_len.max(std::fs::metadata(d.0.join(LOG)).unwrap().len());
         }
         assert_eq!(log.count(), 300);

@@ -119,10 +119,15 @@ pub trait VolumeStore: Send + Sync {
     async fn delete_job_record(&self, id: &str) -> Result<(), StoreError>;
     /// Writes (`Some`) or removes (`None`) several job records (distinct ids), all durable when
     /// this returns: a group commit. A store may do better than one after the other (the
-    /// directory store syncs the directory once for the whole batch). The result per record.
+    /// directory store appends them to its log in one write). The result per record.
+    ///
+    /// Not `durable`: nobody waits for these records to survive a power loss (only a crash of
+    /// this process), so a store may leave them to the next durable batch (the directory
+    /// store's log writes them without a sync); by default they are made durable all the same.
     async fn put_job_records(
         &self,
         batch: Vec<(String, Option<Bytes>)>,
+        _durable: bool,
     ) -> Vec<Result<(), StoreError>> {
         let mut out = Vec::with_capacity(batch.len());
         for (id, bytes) in batch {
