@@ -657,6 +657,16 @@ mod tests {
         crate::app::testing::tiny_job(id, 4)
     }
 
+    /// The lines of job `id` in the record log of the store in `dir`, oldest first.
+    fn log_lines(dir: &std::path::Path, id: &str) -> Vec<String> {
+        std::fs::read_to_string(dir.join("jobs/records.log"))
+            .unwrap()
+            .lines()
+            .filter(|l| l.contains(&format!(" {id} ")))
+            .map(str::to_string)
+            .collect()
+    }
+
     /// The group commit: changes queued up together are written as one batch, each job's
     /// newest change only, in order per job (a removal after a write removes; a write after a
     /// removal writes), and every change is acknowledged only once its batch is on disk.
@@ -818,15 +828,7 @@ mod tests {
     async fn a_success_written_ahead_stands_only_with_its_volume() {
         let (dir, store) = scratch_store("ahead");
         let q = LocalQueue::open(8, store.clone()).await.unwrap();
-        let log = dir.join("jobs/records.log");
-        let lines = |id: &str| -> Vec<String> {
-            std::fs::read_to_string(&log)
-                .unwrap()
-                .lines()
-                .filter(|l| l.contains(&format!(" {id} ")))
-                .map(str::to_string)
-                .collect()
-        };
+        let lines = |id: &str| log_lines(&dir, id);
         for id in ["a1", "b2", "c3"] {
             q.submit_deferred(tiny_job(id)).await.unwrap();
             assert_eq!(q.next().await.unwrap().id, id);
@@ -881,15 +883,7 @@ mod tests {
     async fn deferred_records_are_written_once_or_when_persisted() {
         let (dir, store) = scratch_store("defer");
         let q = LocalQueue::open(4, store.clone()).await.unwrap();
-        let log = dir.join("jobs/records.log");
-        let lines = |id: &str| -> Vec<String> {
-            std::fs::read_to_string(&log)
-                .unwrap()
-                .lines()
-                .filter(|l| l.contains(&format!(" {id} ")))
-                .map(str::to_string)
-                .collect()
-        };
+        let lines = |id: &str| log_lines(&dir, id);
         q.submit_deferred(tiny_job("d2")).await.unwrap();
         let c = q.next().await.unwrap();
         assert_eq!(c.id, "d2");
