@@ -181,8 +181,11 @@ impl Grid {
         })
     }
 
+    /// X·Y·Z, or `u64::MAX` when that does not fit (three u32 axes can multiply past u64), so
+    /// a count compared with a limit is never a wrapped small one.
     pub fn voxel_count(&self) -> u64 {
-        self.dims.iter().map(|&d| d as u64).product()
+        let n: u128 = self.dims.iter().map(|&d| d as u128).product();
+        u64::try_from(n).unwrap_or(u64::MAX)
     }
 
     // Index ↔ world. Grid coordinates are continuous, in voxels from the origin: voxel i spans

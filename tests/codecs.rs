@@ -180,6 +180,15 @@ fn damaged_files_are_refused() {
             "{shape}: {e}"
         );
     }
+    // The same for binvox: dims whose count wraps u64 to a small one are out of range.
+    for dim in [
+        "4294967295 4294967295 4294967295",
+        "2097152 2097152 4194304",
+    ] {
+        let f = format!("#binvox 1\ndim {dim}\ntranslate 0 0 0\nscale 1\ndata\n\x01\x08");
+        let e = binvox::decode(f.as_bytes()).unwrap_err().to_string();
+        assert!(e.contains("dims out of range"), "{dim}: {e}");
+    }
     let b = binvox::encode(&vol).unwrap();
     assert!(
         binvox::decode(&b[..b.len() - 2])

@@ -131,6 +131,24 @@ fn identities() {
         result_grid(CsgOp::Union, &[]),
         Err(CsgError::NoOperands)
     ));
+    // Aligned operands 2^33 voxels apart: the union's grid would be longer than u32 voxels
+    // along x (its dims were cut to 32 bits), so it is refused.
+    let far = Grid {
+        origin: [
+            a.grid().origin[0] + (1u64 << 33) as f64 * a.grid().voxel_size,
+            a.grid().origin[1],
+            a.grid().origin[2],
+        ],
+        ..*a.grid()
+    };
+    assert!(matches!(
+        result_grid(CsgOp::Union, &[*a.grid(), far]),
+        Err(CsgError::TooFarApart { .. })
+    ));
+    assert_eq!(
+        voxd::app::Error::from(CsgError::TooFarApart { voxels: 1 << 33 }).kind,
+        voxd::app::ErrorKind::GridTooLarge
+    );
 }
 
 #[test]

@@ -240,6 +240,7 @@ impl From<CsgError> for Error {
             CsgError::Misaligned { .. } => ErrorKind::MisalignedGrids,
             CsgError::NoOverlap => ErrorKind::EmptyIntersection,
             CsgError::NoOperands => ErrorKind::InvalidParameter,
+            CsgError::TooFarApart { .. } => ErrorKind::GridTooLarge,
         };
         Error::new(kind, e.to_string())
     }

@@ -161,9 +161,12 @@ pub fn decode_limited(bytes: &[u8], max_voxels: u64) -> Result<BitVolume, CodecE
     }
     let d = dims.ok_or_else(|| malformed("binvox", "no dim line"))?;
     let (d, h, w) = (d[0], d[1], d[2]);
-    if d == 0 || h == 0 || w == 0 || (d as u64 * h as u64 * w as u64) > (1u64 << 36) {
+    // In u128: three u32 axes can multiply past u64 (a wrapped product would pass the bound).
+    let total = d as u128 * h as u128 * w as u128;
+    if total == 0 || total > (1u128 << 36) {
         return Err(malformed("binvox", "dims out of range"));
     }
+    let total = total as u64;
     let n = d.max(h).max(w);
     let vs = scale / n as f64;
     if !(vs.is_finite() && vs > 0.0) || translate.iter().any(|t: &f64| !t.is_finite()) {
@@ -175,7 +178,6 @@ pub fn decode_limited(bytes: &[u8], max_voxels: u64) -> Result<BitVolume, CodecE
         voxel_size: vs,
         dims: [d, w, h],
     };
-    let total = d as u64 * h as u64 * w as u64;
     let data = &bytes[pos..];
     // The runs must cover the grid exactly; checked before the volume is allocated, so a header
     // naming a huge grid over a few bytes of data costs nothing.

@@ -110,11 +110,16 @@ pub fn decode(bytes: &[u8]) -> Result<Volume, CodecError> {
             format!("shape must have 3 axes, got ({shape})"),
         ));
     };
-    // Three u32 axes can multiply past u64 (and a wrapped product could match a short file and
-    // then allocate the full grid), so the count is taken in u128 and must equal the bytes present.
-    let voxels = x as u128 * y as u128 * z as u128;
+    let grid = Grid {
+        origin: [0.0; 3],
+        voxel_size: 1.0,
+        dims: [x, y, z],
+    };
+    // Checked before anything is allocated (a count past u64 is u64::MAX: no file has as many
+    // bytes).
+    let voxels = grid.voxel_count();
     let data = &bytes[start + hlen..];
-    if data.len() as u128 != voxels || voxels == 0 {
+    if data.len() as u64 != voxels || voxels == 0 {
         return Err(malformed(
             "npy",
             format!(
@@ -123,11 +128,6 @@ pub fn decode(bytes: &[u8]) -> Result<Volume, CodecError> {
             ),
         ));
     }
-    let grid = Grid {
-        origin: [0.0; 3],
-        voxel_size: 1.0,
-        dims: [x, y, z],
-    };
     let max = data.iter().copied().max().unwrap_or(0);
     if max > 1 {
         let m = if max <= 8 { 8 } else { 64 };

@@ -50,6 +50,10 @@ pub enum CsgError {
     NoOverlap,
     #[error("an operation needs at least one operand")]
     NoOperands,
+    #[error(
+        "the union of these operands would be {voxels} voxels long along one axis, longer than any grid can be"
+    )]
+    TooFarApart { voxels: i64 },
 }
 
 /// Offset of `b`'s origin from `a`'s in whole voxels, if aligned.
@@ -88,7 +92,13 @@ pub fn result_grid(op: CsgOp, grids: &[Grid]) -> Result<Grid, CsgError> {
     if (0..3).any(|a| hi[a] <= lo[a]) {
         return Err(CsgError::NoOverlap);
     }
-    Ok(first.sub_grid(lo, [0, 1, 2].map(|a| (hi[a] - lo[a]) as u32)))
+    let mut dims = [0u32; 3];
+    for a in 0..3 {
+        dims[a] = u32::try_from(hi[a] - lo[a]).map_err(|_| CsgError::TooFarApart {
+            voxels: hi[a] - lo[a],
+        })?;
+    }
+    Ok(first.sub_grid(lo, dims))
 }
 
 /// `v` moved onto the aligned grid `target`: same voxels by world position, zero elsewhere.
