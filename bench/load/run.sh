@@ -28,8 +28,8 @@
 #           (sweep), bounded RSS, /healthz latency under overload.
 #
 # Environment:
-#   VOXD_BIN       the voxd binary (default /work/bench-bin/voxd when it exists, else
-#                  target/release/voxd, built here with cargo when missing)
+#   VOXD_BIN       the voxd binary (default: target/release/voxd, built here with
+#                  `cargo build --release --locked` first, a no-op when it is up to date)
 #   LOAD_WORKERS   --workers of the server (2: one per core of the 2-core machine)
 #   LOAD_LOCK      a lock file held (flock) for the whole measurement, so benchmark runs on a
 #                  shared machine never overlap (default /tmp/voxd-bench.lock; empty: no lock)
@@ -89,13 +89,9 @@ py=$venv/bin/python
 export K6_NO_USAGE_REPORT=true # k6 would otherwise report its use over the network
 
 if [[ -z ${VOXD_BIN:-} ]]; then
-  if [[ -x /work/bench-bin/voxd ]]; then
-    VOXD_BIN=/work/bench-bin/voxd
-  else
-    echo "building voxd (release)..." >&2
-    cargo build --release --locked --bin voxd
-    VOXD_BIN=${CARGO_TARGET_DIR:-$repo/target}/release/voxd
-  fi
+  echo "building voxd (release)..." >&2
+  cargo build --release --locked --bin voxd
+  VOXD_BIN=${CARGO_TARGET_DIR:-$repo/target}/release/voxd
 fi
 bin=$VOXD_BIN
 
