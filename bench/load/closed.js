@@ -10,8 +10,7 @@ import { sleep } from 'k6';
 import { Trend } from 'k6/metrics';
 import {
   BASE, loadClasses, pick, statusCounters, countStatus, retryAfterMetrics, checkRetryAfter,
-  logUnexpected, TREND_STATS,
-} from './lib.js';
+  logUnexpected, TREND_STATS, AUTH } from './lib.js';
 
 const classes = loadClasses();
 const WAIT = __ENV.WAIT || '30';
@@ -39,7 +38,7 @@ for (const c of classes) okBy[c.name] = new Trend(`ok_ms_${c.name}`, true);
 export default function () {
   const c = pick(classes);
   const res = http.post(`${BASE}/v1/voxelize?resolution=${c.res}&wait=${WAIT}`, c.body, {
-    headers: { 'Content-Type': c.ctype },
+    headers: { 'Content-Type': c.ctype, ...AUTH },
     timeout: '120s',
     tags: { name: 'voxelize', cls: c.name },
   });

@@ -8,6 +8,10 @@ import { Counter, Trend } from 'k6/metrics';
 
 export const BASE = __ENV.BASE || 'http://127.0.0.1:8080';
 
+// API_KEY (environment): sent as `Authorization: Bearer KEY` on every request, for a server
+// started with --api-keys-file (unset: no header).
+export const AUTH = __ENV.API_KEY ? { Authorization: `Bearer ${__ENV.API_KEY}` } : {};
+
 // HTTP statuses counted one by one; anything else lands in `other`. 0 is a transport error
 // (connection refused or reset, timeout).
 export const STATUSES = [0, 200, 201, 202, 400, 404, 408, 413, 415, 422, 429, 500, 502, 503, 504, 507];

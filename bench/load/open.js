@@ -14,8 +14,7 @@ import { sleep } from 'k6';
 import { Counter, Trend } from 'k6/metrics';
 import {
   BASE, loadClasses, pick, statusCounters, countStatus, retryAfterMetrics, checkRetryAfter,
-  logUnexpected, TREND_STATS,
-} from './lib.js';
+  logUnexpected, TREND_STATS, AUTH } from './lib.js';
 
 const classes = loadClasses();
 const phases = JSON.parse(__ENV.PHASES);
@@ -83,7 +82,7 @@ export function job() {
   const c = pick(classes);
   const t0 = Date.now();
   const res = http.post(`${BASE}/v1/voxelize?resolution=${c.res}`, c.body, {
-    headers: { 'Content-Type': c.ctype },
+    headers: { 'Content-Type': c.ctype, ...AUTH },
     timeout: '60s',
     tags: { name: 'voxelize', cls: c.name },
   });
@@ -108,7 +107,7 @@ export function job() {
   while (Date.now() < deadline) {
     sleep(delay);
     delay = Math.min(delay * 2, 0.25);
-    const g = http.get(`${BASE}/v1/jobs/${id}`, { timeout: '30s', tags: { name: 'job' } });
+    const g = http.get(`${BASE}/v1/jobs/${id}`, { headers: AUTH, timeout: '30s', tags: { name: 'job' } });
     if (g.status !== 200) {
       m.pollErr.add(1);
       logUnexpected('poll', g);

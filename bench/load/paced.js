@@ -11,8 +11,7 @@ import http from 'k6/http';
 import { Trend } from 'k6/metrics';
 import {
   BASE, loadClasses, pick, statusCounters, countStatus, retryAfterMetrics, checkRetryAfter,
-  logUnexpected, TREND_STATS,
-} from './lib.js';
+  logUnexpected, TREND_STATS, AUTH } from './lib.js';
 
 const classes = loadClasses();
 const WAIT = __ENV.WAIT || '30';
@@ -40,7 +39,7 @@ const ok = new Trend('ok_ms', true);
 export default function () {
   const c = pick(classes);
   const res = http.post(`${BASE}/v1/voxelize?resolution=${c.res}&wait=${WAIT}`, c.body, {
-    headers: { 'Content-Type': c.ctype },
+    headers: { 'Content-Type': c.ctype, ...AUTH },
     timeout: '120s',
     tags: { name: 'voxelize', cls: c.name },
   });

@@ -27,7 +27,7 @@
 //! (interrupted), as one that was running does. A job seen succeeded therefore stays succeeded
 //! through a crash, and a succeeded job's volume always exists.
 
-use std::collections::HashMap;
+use std::collections::{BTreeSet, HashMap};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -65,6 +65,12 @@ struct Inner {
     /// Ids of queued jobs, in arrival order.
     queue: Vec<String>,
     closed: bool,
+    /// The finished jobs, oldest first (creation time, then id): what [`LocalQueue::prune`]
+    /// forgets, without walking or sorting every job under the lock.
+    finished: BTreeSet<(String, String)>,
+    /// Jobs queued or running per API key: what [`Inner::admits`] checks a key's limit against,
+    /// without walking every job remembered.
+    active: HashMap<String, usize>,
 }
 
 /// A record to write (`None`: to remove), and who waits for it.
@@ -144,11 +150,18 @@ impl LocalQueue {
             );
         }
         tracing::info!(jobs = jobs.len(), "job records loaded");
+        // Every loaded job is final (those that were not are failed above).
+        let finished = jobs
+            .values()
+            .map(|j| (j.record.created.clone(), j.record.id.clone()))
+            .collect();
         let q = LocalQueue {
             inner: Mutex::new(Inner {
                 jobs,
                 queue: vec![],
                 closed: false,
+                finished,
+                active: HashMap::new(),
             }),
             ready: Notify::new(),
             capacity,
@@ -206,27 +219,13 @@ impl LocalQueue {
     /// `keep`: their records leave memory and the store.
     fn prune(&self, keep: usize) {
         let mut inner = self.lock();
-        // No more jobs than that in all, so no more finished ones: nothing to count (the
-        // count walks every job, and this runs at every finish).
-        if inner.jobs.len() <= keep + keep / 10 {
+        if inner.finished.len() <= keep + keep / 10 {
             return;
         }
-        let finished = inner
-            .jobs
-            .values()
-            .filter(|j| j.record.state.is_final())
-            .count();
-        if finished <= keep + keep / 10 {
-            return;
-        }
-        let mut old: Vec<(String, String)> = inner
-            .jobs
-            .values()
-            .filter(|j| j.record.state.is_final())
-            .map(|j| (j.record.created.clone(), j.record.id.clone()))
-            .collect();
-        old.sort();
-        for (_, id) in old.into_iter().take(finished - keep) {
+        while inner.finished.len() > keep {
+            let Some((_, id)) = inner.finished.pop_first() else {
+                break;
+            };
             inner.jobs.remove(&id);
             let (tx, _) = oneshot::channel();
             let _ = self.writes.send((id, None, tx));
@@ -323,19 +322,38 @@ impl Inner {
             .retry_after(5));
         }
         if let Some(owner) = owner.filter(|o| o.max_jobs > 0) {
-            let active = self
-                .jobs
-                .values()
-                .filter(|j| {
-                    !j.record.state.is_final()
-                        && j.record.key_name.as_deref() == Some(owner.name.as_str())
-                })
-                .count();
+            let active = self.active.get(&owner.name).copied().unwrap_or(0);
             if active >= owner.max_jobs {
                 return Err(owner.too_many(active));
             }
         }
         Ok(())
+    }
+
+    /// Indexes a job just queued: one more active job of its key.
+    fn started(&mut self, id: &str) {
+        if let Some(key) = self.jobs.get(id).and_then(|j| j.record.key_name.clone()) {
+            *self.active.entry(key).or_insert(0) += 1;
+        }
+    }
+
+    /// Indexes a job whose record just became final: finished (to be forgotten in its turn),
+    /// and one active job fewer for its key. Called once per job, at the change.
+    fn ended(&mut self, id: &str) {
+        let Some(j) = self.jobs.get(id) else {
+            return;
+        };
+        debug_assert!(j.record.state.is_final());
+        self.finished
+            .insert((j.record.created.clone(), j.record.id.clone()));
+        if let Some(key) = &j.record.key_name
+            && let Some(n) = self.active.get_mut(key)
+        {
+            *n -= 1;
+            if *n == 0 {
+                self.active.remove(key);
+            }
+        }
     }
 
     fn view(&self, id: &str) -> Option<JobRecord> {
@@ -390,6 +408,7 @@ impl LocalQueue {
                 },
             );
             inner.queue.push(job.id.clone());
+            inner.started(&job.id);
             let v = inner.view(&job.id).expect("just inserted");
             let durable = self.record(&v);
             (v, durable)
@@ -461,6 +480,7 @@ impl JobQueue for LocalQueue {
             job.work = None;
             job.done.send_replace(State::Canceled);
             inner.queue.retain(|q| q != id);
+            inner.ended(id);
             let v = inner.view(id).expect("present");
             let durable = self.record(&v);
             (v, durable)
@@ -577,6 +597,7 @@ impl JobQueue for LocalQueue {
                 job.record.progress = record.progress;
                 job.record.error = record.error;
                 job.done.send_replace(job.record.state);
+                inner.ended(id);
             }
         }
         drop(inner);
@@ -596,6 +617,7 @@ impl JobQueue for LocalQueue {
                     job.work = None;
                     job.finished = Some(Instant::now());
                     job.done.send_replace(State::Failed);
+                    inner.ended(id);
                 }
                 if let Some(v) = inner.view(id) {
                     acks.push(self.record(&v));
@@ -907,5 +929,113 @@ mod tests {
         assert!(p1[0].contains("\"queued\""), "{p1:?}");
         drop((q, store));
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// The indexes kept for pruning and for keys' limits (`finished`, `active`) against a walk
+    /// of every job, after each step of a random run of submits, takes, finishes (succeeded
+    /// and failed), cancels of queued and running jobs, prunes and a close; and a key's limit
+    /// refuses exactly when the walk counts the limit reached.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn the_indexes_agree_with_a_walk_of_every_job() {
+        fn check(q: &LocalQueue) {
+            let inner = q.lock();
+            let finished: BTreeSet<(String, String)> = inner
+                .jobs
+                .values()
+                .filter(|j| j.record.state.is_final())
+                .map(|j| (j.record.created.clone(), j.record.id.clone()))
+                .collect();
+            assert_eq!(inner.finished, finished);
+            let mut active: HashMap<String, usize> = HashMap::new();
+            for j in inner.jobs.values() {
+                if let (false, Some(k)) = (j.record.state.is_final(), &j.record.key_name) {
+                    *active.entry(k.clone()).or_insert(0) += 1;
+                }
+            }
+            assert_eq!(inner.active, active);
+        }
+        let (dir, store) = scratch_store("indexes");
+        let q = LocalQueue::open(8, store.clone())
+            .await
+            .unwrap()
+            .with_keep_finished(6);
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut rand = move |n: u64| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed % n
+        };
+        let owners = ["alpha", "beta"];
+        let mut running: Vec<String> = vec![];
+        let (mut refused, mut forgotten) = (0, 0);
+        for step in 0..600u64 {
+            match rand(6) {
+                0 | 1 => {
+                    let mut job = tiny_job(&format!("j{step:03}"));
+                    // Ties in the creation time: the id decides the order among them.
+                    job.created = format!("2026-12-03T00:{:02}:00Z", step / 7);
+                    let owner = rand(3) as usize;
+                    job.owner = owners.get(owner).map(|name| Owner {
+                        name: name.to_string(),
+                        max_jobs: 3,
+                    });
+                    let walked = job.owner.as_ref().map_or(0, |o| {
+                        q.lock()
+                            .jobs
+                            .values()
+                            .filter(|j| {
+                                !j.record.state.is_final()
+                                    && j.record.key_name.as_deref() == Some(o.name.as_str())
+                            })
+                            .count()
+                    });
+                    let queued = q.lock().queue.len();
+                    match q.submit(job).await {
+                        Ok(_) => assert!(walked < 3 && queued < 8),
+                        Err(e) => {
+                            assert!(walked >= 3 || queued >= 8, "{e:?}");
+                            refused += 1;
+                        }
+                    }
+                }
+                2 => {
+                    if !q.lock().queue.is_empty() {
+                        running.push(q.next().await.unwrap().id);
+                    }
+                }
+                3 | 4 if !running.is_empty() => {
+                    let id = running.remove(rand(running.len() as u64) as usize);
+                    let result = if rand(4) == 0 {
+                        Err(Error::new(ErrorKind::Internal, "failed on purpose"))
+                    } else {
+                        Ok(format!("v-{id}"))
+                    };
+                    let before = q.lock().jobs.len();
+                    q.finish(&id, result).await;
+                    forgotten += (before + 1).saturating_sub(q.lock().jobs.len());
+                }
+                _ => {
+                    let ids: Vec<String> = q.lock().jobs.keys().cloned().collect();
+                    if let Some(id) = ids.get(rand(ids.len().max(1) as u64) as usize) {
+                        // Finished jobs are not cancelable; running ones stay claimed until
+                        // their worker finishes them (which then changes nothing).
+                        let _ = q.cancel(id).await;
+                    }
+                }
+            }
+            check(&q);
+        }
+        assert!(refused > 0 && forgotten > 0, "{refused} {forgotten}");
+        q.close(Error::new(ErrorKind::ShuttingDown, "closing"))
+            .await;
+        check(&q);
+        for id in running {
+            q.finish(&id, Ok("v".into())).await;
+            check(&q);
+        }
+        assert!(q.lock().active.is_empty());
+        drop((q, store));
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }
