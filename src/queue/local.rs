@@ -331,7 +331,7 @@ impl Inner {
     }
 
     /// Indexes a job just queued: one more active job of its key.
-    fn started(&mut self, id: &str) {
+    fn queued(&mut self, id: &str) {
         if let Some(key) = self.jobs.get(id).and_then(|j| j.record.key_name.clone()) {
             *self.active.entry(key).or_insert(0) += 1;
         }
@@ -408,7 +408,7 @@ impl LocalQueue {
                 },
             );
             inner.queue.push(job.id.clone());
-            inner.started(&job.id);
+            inner.queued(&job.id);
             let v = inner.view(&job.id).expect("just inserted");
             let durable = self.record(&v);
             (v, durable)
