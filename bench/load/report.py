@@ -39,6 +39,7 @@ def load_samples(path):
                 "rss_mib": num("rss_kib") / 1024, "hwm_mib": num("hwm_kib") / 1024,
                 "threads": num("threads"), "fds": num("fds"), "cpu": num("server_cpu_s"),
                 "busy": num("machine_busy_s"), "probe_ms": num("probe_fsync_ms"), "overflows": num("listen_overflows"),
+                "admin_healthz_ms": num("admin_healthz_ms"),
             })
     return rows
 
@@ -177,6 +178,7 @@ def main():
             w = window(sm, t0, t1)
             f0, f1 = interp(sm, "finished", t0), interp(sm, "finished", t1)
             health = sorted(r["healthz_ms"] for r in w if r["healthz_ms"] is not None)
+            admin = sorted(r["admin_healthz_ms"] for r in w if r["admin_healthz_ms"] is not None)
             by_class = {}
             for c in st["classes"]:
                 cn = c["name"]
@@ -207,6 +209,8 @@ def main():
                 "max_rss_mib": round(max((r["rss_mib"] for r in w), default=0), 1),
                 "healthz_ms": {"max": round(health[-1], 1), "p50": round(health[len(health) // 2], 1),
                                "failed": sum(1 for h in health if h < 0), "samples": len(health)} if health else None,
+                "admin_healthz_ms": {"max": round(admin[-1], 1), "p50": round(admin[len(admin) // 2], 1),
+                                     "failed": sum(1 for h in admin if h < 0), "samples": len(admin)} if admin else None,
                 "dropped_iterations": count(k6, "dropped_iterations"),
                 "phase_server_cores": delta(sm, "cpu", t0, t1),
                 "phase_machine_cores": delta(sm, "busy", t0, t1),
@@ -228,6 +232,9 @@ def main():
             h = [r["healthz_ms"] for r in sm if r["healthz_ms"] is not None]
             servers[n]["healthz_max_ms"] = round(max(h), 1) if h else None
             servers[n]["healthz_failed"] = sum(1 for x in h if x < 0)
+            h = [r["admin_healthz_ms"] for r in sm if r["admin_healthz_ms"] is not None]
+            servers[n]["admin_healthz_max_ms"] = round(max(h), 1) if h else None
+            servers[n]["admin_healthz_failed"] = sum(1 for x in h if x < 0) if h else None
 
     json.dump(res, open(os.path.join(out, "results.json"), "w"), indent=1)
     write_md(out, res)
@@ -287,7 +294,8 @@ def write_md(out, res):
         L.append(f"- time to final state (client, polling): p50 {fmt(d.get('p50'), 0)} / p95 {fmt(d.get('p95'), 0)} / p99 {fmt(d.get('p99'), 0)} ms; "
                  f"server queued+running p50 {fmt(s.get('p50'), 0)} / p99 {fmt(s.get('p99'), 0)} ms")
         L.append(f"- max queue depth {r['max_queue_depth']}, max running {r['max_running']}, max RSS {r['max_rss_mib']} MiB, "
-                 f"max fds {r['max_fds']}, max threads {r['max_threads']}, /healthz (new connection each 0.5 s) {r['healthz_ms']}")
+                 f"max fds {r['max_fds']}, max threads {r['max_threads']}, /healthz (new connection each 0.5 s) {r['healthz_ms']}, "
+                 f"/healthz on the admin listener (--admin-addr, the probes' port) {r.get('admin_healthz_ms')}")
         L.append(f"- in the phase: server CPU {r['phase_server_cores']} cores, whole machine {r['phase_machine_cores']} cores; "
                  f"listen-queue overflows (machine) {r['listen_overflows']}")
         L.append("")
@@ -302,11 +310,12 @@ def write_md(out, res):
         L.append(f"- sweep after {n}: {sw['accepted']} accepted ({sw['distinct_accepted']} distinct), "
                  f"sweep states {sw['sweep']}, k6 saw final {sw['k6_saw_final']}, **lost {sw['lost']}**, drained {sw['drained']} after {sw['drain_s']} s")
     L.append("")
-    L.append("| server | args | store | peak RSS (VmHWM) MiB | end RSS MiB | max fds | max threads | /healthz max ms | /healthz failed | exit on SIGTERM |")
-    L.append("|---|---|---|---|---|---|---|---|---|---|")
+    L.append("| server | args | store | peak RSS (VmHWM) MiB | end RSS MiB | max fds | max threads | /healthz max ms | /healthz failed | admin /healthz max ms | admin /healthz failed | exit on SIGTERM |")
+    L.append("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for n, s in res["servers"].items():
         L.append(f"| {n} | `{s['args'].strip()}` | {s['fs']} | {s.get('peak_rss_mib')} | {s.get('end_rss_mib')} | {s.get('max_fds')} | "
-                 f"{s.get('max_threads')} | {s.get('healthz_max_ms')} | {s.get('healthz_failed')} | {s.get('exit')} |")
+                 f"{s.get('max_threads')} | {s.get('healthz_max_ms')} | {s.get('healthz_failed')} | "
+                 f"{s.get('admin_healthz_max_ms')} | {s.get('admin_healthz_failed')} | {s.get('exit')} |")
     open(os.path.join(out, "results.md"), "w").write("\n".join(L) + "\n")
 
 
@@ -368,7 +377,10 @@ def plots(out, res, samples, steps):
         axs[2].plot(t, [r["rss_mib"] for r in sm], label="VmRSS")
         axs[2].plot(t, [r["hwm_mib"] for r in sm], "--", label="VmHWM")
         axs[2].set_ylabel("server MiB")
-        axs[3].plot(t, [r["healthz_ms"] for r in sm], color="tab:red")
+        axs[3].plot(t, [r["healthz_ms"] for r in sm], color="tab:red", label="service listener")
+        if any(r["admin_healthz_ms"] is not None for r in sm):
+            axs[3].plot(t, [r["admin_healthz_ms"] for r in sm], color="tab:blue", label="admin listener")
+            axs[3].legend(loc="upper right", fontsize="small")
         axs[3].set_ylabel("/healthz ms")
         axs[3].set_xlabel("s since the server started")
         # shade the phases (from the console START and the phase lengths)

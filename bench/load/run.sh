@@ -161,7 +161,7 @@ start_server() { # NAME DATA_DIR [extra serve args...]
   local w=${srv_workers:-$workers}
   : >"$out/$name.server.out"
   : >"$out/$name.server.err"
-  "$bin" serve --addr 127.0.0.1:0 --data-dir "$dir" --engine cpu --workers "$w" "$@" \
+  "$bin" serve --addr 127.0.0.1:0 --admin-addr 127.0.0.1:0 --data-dir "$dir" --engine cpu --workers "$w" "$@" \
     >"$out/$name.server.out" 2>"$out/$name.server.err" &
   server_pid=$!
   addr=
@@ -172,8 +172,16 @@ start_server() { # NAME DATA_DIR [extra serve args...]
     sleep 0.1
   done
   [[ -n $addr ]] || { echo "voxd did not print its address" >&2; exit 1; }
+  # Printed on the line after the service's address.
+  admin_addr=
+  for _ in $(seq 20); do
+    admin_addr=$(sed -n 's|^voxd admin listening on http://||p' "$out/$name.server.out")
+    [[ -n $admin_addr ]] && break
+    sleep 0.1
+  done
+  [[ -n $admin_addr ]] || { echo "voxd did not print its admin address" >&2; exit 1; }
   base=http://$addr
-  "$py" "$here/sample.py" --addr "$addr" --pid "$server_pid" --out "$out/$name.samples.csv" \
+  "$py" "$here/sample.py" --addr "$addr" --admin-addr "$admin_addr" --pid "$server_pid" --out "$out/$name.samples.csv" \
     --phase-file "$out/phase" --probe-dir "$scratch/probe-$name" &
   sampler_pid=$!
   echo "server $name: pid $server_pid at $addr, data dir $dir ($(df -T "$dir" | awk 'NR == 2 {print $2}')), args: --workers $w $*" >&2

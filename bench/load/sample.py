@@ -25,7 +25,7 @@ TICK = os.sysconf("SC_CLK_TCK")
 COLUMNS = [
     "t", "phase", "queue_depth", "queue_running", "jobs_finished", "healthz_ms", "metrics_ms",
     "rss_kib", "hwm_kib", "threads", "fds", "server_cpu_s", "machine_busy_s", "probe_fsync_ms",
-    "listen_overflows",
+    "listen_overflows", "admin_healthz_ms",
 ]
 
 
@@ -105,6 +105,7 @@ def main():
     ap.add_argument("--phase-file", required=True)
     ap.add_argument("--interval", type=float, default=0.5)
     ap.add_argument("--probe-dir")
+    ap.add_argument("--admin-addr", help="the server's --admin-addr: its /healthz is probed too")
     a = ap.parse_args()
     host, port = a.addr.rsplit(":", 1)
     if a.probe_dir:
@@ -127,6 +128,14 @@ def main():
                     health_ms = -1
             except (OSError, http.client.HTTPException):
                 health_ms = -1
+            admin_ms = ""
+            if a.admin_addr:
+                ahost, aport = a.admin_addr.rsplit(":", 1)
+                try:
+                    s, _, ms = get(ahost, aport, "/healthz")
+                    admin_ms = f"{ms if s == 200 else -1:.2f}"
+                except (OSError, http.client.HTTPException):
+                    admin_ms = "-1.00"
             depth = running = finished = ""
             metrics_ms = -1
             try:
@@ -146,7 +155,7 @@ def main():
             w.writerow([
                 f"{t:.3f}", phase, depth, running, finished, f"{health_ms:.2f}", f"{metrics_ms:.2f}",
                 p["VmRSS"], p["VmHWM"], p["Threads"], p["fds"], f"{p['cpu']:.2f}",
-                f"{machine_busy():.2f}", probe, listen_overflows(),
+                f"{machine_busy():.2f}", probe, listen_overflows(), admin_ms,
             ])
             f.flush()
             next_t += a.interval
