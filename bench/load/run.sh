@@ -164,22 +164,15 @@ start_server() { # NAME DATA_DIR [extra serve args...]
   "$bin" serve --addr 127.0.0.1:0 --admin-addr 127.0.0.1:0 --data-dir "$dir" --engine cpu --workers "$w" "$@" \
     >"$out/$name.server.out" 2>"$out/$name.server.err" &
   server_pid=$!
-  addr=
+  addr= admin_addr=
   for _ in $(seq 100); do
     addr=$(sed -n 's|^voxd listening on http://||p' "$out/$name.server.out")
-    [[ -n $addr ]] && break
+    admin_addr=$(sed -n 's|^voxd admin listening on http://||p' "$out/$name.server.out")
+    [[ -n $addr && -n $admin_addr ]] && break
     kill -0 "$server_pid" 2>/dev/null || { echo "voxd exited at start:" >&2; cat "$out/$name.server.err" >&2; exit 1; }
     sleep 0.1
   done
-  [[ -n $addr ]] || { echo "voxd did not print its address" >&2; exit 1; }
-  # Printed on the line after the service's address.
-  admin_addr=
-  for _ in $(seq 20); do
-    admin_addr=$(sed -n 's|^voxd admin listening on http://||p' "$out/$name.server.out")
-    [[ -n $admin_addr ]] && break
-    sleep 0.1
-  done
-  [[ -n $admin_addr ]] || { echo "voxd did not print its admin address" >&2; exit 1; }
+  [[ -n $addr && -n $admin_addr ]] || { echo "voxd did not print its addresses" >&2; exit 1; }
   base=http://$addr
   "$py" "$here/sample.py" --addr "$addr" --admin-addr "$admin_addr" --pid "$server_pid" --out "$out/$name.samples.csv" \
     --phase-file "$out/phase" --probe-dir "$scratch/probe-$name" &
