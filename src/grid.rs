@@ -184,7 +184,12 @@ impl Grid {
     /// X·Y·Z, or `u64::MAX` when that does not fit (three u32 axes can multiply past u64), so
     /// a count compared with a limit is never a wrapped small one.
     pub fn voxel_count(&self) -> u64 {
-        let n: u128 = self.dims.iter().map(|&d| d as u128).product();
+        Grid::count(self.dims)
+    }
+
+    /// [`Grid::voxel_count`] of a grid with `dims`, before any grid is made (a file's header).
+    pub fn count(dims: [u32; 3]) -> u64 {
+        let n: u128 = dims.iter().map(|&d| d as u128).product();
         u64::try_from(n).unwrap_or(u64::MAX)
     }
 

@@ -25,6 +25,15 @@ import matplotlib.pyplot as plt  # noqa: E402
 FINAL = ("succeeded", "failed", "canceled")
 
 
+def probes(rows, key):
+    """Summary of a probe's samples (ms, -1: failed): max, p50, failures, count; None without any."""
+    v = sorted(r[key] for r in rows if r[key] is not None)
+    if not v:
+        return None
+    return {"max": round(v[-1], 1), "p50": round(v[len(v) // 2], 1),
+            "failed": sum(1 for x in v if x < 0), "samples": len(v)}
+
+
 def load_samples(path):
     rows = []
     with open(path) as f:
@@ -177,8 +186,6 @@ def main():
             t = t1
             w = window(sm, t0, t1)
             f0, f1 = interp(sm, "finished", t0), interp(sm, "finished", t1)
-            health = sorted(r["healthz_ms"] for r in w if r["healthz_ms"] is not None)
-            admin = sorted(r["admin_healthz_ms"] for r in w if r["admin_healthz_ms"] is not None)
             by_class = {}
             for c in st["classes"]:
                 cn = c["name"]
@@ -207,10 +214,8 @@ def main():
                 "max_queue_depth": max((r["depth"] or 0 for r in w), default=None),
                 "max_running": max((r["running"] or 0 for r in w), default=None),
                 "max_rss_mib": round(max((r["rss_mib"] for r in w), default=0), 1),
-                "healthz_ms": {"max": round(health[-1], 1), "p50": round(health[len(health) // 2], 1),
-                               "failed": sum(1 for h in health if h < 0), "samples": len(health)} if health else None,
-                "admin_healthz_ms": {"max": round(admin[-1], 1), "p50": round(admin[len(admin) // 2], 1),
-                                     "failed": sum(1 for h in admin if h < 0), "samples": len(admin)} if admin else None,
+                "healthz_ms": probes(w, "healthz_ms"),
+                "admin_healthz_ms": probes(w, "admin_healthz_ms"),
                 "dropped_iterations": count(k6, "dropped_iterations"),
                 "phase_server_cores": delta(sm, "cpu", t0, t1),
                 "phase_machine_cores": delta(sm, "busy", t0, t1),
@@ -229,12 +234,10 @@ def main():
             servers[n]["end_rss_mib"] = round(sm[-1]["rss_mib"], 1)
             servers[n]["max_fds"] = int(max(r["fds"] for r in sm))
             servers[n]["max_threads"] = int(max(r["threads"] for r in sm))
-            h = [r["healthz_ms"] for r in sm if r["healthz_ms"] is not None]
-            servers[n]["healthz_max_ms"] = round(max(h), 1) if h else None
-            servers[n]["healthz_failed"] = sum(1 for x in h if x < 0)
-            h = [r["admin_healthz_ms"] for r in sm if r["admin_healthz_ms"] is not None]
-            servers[n]["admin_healthz_max_ms"] = round(max(h), 1) if h else None
-            servers[n]["admin_healthz_failed"] = sum(1 for x in h if x < 0) if h else None
+            for key, name in (("healthz_ms", "healthz"), ("admin_healthz_ms", "admin_healthz")):
+                p = probes(sm, key) or {}
+                servers[n][f"{name}_max_ms"] = p.get("max")
+                servers[n][f"{name}_failed"] = p.get("failed")
 
     json.dump(res, open(os.path.join(out, "results.json"), "w"), indent=1)
     write_md(out, res)

@@ -69,6 +69,15 @@ def get(host, port, path):
         c.close()
 
 
+def healthz(host, port):
+    """ms a /healthz on a new connection took; -1 when it failed (not 200, or no answer)."""
+    try:
+        s, _, ms = get(host, port, "/healthz")
+        return ms if s == 200 else -1
+    except (OSError, http.client.HTTPException):
+        return -1
+
+
 def proc(pid):
     out = {}
     with open(f"/proc/{pid}/status") as f:
@@ -122,20 +131,8 @@ def main():
                 phase = open(a.phase_file).read().strip()
             except OSError:
                 phase = ""
-            try:
-                s, _, health_ms = get(host, port, "/healthz")
-                if s != 200:
-                    health_ms = -1
-            except (OSError, http.client.HTTPException):
-                health_ms = -1
-            admin_ms = ""
-            if a.admin_addr:
-                ahost, aport = a.admin_addr.rsplit(":", 1)
-                try:
-                    s, _, ms = get(ahost, aport, "/healthz")
-                    admin_ms = f"{ms if s == 200 else -1:.2f}"
-                except (OSError, http.client.HTTPException):
-                    admin_ms = "-1.00"
+            health_ms = healthz(host, port)
+            admin_ms = f"{healthz(*a.admin_addr.rsplit(':', 1)):.2f}" if a.admin_addr else ""
             depth = running = finished = ""
             metrics_ms = -1
             try:

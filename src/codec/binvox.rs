@@ -161,12 +161,11 @@ pub fn decode_limited(bytes: &[u8], max_voxels: u64) -> Result<BitVolume, CodecE
     }
     let d = dims.ok_or_else(|| malformed("binvox", "no dim line"))?;
     let (d, h, w) = (d[0], d[1], d[2]);
-    // In u128: three u32 axes can multiply past u64 (a wrapped product would pass the bound).
-    let total = d as u128 * h as u128 * w as u128;
-    if total == 0 || total > (1u128 << 36) {
+    // Saturating: three u32 axes can multiply past u64 (a wrapped product would pass the bound).
+    let total = Grid::count([d, h, w]);
+    if total == 0 || total > (1u64 << 36) {
         return Err(malformed("binvox", "dims out of range"));
     }
-    let total = total as u64;
     let n = d.max(h).max(w);
     let vs = scale / n as f64;
     if !(vs.is_finite() && vs > 0.0) || translate.iter().any(|t: &f64| !t.is_finite()) {
