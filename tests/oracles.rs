@@ -73,6 +73,50 @@ fn every_method_matches_brute_force_on_random_meshes() {
     }
 }
 
+/// Small triangles (a fraction of a voxel to two voxels) with corners on, just off and beside
+/// voxel faces, flat ones in one layer, and ones reaching out of the grid: the shapes the
+/// surface method decides without the z-dependent axes (one column, one layer) and the ones
+/// just outside those cases, each against the brute-force oracle.
+#[test]
+fn small_triangles_at_voxel_faces_match_brute_force() {
+    // Offsets inside a voxel, in 1/256 of a voxel (the unit grid snaps them exactly).
+    const OFF: [i32; 11] = [-2, -1, 0, 1, 2, 127, 128, 254, 255, 256, 257];
+    for seed in 0..40u64 {
+        let mut rng = Rng::new(1000 + seed);
+        let dims = [4, 5, [3, 7, 65][rng.below(3) as usize]];
+        let coord = |rng: &mut Rng, a: usize| {
+            let cell = rng.below(dims[a] as u64 + 2) as i32 - 1;
+            (cell * 256 + OFF[rng.below(OFF.len() as u64) as usize]) as f64 / 256.0
+        };
+        let (mut p, mut t) = (vec![], vec![]);
+        for _ in 0..60 {
+            let a = [0, 1, 2].map(|k| coord(&mut rng, k));
+            let mut v = [a; 3];
+            for q in &mut v[1..] {
+                for k in 0..3 {
+                    // Up to two voxels away, on the same 1/256 lattice.
+                    q[k] += (rng.below(513) as f64 - 256.0) / 256.0 * (1 + rng.below(2)) as f64;
+                }
+            }
+            match rng.below(4) {
+                0 => v.iter_mut().for_each(|q| q[2] = a[2]), // flat: one z
+                1 => v[2] = v[1],                            // a segment
+                _ => {}
+            }
+            let b = p.len() as u32;
+            p.extend_from_slice(&v);
+            t.push([b, b + 1, b + 2]);
+        }
+        let mesh = Mesh::new(p, t).unwrap();
+        let g = unit_grid(dims);
+        assert_same(
+            &run(&mesh, &g, Method::Surface),
+            &surface_brute(&mesh, &g),
+            &format!("surface, seed {seed}"),
+        );
+    }
+}
+
 /// Independent of the tie rules' code: for closed solids whose vertices sit on column centres and
 /// voxel faces, every voxel centre not on the surface is solid iff the winding number is odd.
 #[test]

@@ -35,17 +35,45 @@ pub(super) fn voxelize(mesh: &GridMesh, ctl: &Control) -> Result<BitVolume, Canc
             ) else {
                 continue;
             };
+            // A triangle inside one closed slab of x cells meets the voxels of a column of that
+            // slab exactly where its shadow on the column's yz face does; as the shadow is
+            // convex and spans the triangle's whole y extent, every column of the y range is
+            // met, and the column's axes (edge × z) cannot separate. The same holds with x and
+            // y swapped. And a triangle inside one layer's closed slab meets a voxel of that
+            // layer exactly where its shadow meets the voxel's square, which the column's axes
+            // (box x and y, edge × z) decide: the z-dependent axes are not needed.
+            let one_column = inside(b[0], x0, x1) || inside(b[1], y0, y1);
+            let one_layer = inside(b[2], zk0, zk1);
+            // Inside one x slab, a voxel is met where the triangle's shadow on the yz plane meets
+            // the voxel's yz square: the axes y (the column range), z and edge × x decide it.
+            // Likewise with x and y swapped.
+            let axes = if inside(b[0], x0, x1) {
+                Axes::EdgeX
+            } else if inside(b[1], y0, y1) {
+                Axes::EdgeY
+            } else {
+                Axes::All
+            };
             let (x0, x1) = (x0.max(band.start), x1.min(band.end - 1));
             for x in x0..=x1 {
                 for y in y0..=y1 {
                     let c = [x as i64 * FIXED_ONE + H, y as i64 * FIXED_ONE + H];
-                    if !tri.column_overlaps(c) {
+                    if !one_column && !tri.column_overlaps(c) {
                         continue;
                     }
-                    let (k0, k1) = tri.candidate_layers(c, zk0, zk1);
                     let col = ((x - band.start) as usize * ny as usize + y as usize) * wpc;
+                    if one_layer {
+                        words[col + zk0 as usize / 64] |= 1 << (zk0 % 64);
+                        continue;
+                    }
+                    // Pruning by the plane pays only over a few layers.
+                    let (k0, k1) = if zk1 - zk0 >= 3 {
+                        tri.candidate_layers(c, zk0, zk1)
+                    } else {
+                        (zk0, zk1)
+                    };
                     for k in k0..=k1 {
-                        if tri.layer_overlaps([c[0], c[1], k as i64 * FIXED_ONE + H]) {
+                        if tri.layer_overlaps([c[0], c[1], k as i64 * FIXED_ONE + H], axes) {
                             words[col + k as usize / 64] |= 1 << (k % 64);
                         }
                     }
@@ -56,11 +84,30 @@ pub(super) fn voxelize(mesh: &GridMesh, ctl: &Control) -> Result<BitVolume, Canc
     Ok(vol)
 }
 
+/// Is the extent `[lo, hi]` inside the closed box of cell `k0`, the only cell of `k0..=k1`?
+/// (`k0..=k1` is `box_range`'s clamped answer, so one cell alone does not say it: a triangle
+/// reaching out of the grid clamps to the border cell.)
+fn inside((lo, hi): (i64, i64), k0: u32, k1: u32) -> bool {
+    let base = k0 as i64 * FIXED_ONE;
+    k0 == k1 && lo >= base && hi <= base + FIXED_ONE
+}
+
+/// The z-dependent axes that decide a voxel: all of them, or, for a triangle inside one x (y)
+/// slab, edge × x (edge × y) alone beside box z.
+#[derive(Clone, Copy)]
+enum Axes {
+    All,
+    EdgeX,
+    EdgeY,
+}
+
 /// A triangle prepared for box tests: vertices, edges and (unnormalised) normal.
 struct Tri {
     v: [[i64; 3]; 3],
     e: [[i64; 3]; 3],
     n: [i64; 3],
+    /// Every |n| component below 2^31: the normal's projection fits in i64 (see `layer_overlaps`).
+    small: bool,
 }
 
 impl Tri {
@@ -73,7 +120,8 @@ impl Tri {
             a[2] * b[0] - a[0] * b[2],
             a[0] * b[1] - a[1] * b[0],
         ];
-        Tri { v, e, n }
+        let small = n.iter().all(|c| c.unsigned_abs() < 1 << 31);
+        Tri { v, e, n, small }
     }
 
     /// Vertices relative to a point.
@@ -92,57 +140,83 @@ impl Tri {
         })
     }
 
-    /// The z-dependent axes: box z, triangle normal, edge × x, edge × y.
-    fn layer_overlaps(&self, c: [i64; 3]) -> bool {
+    /// The z-dependent axes: box z, then triangle normal, edge × x and edge × y, or only those
+    /// of `axes`.
+    fn layer_overlaps(&self, c: [i64; 3], axes: Axes) -> bool {
         let r = self.rel(c);
         if separates(r.map(|p| p[2]), H) {
             return false;
         }
-        let d = self.n[0] as i128 * r[0][0] as i128
-            + self.n[1] as i128 * r[0][1] as i128
-            + self.n[2] as i128 * r[0][2] as i128;
-        if d.abs()
-            > H as i128
-                * (self.n[0].unsigned_abs() as i128
-                    + self.n[1].unsigned_abs() as i128
-                    + self.n[2].unsigned_abs() as i128)
-        {
-            return false;
-        }
-        self.e.iter().all(|e| {
+        let edge_x = |e: &[i64; 3]| {
             !separates(
                 r.map(|p| e[2] * p[1] - e[1] * p[2]),
                 H * (e[2].abs() + e[1].abs()),
-            ) && !separates(
+            )
+        };
+        let edge_y = |e: &[i64; 3]| {
+            !separates(
                 r.map(|p| e[0] * p[2] - e[2] * p[0]),
                 H * (e[2].abs() + e[0].abs()),
             )
-        })
+        };
+        match axes {
+            Axes::EdgeX => return self.e.iter().all(edge_x),
+            Axes::EdgeY => return self.e.iter().all(edge_y),
+            Axes::All => {}
+        }
+        // |r| < 2^30 + H (coordinates and centres below 2^29): with |n| < 2^31 each product is
+        // below 2^62 and their sum and the radius below 2^63.
+        let beyond = if self.small {
+            let d = self.n[0] * r[0][0] + self.n[1] * r[0][1] + self.n[2] * r[0][2];
+            d.abs() > H * (self.n[0].abs() + self.n[1].abs() + self.n[2].abs())
+        } else {
+            let d = self.n[0] as i128 * r[0][0] as i128
+                + self.n[1] as i128 * r[0][1] as i128
+                + self.n[2] as i128 * r[0][2] as i128;
+            d.abs()
+                > H as i128
+                    * (self.n[0].unsigned_abs() as i128
+                        + self.n[1].unsigned_abs() as i128
+                        + self.n[2].unsigned_abs() as i128)
+        };
+        if beyond {
+            return false;
+        }
+        self.e.iter().all(|e| edge_x(e) && edge_y(e))
     }
 
     /// Voxel layers of a column worth testing: where the plane passes over the column square
     /// (floored exactly, widened by one layer), clamped to the triangle's own layers.
+    ///
+    /// Over the plane, z(x, y) = p.z − m(x, y) / n.z with m = n.x (x − p.x) + n.y (y − p.y), and
+    /// over the square m ranges over m(centre) ± s, s = H (|n.x| + |n.y|): two floored divisions.
     fn candidate_layers(&self, c: [i64; 2], k0: u32, k1: u32) -> (u32, u32) {
-        let mut n = self.n.map(i128::from);
+        let mut n = self.n;
         if n[2] == 0 {
             return (k0, k1);
         }
         if n[2] < 0 {
             n = n.map(|v| -v);
         }
-        let p = self.v[0].map(i128::from);
-        let (mut lo, mut hi) = (i128::MAX, i128::MIN);
-        for dx in [-H, H] {
-            for dy in [-H, H] {
-                let (x, y) = ((c[0] + dx) as i128, (c[1] + dy) as i128);
-                let z = (p[2] * n[2] - n[0] * (x - p[0]) - n[1] * (y - p[1])).div_euclid(n[2]);
-                lo = lo.min(z);
-                hi = hi.max(z);
-            }
-        }
-        let one = FIXED_ONE as i128;
-        let a = (lo.div_euclid(one) - 1).max(k0 as i128);
-        let b = (hi.div_euclid(one) + 1).min(k1 as i128);
+        let p = self.v[0];
+        let (dx, dy) = (c[0] - p[0], c[1] - p[1]);
+        let s = H as i128 * (n[0].unsigned_abs() as i128 + n[1].unsigned_abs() as i128);
+        // |dx|, |dy| < 2^31 (coordinates and centres below 2^29): with |n.x|, |n.y| < 2^31
+        // every term and sum below fits in i64, and i64 division is much cheaper than i128's.
+        let (lo, hi) = if n[0].unsigned_abs() < 1 << 31 && n[1].unsigned_abs() < 1 << 31 {
+            let (m, s) = (n[0] * dx + n[1] * dy, s as i64);
+            (
+                p[2] + (-(m + s)).div_euclid(n[2]),
+                p[2] + (-(m - s)).div_euclid(n[2]),
+            )
+        } else {
+            let m = n[0] as i128 * dx as i128 + n[1] as i128 * dy as i128;
+            let (p2, n2) = (p[2] as i128, n[2] as i128);
+            let z = |m: i128| (p2 + (-m).div_euclid(n2)).clamp(i64::MIN as i128, i64::MAX as i128);
+            (z(m + s) as i64, z(m - s) as i64)
+        };
+        let a = (lo.div_euclid(FIXED_ONE) - 1).max(k0 as i64);
+        let b = (hi.div_euclid(FIXED_ONE) + 1).min(k1 as i64);
         if a > b { (1, 0) } else { (a as u32, b as u32) }
     }
 }
@@ -160,5 +234,5 @@ pub fn triangle_overlaps_voxel(tri: &[[i32; 3]; 3], x: u32, y: u32, z: u32) -> b
     let r = t.rel(c);
     (0..2).all(|a| !separates(r.map(|p| p[a]), H))
         && t.column_overlaps([c[0], c[1]])
-        && t.layer_overlaps(c)
+        && t.layer_overlaps(c, Axes::All)
 }
