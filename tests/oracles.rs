@@ -93,9 +93,9 @@ fn small_triangles_at_voxel_faces_match_brute_force() {
             let a = [0, 1, 2].map(|k| coord(&mut rng, k));
             let mut v = [a; 3];
             for q in &mut v[1..] {
-                for k in 0..3 {
+                for c in q.iter_mut() {
                     // Up to two voxels away, on the same 1/256 lattice.
-                    q[k] += (rng.below(513) as f64 - 256.0) / 256.0 * (1 + rng.below(2)) as f64;
+                    *c += (rng.below(513) as f64 - 256.0) / 256.0 * (1 + rng.below(2)) as f64;
                 }
             }
             match rng.below(4) {
