@@ -694,3 +694,34 @@ fn fill_progress_rises_monotonically_to_one() {
         assert_eq!(ctl.progress(), 1.0, "density {fill}");
     }
 }
+
+/// With every fill, conservative is the fill's solid with the surface added and interior the
+/// fill's solid with the surface taken away (docs/methods.md), the two volumes computed apart
+/// and combined here.
+#[test]
+fn conservative_and_interior_are_the_fills_solid_with_and_without_the_surface() {
+    use voxd::engine::fill::voxelize;
+    for seed in 0..4u64 {
+        let mut rng = Rng::new(7900 + seed);
+        let mesh = holey_mesh(&mut rng, [14, 15, 16]);
+        let g = unit_grid([14, 15, 16]);
+        let d = mesh.diagnostics();
+        let surface = CpuEngine
+            .voxelize(&GridMesh::new(&mesh, &g).unwrap(), Method::Surface)
+            .unwrap();
+        for fill in [Fill::Winding, Fill::Vote, Fill::Flood, Fill::Parity] {
+            let (s, _) = solid(&CpuEngine, &mesh, &g, fill).unwrap();
+            let (mut with, mut without) = (s.clone(), s.clone());
+            with.union_with(&surface);
+            without.subtract(&surface);
+            // A test that cannot fail is a defect: the surface must change them (flood's solid
+            // already holds its surface: it is everything the outside cannot reach).
+            assert!(without != s, "seed {seed} {fill}");
+            assert_eq!(with == s, fill == Fill::Flood, "seed {seed} {fill}");
+            for (m, want) in [(Method::Conservative, &with), (Method::Interior, &without)] {
+                let (got, _) = voxelize(&CpuEngine, &mesh, &g, m, fill, &d).unwrap();
+                assert!(&got == want, "seed {seed} {fill} {m}");
+            }
+        }
+    }
+}

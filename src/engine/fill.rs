@@ -161,16 +161,12 @@ pub fn voxelize_with(
     let (mut s, stats) = solid_with(engine, mesh, grid, report.used, &ctl.stage(0.0, split))?;
     report.winding = stats;
     if with_surface {
-        let surface = engine.voxelize_with(
+        engine.apply_surface(
             &GridMesh::new(mesh, grid)?,
-            Method::Surface,
+            &mut s,
+            method == Method::Conservative,
             &ctl.stage(split, 1.0),
         )?;
-        if method == Method::Conservative {
-            s.union_with(&surface);
-        } else {
-            s.subtract(&surface);
-        }
     }
     Ok((s, report))
 }

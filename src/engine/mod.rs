@@ -87,6 +87,24 @@ pub trait Engine: Send + Sync {
         method: Method,
         ctl: &Control,
     ) -> Result<BitVolume, EngineError>;
+    /// Adds `mesh`'s surface to `vol` (`conservative`) or takes it away (`interior`): `vol` is a
+    /// solid on `mesh`'s grid. By default a surface volume of its own, combined; the CPU engine
+    /// writes into `vol` directly (no second volume, no pass over both).
+    fn apply_surface(
+        &self,
+        mesh: &GridMesh,
+        vol: &mut BitVolume,
+        add: bool,
+        ctl: &Control,
+    ) -> Result<(), EngineError> {
+        let surface = self.voxelize_with(mesh, Method::Surface, ctl)?;
+        if add {
+            vol.union_with(&surface);
+        } else {
+            vol.subtract(&surface);
+        }
+        Ok(())
+    }
     /// The GPU engine's submissions and buffer reuse (for metrics); `None` for other engines.
     fn gpu_stats(&self) -> Option<gpu::GpuStats> {
         None

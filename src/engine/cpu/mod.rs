@@ -37,19 +37,24 @@ impl Engine for CpuEngine {
             Method::Solid => solid::voxelize(mesh, ctl)?,
             Method::Surface => surface::voxelize(mesh, ctl)?,
             Method::Conservative | Method::Interior => {
-                let (solid, surface) = rayon::join(
-                    || solid::voxelize(mesh, &ctl.stage(0.0, 0.5)),
-                    || surface::voxelize(mesh, &ctl.stage(0.5, 1.0)),
-                );
-                let (mut solid, surface) = (solid?, surface?);
-                if method == Method::Conservative {
-                    solid.union_with(&surface);
-                } else {
-                    solid.subtract(&surface);
-                }
+                // The solid first, then its surface written into it: one volume, no pass to
+                // combine two.
+                let mut solid = solid::voxelize(mesh, &ctl.stage(0.0, 0.5))?;
+                let add = method == Method::Conservative;
+                surface::apply(mesh, &mut solid, add, &ctl.stage(0.5, 1.0))?;
                 solid
             }
         })
+    }
+
+    fn apply_surface(
+        &self,
+        mesh: &GridMesh,
+        vol: &mut BitVolume,
+        add: bool,
+        ctl: &Control,
+    ) -> Result<(), EngineError> {
+        Ok(surface::apply(mesh, vol, add, ctl)?)
     }
 }
 

@@ -16,6 +16,24 @@ const H: i64 = FIXED_HALF;
 
 pub(super) fn voxelize(mesh: &GridMesh, ctl: &Control) -> Result<BitVolume, Canceled> {
     let mut vol = BitVolume::new(mesh.grid);
+    apply(mesh, &mut vol, true, ctl)?;
+    Ok(vol)
+}
+
+/// Sets (`add`) or clears every voxel of `vol` that the surface method sets; `vol` is on
+/// `mesh`'s grid. A voxel met by several triangles is set or cleared several times, to the
+/// same end, so the order of the triangles does not matter.
+pub(super) fn apply(
+    mesh: &GridMesh,
+    vol: &mut BitVolume,
+    add: bool,
+    ctl: &Control,
+) -> Result<(), Canceled> {
+    assert_eq!(
+        vol.grid().dims,
+        mesh.grid.dims,
+        "volume not on the mesh's grid"
+    );
     let [nx, ny, nz] = mesh.grid.dims;
     let wpc = vol.words_per_column();
     let x_range = |v: &[[i64; 3]; 3]| {
@@ -24,7 +42,10 @@ pub(super) fn voxelize(mesh: &GridMesh, ctl: &Control) -> Result<BitVolume, Canc
         box_range(b[2].0, b[2].1, nz)?;
         box_range(b[0].0, b[0].1, nx)
     };
-    for_each_band(mesh, &mut vol, x_range, ctl, |band, tris, words| {
+    let mark = |w: &mut u64, bit: u64| {
+        if add { *w |= bit } else { *w &= !bit }
+    };
+    for_each_band(mesh, vol, x_range, ctl, |band, tris, words| {
         for &t in tris {
             let tri = Tri::new(widen(&mesh.triangles[t as usize]));
             let b = [0, 1, 2].map(|a| axis_bounds(&tri.v, a));
@@ -63,7 +84,7 @@ pub(super) fn voxelize(mesh: &GridMesh, ctl: &Control) -> Result<BitVolume, Canc
                     }
                     let col = ((x - band.start) as usize * ny as usize + y as usize) * wpc;
                     if one_layer {
-                        words[col + zk0 as usize / 64] |= 1 << (zk0 % 64);
+                        mark(&mut words[col + zk0 as usize / 64], 1 << (zk0 % 64));
                         continue;
                     }
                     // Pruning by the plane pays only over a few layers.
@@ -74,14 +95,13 @@ pub(super) fn voxelize(mesh: &GridMesh, ctl: &Control) -> Result<BitVolume, Canc
                     };
                     for k in k0..=k1 {
                         if tri.layer_overlaps([c[0], c[1], k as i64 * FIXED_ONE + H], axes) {
-                            words[col + k as usize / 64] |= 1 << (k % 64);
+                            mark(&mut words[col + k as usize / 64], 1 << (k % 64));
                         }
                     }
                 }
             }
         }
-    })?;
-    Ok(vol)
+    })
 }
 
 /// Is the extent `[lo, hi]` inside the closed box of cell `k0`, the only cell of `k0..=k1`?
