@@ -34,6 +34,19 @@ pub(super) fn apply(
         mesh.grid.dims,
         "volume not on the mesh's grid"
     );
+    // One copy of the loops per operation, with no choice inside them.
+    if add {
+        apply_with::<true>(mesh, vol, ctl)
+    } else {
+        apply_with::<false>(mesh, vol, ctl)
+    }
+}
+
+fn apply_with<const ADD: bool>(
+    mesh: &GridMesh,
+    vol: &mut BitVolume,
+    ctl: &Control,
+) -> Result<(), Canceled> {
     let [nx, ny, nz] = mesh.grid.dims;
     let wpc = vol.words_per_column();
     let x_range = |v: &[[i64; 3]; 3]| {
@@ -43,7 +56,7 @@ pub(super) fn apply(
         box_range(b[0].0, b[0].1, nx)
     };
     let mark = |w: &mut u64, bit: u64| {
-        if add { *w |= bit } else { *w &= !bit }
+        if ADD { *w |= bit } else { *w &= !bit }
     };
     for_each_band(mesh, vol, x_range, ctl, |band, tris, words| {
         for &t in tris {
