@@ -5,7 +5,10 @@
 //!
 //! Per triangle and column, the z-independent axes (box x and y, edge × z) are tested once; the
 //! candidate voxels of the column come from the triangle's plane over the column square
-//! (f64, widened by a voxel: it only prunes) and each is decided by the exact z-dependent axes.
+//! (floored exactly and widened by a layer: it only prunes) and each is decided by the exact
+//! z-dependent axes. A triangle that lies in one voxel's closed slab along an axis needs only
+//! the two box axes across the slab and edge × that axis (its shadow along the axis decides),
+//! so most small triangles skip most of the 13.
 
 use super::{axis_bounds, box_range, for_each_band, widen};
 use crate::cancel::{Canceled, Control};
