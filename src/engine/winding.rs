@@ -620,6 +620,14 @@ fn caps_decision((v, e, crude): (f64, f64, f64)) -> Option<Decision> {
 }
 
 /// A voxel's index in its block's codes.
+/// Bit j set where `inside(j, run[j])`, for the (at most 64) counts of `run`.
+#[inline(always)]
+fn run_bits(run: &[i32], inside: impl Fn(usize, i32) -> bool) -> u64 {
+    run.iter()
+        .enumerate()
+        .fold(0, |m, (j, &n)| m | (u64::from(inside(j, n)) << j))
+}
+
 fn local([x, y, z]: [u32; 3]) -> usize {
     (((x % BLOCK) * BLOCK + y % BLOCK) * BLOCK + z % BLOCK) as usize
 }
@@ -771,21 +779,25 @@ fn solid_impl(
             let col = &counts[(y * nz) as usize..((y + 1) * nz) as usize];
             let out = &mut words[y as usize * wpc..(y as usize + 1) * wpc];
             let row = ((bx * nb[1] + y / BLOCK) * nb[2]) as usize;
-            for (z, &n) in col.iter().enumerate() {
-                let z = z as u32;
-                let inside = match block_codes.get(row + (z / BLOCK) as usize) {
-                    None => n != 0,
-                    Some(&Block::Ne(k)) => n != k,
-                    Some(&Block::Is(inside)) => inside,
-                    Some(&Block::Mixed(i)) => match mixed[i as usize][local([x, y, z])] {
-                        V_OUT => false,
-                        V_IN => true,
-                        k => n != k as i32,
-                    },
+            // A block's voxels of one column at a time: one code, and (64 being a multiple of
+            // BLOCK) one word.
+            for (zb, run) in col.chunks(BLOCK as usize).enumerate() {
+                let z0 = zb as u32 * BLOCK;
+                let bits = match block_codes.get(row + zb) {
+                    None => run_bits(run, |_, n| n != 0),
+                    Some(&Block::Ne(k)) => run_bits(run, |_, n| n != k),
+                    Some(&Block::Is(true)) => u64::MAX >> (64 - run.len()),
+                    Some(&Block::Is(false)) => 0,
+                    Some(&Block::Mixed(i)) => {
+                        let codes = &mixed[i as usize];
+                        run_bits(run, |j, n| match codes[local([x, y, z0 + j as u32])] {
+                            V_OUT => false,
+                            V_IN => true,
+                            k => n != k as i32,
+                        })
+                    }
                 };
-                if inside {
-                    out[z as usize / 64] |= 1 << (z % 64);
-                }
+                out[z0 as usize / 64] |= bits << (z0 % 64);
             }
         }
     })?;
