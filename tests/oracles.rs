@@ -389,6 +389,43 @@ fn huge_triangles_and_far_geometry() {
     assert!(e.to_string().contains("voxels from the grid"), "{e}");
 }
 
+/// Steep triangles 10⁵ voxels across whose planes pass through a small grid inside them: at the
+/// grid's columns every vertex is far, so the depth numerators pass 2⁶³ and the engine's
+/// 128-bit path decides them (smaller ones take an i64 path); against the brute-force oracle.
+#[test]
+fn huge_steep_triangles_around_a_small_grid_match_brute_force() {
+    let dims = [6, 7, 9];
+    let g = unit_grid(dims);
+    for seed in 0..24u64 {
+        let mut rng = Rng::new(5100 + seed);
+        let (mut p, mut t) = (vec![], vec![]);
+        for _ in 0..3 {
+            // The plane z = o.z + gx (x − o.x) + gy (y − o.y) through a point o of the grid.
+            let o = [0, 1, 2].map(|k| rng.range(0.0, dims[k] as f64));
+            let (gx, gy) = (rng.range(-3.0, 3.0), rng.range(-3.0, 3.0));
+            let r = rng.range(5e4, 2e5);
+            let turn = rng.range(0.0, 6.28);
+            let i = p.len() as u32;
+            for j in 0..3 {
+                let angle = turn + j as f64 * 2.094;
+                let (x, y) = (o[0] + r * angle.cos(), o[1] + r * angle.sin());
+                p.push([x, y, o[2] + gx * (x - o[0]) + gy * (y - o[1])]);
+            }
+            t.push([i, i + 1, i + 2]);
+        }
+        let mesh = Mesh::new(p, t).unwrap();
+        let want = solid_brute(&mesh, &g);
+        // Not vacuous: the planes cut the grid, so some voxels are set and some are not.
+        let n = want.count_ones();
+        assert!(n > 0 && n < 6 * 7 * 9, "seed {seed}: {n}");
+        assert_same(
+            &run(&mesh, &g, Method::Solid),
+            &want,
+            &format!("seed {seed}"),
+        );
+    }
+}
+
 #[test]
 fn big_box_on_a_big_grid() {
     // A 12-triangle box spanning a 1024 × 1024 × 300 grid: huge triangles, exact counts.
