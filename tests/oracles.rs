@@ -404,10 +404,10 @@ fn huge_steep_triangles_around_a_small_grid_match_brute_force() {
             let o = [0, 1, 2].map(|k| rng.range(0.0, dims[k] as f64));
             let (gx, gy) = (rng.range(-3.0, 3.0), rng.range(-3.0, 3.0));
             let r = rng.range(5e4, 2e5);
-            let turn = rng.range(0.0, 6.28);
+            let turn = rng.range(0.0, std::f64::consts::TAU);
             let i = p.len() as u32;
             for j in 0..3 {
-                let angle = turn + j as f64 * 2.094;
+                let angle = turn + j as f64 * std::f64::consts::TAU / 3.0;
                 let (x, y) = (o[0] + r * angle.cos(), o[1] + r * angle.sin());
                 p.push([x, y, o[2] + gx * (x - o[0]) + gy * (y - o[1])]);
             }
