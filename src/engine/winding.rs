@@ -619,7 +619,6 @@ fn caps_decision((v, e, crude): (f64, f64, f64)) -> Option<Decision> {
     ((v - k).abs() + e < 0.5 && k.abs() <= K_MAX).then_some(Decision::Ne(k as i32, CAP_BLOCK))
 }
 
-/// A voxel's index in its block's codes.
 /// Bit j set where `inside(j, run[j])`, for the (at most 64) counts of `run`.
 #[inline(always)]
 fn run_bits(run: &[i32], inside: impl Fn(usize, i32) -> bool) -> u64 {
@@ -628,6 +627,7 @@ fn run_bits(run: &[i32], inside: impl Fn(usize, i32) -> bool) -> u64 {
         .fold(0, |m, (j, &n)| m | (u64::from(inside(j, n)) << j))
 }
 
+/// A voxel's index in its block's codes.
 fn local([x, y, z]: [u32; 3]) -> usize {
     (((x % BLOCK) * BLOCK + y % BLOCK) * BLOCK + z % BLOCK) as usize
 }

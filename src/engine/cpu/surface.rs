@@ -72,21 +72,20 @@ fn apply_with<const ADD: bool>(
             ) else {
                 continue;
             };
-            // A triangle inside one closed slab of x cells meets the voxels of a column of that
-            // slab exactly where its shadow on the column's yz face does; as the shadow is
-            // convex and spans the triangle's whole y extent, every column of the y range is
-            // met, and the column's axes (edge × z) cannot separate. The same holds with x and
-            // y swapped. And a triangle inside one layer's closed slab meets a voxel of that
-            // layer exactly where its shadow meets the voxel's square, which the column's axes
-            // (box x and y, edge × z) decide: the z-dependent axes are not needed.
-            let one_column = inside(b[0], x0, x1) || inside(b[1], y0, y1);
+            // A triangle inside one closed slab of x cells meets a voxel of that slab exactly
+            // where its shadow on the yz plane meets the voxel's yz square: the axes y (the
+            // column range), z and edge × x decide it. As the shadow is convex and spans the
+            // triangle's whole y extent, every column of the y range is met, so the column's
+            // axes (edge × z) cannot separate. Likewise with x and y swapped. And a triangle
+            // inside one layer's closed slab meets a voxel of that layer exactly where its
+            // shadow meets the voxel's square, which the column's axes (box x and y, edge × z)
+            // decide: no z-dependent axis is needed.
+            let (in_x, in_y) = (inside(b[0], x0, x1), inside(b[1], y0, y1));
+            let one_column = in_x || in_y;
             let one_layer = inside(b[2], zk0, zk1);
-            // Inside one x slab, a voxel is met where the triangle's shadow on the yz plane meets
-            // the voxel's yz square: the axes y (the column range), z and edge × x decide it.
-            // Likewise with x and y swapped.
-            let axes = if inside(b[0], x0, x1) {
+            let axes = if in_x {
                 Axes::EdgeX
-            } else if inside(b[1], y0, y1) {
+            } else if in_y {
                 Axes::EdgeY
             } else {
                 Axes::All
