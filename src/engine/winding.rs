@@ -873,32 +873,58 @@ fn solid_impl(
     ties.complete();
     let [_, ny, nz] = grid.dims;
     let wpc = nz.div_ceil(64) as usize;
-    let vol = crate::engine::cpu::signed_counts(&gm, &count, |x, counts, words| {
+    let vol = crate::engine::cpu::signed_crossings(&gm, &count, |x, crossings, words| {
         // Stopped: the row is left empty and the pass fails below.
         if count.check().is_err() {
             return;
         }
         let bx = x / BLOCK;
+        let mut run = [0i32; BLOCK as usize];
         for y in 0..ny {
-            let col = &counts[(y * nz) as usize..((y + 1) * nz) as usize];
             let out = &mut words[y as usize * wpc..(y as usize + 1) * wpc];
             let row = ((bx * nb[1] + y / BLOCK) * nb[2]) as usize;
+            let mut col = crossings.column(y).iter().peekable();
+            // The signed count N at the voxel being looked at.
+            let mut n = 0;
             // A block's voxels of one column at a time: one code, and (64 being a multiple of
             // BLOCK) one word.
-            for (zb, run) in col.chunks(BLOCK as usize).enumerate() {
-                let z0 = zb as u32 * BLOCK;
-                let bits = match block_codes.get(row + zb) {
-                    None => run_bits(run, |_, n| n != 0),
-                    Some(&Block::Ne(k)) => run_bits(run, |_, n| n != k),
-                    Some(&Block::Is(true)) => u64::MAX >> (64 - run.len()),
-                    Some(&Block::Is(false)) => 0,
-                    Some(&Block::Mixed(i)) => {
-                        let codes = &mixed[i as usize];
-                        run_bits(run, |j, n| match codes[local([x, y, z0 + j as u32])] {
-                            V_OUT => false,
-                            V_IN => true,
-                            k => n != k as i32,
-                        })
+            for z0 in (0..nz).step_by(BLOCK as usize) {
+                let len = (nz - z0).min(BLOCK) as usize;
+                let all = u64::MAX >> (64 - len);
+                while let Some(&(_, s)) = col.next_if(|&&(k, _)| k as u32 <= z0) {
+                    n += s;
+                }
+                // No crossing within the block: N is the same at all its voxels.
+                let flat = col
+                    .peek()
+                    .is_none_or(|&&(k, _)| k as u32 >= z0 + len as u32);
+                let code = block_codes.get(row + (z0 / BLOCK) as usize);
+                let bits = match (flat, code) {
+                    (true, None) => all * u64::from(n != 0),
+                    (true, Some(&Block::Ne(k))) => all * u64::from(n != k),
+                    (_, Some(&Block::Is(inside))) => all * u64::from(inside),
+                    _ => {
+                        let run = &mut run[..len];
+                        for (z, count) in (z0..).zip(run.iter_mut()) {
+                            while let Some(&(_, s)) = col.next_if(|&&(k, _)| k as u32 <= z) {
+                                n += s;
+                            }
+                            *count = n;
+                        }
+                        let run = &*run;
+                        match code {
+                            None => run_bits(run, |_, n| n != 0),
+                            Some(&Block::Ne(k)) => run_bits(run, |_, n| n != k),
+                            Some(&Block::Is(_)) => unreachable!("decided above"),
+                            Some(&Block::Mixed(i)) => {
+                                let codes = &mixed[i as usize];
+                                run_bits(run, |j, n| match codes[local([x, y, z0 + j as u32])] {
+                                    V_OUT => false,
+                                    V_IN => true,
+                                    k => n != k as i32,
+                                })
+                            }
+                        }
                     }
                 };
                 out[z0 as usize / 64] |= bits << (z0 % 64);

@@ -16,7 +16,7 @@ use crate::volume::BitVolume;
 
 pub use solid::crossing_voxel;
 pub use solid::odd_parity_columns;
-pub(crate) use solid::signed_counts;
+pub(crate) use solid::signed_crossings;
 pub use surface::triangle_overlaps_voxel;
 
 #[derive(Clone, Copy, Debug, Default)]

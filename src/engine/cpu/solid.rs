@@ -192,17 +192,66 @@ fn crossings<const DEPTH: bool>(
     }
 }
 
-/// Signed crossing counts: `decide(x, counts, row_words)` is called once per x-row with
-/// `counts[y · Z + z]` = the sum of the signs (see [`for_each_crossing`]) of the triangles that
-/// the ray from voxel (x, y, z)'s centre towards −z crosses, under the same tie rules as `solid`
-/// (so `counts` is odd exactly where `solid` is set). For a closed mesh (as a chain: every edge
-/// used as often in each direction) this is its winding number at the centre. `decide` writes the
-/// row's bits into `row_words` (Y columns of the volume's words). `ctl` is checked per band
-/// and hears each band done (`decide` may check it per row).
-pub(crate) fn signed_counts(
+/// The signed crossings of one x-row's columns (see [`signed_crossings`]).
+#[derive(Default)]
+pub(crate) struct RowCrossings {
+    /// Column y's crossings are `crossings[starts[y]..starts[y + 1]]`.
+    starts: Vec<u32>,
+    /// (k, sign), sorted by k within a column.
+    crossings: Vec<(i32, i32)>,
+    /// (y, k, sign) as the triangles give them, before they are put in order.
+    found: Vec<(u32, i32, i32)>,
+}
+
+impl RowCrossings {
+    /// Column y's crossings, (k, sign) by k: the sign of a triangle the ray towards −z crosses
+    /// from voxel k up (k ≥ 0: one from below the grid is at 0; none from Z up is kept). The
+    /// signed count at voxel z is the sum of the signs of the crossings with k ≤ z.
+    pub(crate) fn column(&self, y: u32) -> &[(i32, i32)] {
+        &self.crossings[self.starts[y as usize] as usize..self.starts[y as usize + 1] as usize]
+    }
+
+    /// Puts `found` in order: by column (a counting sort), then by k.
+    fn sort(&mut self, ny: u32) {
+        self.starts.clear();
+        self.starts.resize(ny as usize + 2, 0);
+        for &(y, _, _) in &self.found {
+            self.starts[y as usize + 2] += 1;
+        }
+        for y in 2..self.starts.len() {
+            self.starts[y] += self.starts[y - 1];
+        }
+        // starts[y + 1] is now where column y begins; it ends there once filled.
+        self.crossings.clear();
+        self.crossings.resize(self.found.len(), (0, 0));
+        for &(y, k, s) in &self.found {
+            let at = &mut self.starts[y as usize + 1];
+            self.crossings[*at as usize] = (k, s);
+            *at += 1;
+        }
+        self.starts.truncate(ny as usize + 1);
+        for y in 0..ny {
+            let c = &mut self.crossings
+                [self.starts[y as usize] as usize..self.starts[y as usize + 1] as usize];
+            if c.len() > 1 {
+                c.sort_unstable_by_key(|&(k, _)| k);
+            }
+        }
+    }
+}
+
+/// Signed crossings: `decide(x, row, row_words)` is called once per x-row with the row's
+/// crossings ([`RowCrossings`]): along each column, the triangles that the ray from a voxel's
+/// centre towards −z crosses, each with its sign (see [`for_each_crossing`]), under the same
+/// tie rules as `solid`, so the signed count (the sum of the signs of the crossings below a
+/// voxel) is odd exactly where `solid` is set. For a closed mesh (as a chain: every edge used as
+/// often in each direction) it is the winding number at the centre. `decide` writes the row's
+/// bits into `row_words` (Y columns of the volume's words). `ctl` is checked per band and hears
+/// each band done (`decide` may check it per row).
+pub(crate) fn signed_crossings(
     mesh: &GridMesh,
     ctl: &Control,
-    decide: impl Fn(u32, &[i32], &mut [u64]) + Sync,
+    decide: impl Fn(u32, &RowCrossings, &mut [u64]) + Sync,
 ) -> Result<BitVolume, Canceled> {
     let mut vol = BitVolume::new(mesh.grid);
     let [nx, ny, nz] = mesh.grid.dims;
@@ -210,7 +259,7 @@ pub(crate) fn signed_counts(
     let x_range = |v: &[[i64; 3]; 3]| covered_rows(v, nx, ny);
     let row_words = ny as usize * wpc;
     for_each_band(mesh, &mut vol, x_range, ctl, |band, tris, words| {
-        let mut counts = vec![0i32; ny as usize * nz as usize];
+        let mut row = RowCrossings::default();
         // Triangles per row of the band, so that each is set up once per row it covers.
         let mut rows: Vec<Vec<u32>> = vec![Vec::new(); band.len()];
         for &t in tris {
@@ -221,7 +270,7 @@ pub(crate) fn signed_counts(
             }
         }
         for x in band.clone() {
-            counts.fill(0);
+            row.found.clear();
             for &t in &rows[(x - band.start) as usize] {
                 for_each_crossing(
                     &widen(&mesh.triangles[t as usize]),
@@ -229,20 +278,14 @@ pub(crate) fn signed_counts(
                     ny,
                     |_, y, k, s| {
                         if k < nz as i64 {
-                            counts[y as usize * nz as usize + k.max(0) as usize] += s;
+                            row.found.push((y, k.max(0) as i32, s));
                         }
                     },
                 );
             }
-            for col in counts.chunks_exact_mut(nz as usize) {
-                let mut acc = 0;
-                for c in col.iter_mut() {
-                    acc += *c;
-                    *c = acc;
-                }
-            }
+            row.sort(ny);
             let r = (x - band.start) as usize * row_words;
-            decide(x, &counts, &mut words[r..r + row_words]);
+            decide(x, &row, &mut words[r..r + row_words]);
         }
     })?;
     Ok(vol)
