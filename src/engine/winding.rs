@@ -409,7 +409,7 @@ impl<'a> Certifier<'a> {
             Some(Decision::Is(inside)) => (Block::Is(inside), MESH_BLOCK),
             Some(Decision::Tie) | None => {
                 for bz in bz {
-                    self.block([bx, by, bz], col);
+                    self.block([bx, by, bz], None, col);
                 }
                 return;
             }
@@ -422,15 +422,50 @@ impl<'a> Certifier<'a> {
         col.blocks.extend(std::iter::repeat_n(block, bz.len()));
     }
 
-    /// Decides the block at block coordinates `b` into `col`.
-    fn block(&self, b: [u32; 3], col: &mut Column) {
+    /// Decides the blocks of a super-block that was not decided whole into its columns `cols`
+    /// (x-major, as `bxs` × `bys`): eight (2×2×2) at a time by [`Self::decide_lanes`] where those
+    /// lie wholly inside the grid, the others one by one.
+    fn super_blocks(
+        &self,
+        bxs: std::ops::Range<u32>,
+        bys: std::ops::Range<u32>,
+        bzs: std::ops::Range<u32>,
+        cols: &mut [([u32; 2], Column)],
+    ) {
+        let g = self.grid;
+        let nby = bys.len();
+        for gz in bzs.clone().step_by(2) {
+            for gx in bxs.clone().step_by(2) {
+                for gy in bys.clone().step_by(2) {
+                    let lo = [gx, gy, gz].map(|v| v * BLOCK);
+                    let whole = (0..3).all(|a| lo[a] + 2 * BLOCK <= g.dims[a]);
+                    let made = whole.then(|| self.decide_lanes(lo, BLOCK));
+                    for d in 0..8u32 {
+                        let b = [gx + (d & 1), gy + ((d >> 1) & 1), gz + (d >> 2)];
+                        // z last, so that each column gets its blocks in order.
+                        if b[0] >= bxs.end || b[1] >= bys.end || b[2] >= bzs.end {
+                            continue;
+                        }
+                        let c = (b[0] - bxs.start) as usize * nby + (b[1] - bys.start) as usize;
+                        // `decide_lanes` numbers its blocks x-minor.
+                        let made = made.map(|m| m[d as usize]);
+                        self.block(b, made, &mut cols[c].1);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Decides the block at block coordinates `b` into `col`, by `made` where its decision was
+    /// made already.
+    fn block(&self, b: [u32; 3], made: Option<Option<Decision>>, col: &mut Column) {
         let lo = b.map(|v| v * BLOCK);
         let voxels = |lo: [u32; 3], size: u32| -> u64 {
             (0..3)
                 .map(|a| ((lo[a] + size).min(self.grid.dims[a]) - lo[a]) as u64)
                 .product()
         };
-        match self.decide(lo, BLOCK) {
+        match made.unwrap_or_else(|| self.decide(lo, BLOCK)) {
             Some(Decision::Ne(k, how)) => {
                 col.counts[how] += voxels(lo, BLOCK);
                 col.blocks.push(Block::Ne(k));
@@ -801,6 +836,7 @@ fn solid_impl(
                 let bxs = sx * sup..((sx + 1) * sup).min(nb[0]);
                 let bys = sy * sup..((sy + 1) * sup).min(nb[1]);
                 let mut cols: Vec<([u32; 2], Column)> = bxs
+                    .clone()
                     .flat_map(|bx| bys.clone().map(move |by| ([bx, by], Column::default())))
                     .collect();
                 for sz in 0..ns[2] {
@@ -808,6 +844,10 @@ fn solid_impl(
                     let decision = (sup > 1)
                         .then(|| cert.decide_super([sx, sy, sz].map(|v| v * sup * BLOCK)))
                         .flatten();
+                    if decision.is_none() && sup > 1 {
+                        cert.super_blocks(bxs.clone(), bys.clone(), bz, &mut cols);
+                        continue;
+                    }
                     for (b, col) in &mut cols {
                         cert.blocks(*b, bz.clone(), decision, col);
                     }
