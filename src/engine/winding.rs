@@ -228,18 +228,26 @@ impl<'a> Certifier<'a> {
         }
     }
 
-    /// The decision for the voxels `lo..lo + size` (clamped to the grid) as a whole, if any.
-    fn decide(&self, lo: [u32; 3], size: u32) -> Option<Decision> {
+    /// The ball around the voxel centres of `lo..lo + size` clamped to the grid: its centre
+    /// and its radius.
+    fn ball(&self, lo: [u32; 3], size: u32) -> ([f64; 3], f64) {
         let g = self.grid;
-        let s = g.voxel_size;
         let hi = [0, 1, 2].map(|a| (lo[a] + size).min(g.dims[a]));
         let c = g.world_of([0, 1, 2].map(|a| (lo[a] as f64 + hi[a] as f64) * 0.5));
         let rb = 0.5
-            * s
+            * g.voxel_size
             * (0..3)
                 .map(|a| ((hi[a] - lo[a] - 1) as f64).powi(2))
                 .sum::<f64>()
                 .sqrt();
+        (c, rb)
+    }
+
+    /// The decision for the voxels `lo..lo + size` (clamped to the grid) as a whole, if any.
+    fn decide(&self, lo: [u32; 3], size: u32) -> Option<Decision> {
+        let g = self.grid;
+        let s = g.voxel_size;
+        let (c, rb) = self.ball(lo, size);
         let four_pi = 4.0 * PI;
         // A block's interval must stay within ½ − MARGIN of its centre's value.
         let limit = (0.5 - MARGIN) * four_pi;
@@ -382,16 +390,7 @@ impl<'a> Certifier<'a> {
 
     /// The caps' interval ([`bounded`]) over the `SUPER`³ blocks at voxel `lo`.
     fn super_interval(&self, lo: [u32; 3]) -> Option<(f64, f64, f64)> {
-        let g = self.grid;
-        let size = SUPER * BLOCK;
-        let hi = [0, 1, 2].map(|a| (lo[a] + size).min(g.dims[a]));
-        let c = g.world_of([0, 1, 2].map(|a| (lo[a] as f64 + hi[a] as f64) * 0.5));
-        let rb = 0.5
-            * g.voxel_size
-            * (0..3)
-                .map(|a| ((hi[a] - lo[a] - 1) as f64).powi(2))
-                .sum::<f64>()
-                .sqrt();
+        let (c, rb) = self.ball(lo, SUPER * BLOCK);
         self.interval(self.caps, self.cap_edges, c, rb).0
     }
 
@@ -564,14 +563,7 @@ impl<'a> Certifier<'a> {
         let g = self.grid;
         let s = g.voxel_size;
         let four_pi = 4.0 * PI;
-        let hi = [0, 1, 2].map(|a| (lo[a] + size).min(g.dims[a]));
-        let c = g.world_of([0, 1, 2].map(|a| (lo[a] as f64 + hi[a] as f64) * 0.5));
-        let rb = 0.5
-            * s
-            * (0..3)
-                .map(|a| ((hi[a] - lo[a] - 1) as f64).powi(2))
-                .sum::<f64>()
-                .sqrt();
+        let (c, rb) = self.ball(lo, size);
         let mut near = Vec::new();
         let model = self
             .caps
