@@ -11,7 +11,8 @@
 //!    the signed count of crossings of the ray towards −z, computed by the `solid` kernel with signs
 //!    (same lattice, same tie rules; [`crate::engine::cpu`]). The mesh's own winding number is
 //!    `w = N − w_caps`. A watertight mesh has no caps: every voxel is decided by N, exactly.
-//! 2. **Intervals over blocks.** Blocks of 8×8×8 voxels (split into eight, down to 2×2×2
+//! 2. **Intervals over blocks.** Super-blocks of 32×32×32 voxels are tried whole by the caps'
+//!    interval (below), then, where that fails, blocks of 8×8×8 voxels (split into eight, down to 2×2×2
 //!    blocks, which go voxel by voxel, below, where that fails) get an interval for w_caps: the hierarchy's value at the block's centre
 //!    plus a bound on how far w_caps can move over the block (below) and a margin of
 //!    `MARGIN` for the hierarchy's error. If it holds no half-integer, k − ½ < w_caps < k + ½
