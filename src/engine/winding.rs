@@ -3105,6 +3105,13 @@ mod tests {
         out
     }
 
+    /// A grid around [`holey_meshes`] with room for `SUPER`³ blocks of blocks beside them.
+    const SUPER_GRID: Grid = Grid {
+        origin: [-37.5, -21.0, -40.25],
+        voxel_size: 1.0,
+        dims: [100, 71, 97],
+    };
+
     #[test]
     fn blocks_decide_as_voxel_by_voxel_evaluation_does() {
         // The meshes fill the first grid; in the second they lie among `SUPER`³ blocks of
@@ -3115,11 +3122,7 @@ mod tests {
                 voxel_size: 1.0,
                 dims: [32, 31, 33],
             },
-            Grid {
-                origin: [-37.5, -21.0, -40.25],
-                voxel_size: 1.0,
-                dims: [100, 71, 97],
-            },
+            SUPER_GRID,
         ];
         let mut total = WindingStats::default();
         let cases = grids
@@ -3167,11 +3170,7 @@ mod tests {
     /// over the (snapped) caps lies in the interval, and within ½ of the block's k.
     #[test]
     fn super_block_intervals_hold_every_voxel() {
-        let grid = Grid {
-            origin: [-37.5, -21.0, -40.25],
-            voxel_size: 1.0,
-            dims: [100, 71, 97],
-        };
+        let grid = SUPER_GRID;
         let size = SUPER * BLOCK;
         let (mut decided, mut nonzero, mut widest) = (0, 0, 0f64);
         // And a bowl: a hemisphere whose one cap is a disc across the grid's middle.
