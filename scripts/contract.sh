@@ -12,7 +12,8 @@
 # keeps a HAR of every exchange there. schemathesis runs in a
 # scratch directory with its cache off, so no earlier run's examples are replayed and nothing
 # is left in the tree. The tools live in a venv under ~/.cache (VOXD_CONTRACT_VENV), pinned
-# exactly (every transitive package too, for Python 3.11), made once and reused.
+# exactly (every transitive package too, for Python 3.11) by scripts/provision.sh, which makes
+# it once and reuses it.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$PWD
@@ -20,33 +21,9 @@ ROOT=$PWD
 EXAMPLES=${VOXD_CONTRACT_EXAMPLES:-30}
 SEED=${VOXD_CONTRACT_SEED:-1}
 VENV=${VOXD_CONTRACT_VENV:-${XDG_CACHE_HOME:-$HOME/.cache}/voxd/contract-venv}
-# `pip freeze` of a working install on Python 3.11 (schemathesis and openapi-spec-validator are
-# the two asked for; the rest are what they pulled in).
-PINS="annotated-types==0.8.0 anyio==4.16.0 attrs==26.1.0 certifi==2026.10.19.post1
-charset-normalizer==3.5.3 click==8.5.1 graphql-core==3.3.2 harfile==0.6.0 hypothesis==6.170.17
-hypothesis-graphql==0.13.5 idna==3.20 iniconfig==2.3.1 jsonschema==4.26.0 jsonschema-path==0.5.0
-jsonschema-specifications==2025.9.1 jsonschema_rs==0.60.3 lazy-object-proxy==1.13.0
-markdown-it-py==4.3.0 MarkupSafe==3.0.4 mdurl==0.1.2 openapi-schema-validator==0.9.0
-openapi-spec-validator==0.9.0 packaging==26.4 pathable==0.6.0 pluggy==1.7.0 pydantic==2.14.4
-pydantic-settings==2.16.3 pydantic_core==2.50.5 Pygments==2.21.0 pyrate-limiter==4.5.1
-pytest==9.2.0 python-dotenv==1.2.4 PyYAML==6.0.4 referencing==0.37.0 requests==2.34.2
-rfc3339-validator==0.1.4 rich==15.0.0 rpds-py==2026.9.1 schemathesis==4.32.5 six==1.17.0
-sortedcontainers==2.4.0 typing-inspection==0.4.5 typing_extensions==4.16.0 urllib3==2.8.0
-Werkzeug==3.1.9"
 
-# ---- the tools ----
-if [[ ! -x $VENV/bin/st || "$(cat "$VENV/.pins" 2>/dev/null)" != "$PINS" ]]; then
-  echo "contract: installing schemathesis and openapi-spec-validator into $VENV"
-  if ! python3 -c 'import ensurepip, venv' 2>/dev/null && [[ $(id -u) == 0 ]] && command -v apt-get >/dev/null; then
-    (apt-get update -qq || true) >/dev/null 2>&1
-    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-venv >/dev/null
-  fi
-  rm -rf "$VENV"
-  python3 -m venv "$VENV"
-  # shellcheck disable=SC2086 # one pin per word
-  "$VENV/bin/pip" install -q --disable-pip-version-check --no-deps $PINS
-  echo "$PINS" >"$VENV/.pins"
-fi
+# ---- the tools (pinned in scripts/provision.sh; installed there once, a probe after that) ----
+scripts/provision.sh contract
 
 # ---- the document ----
 "$VENV/bin/openapi-spec-validator" openapi.yaml

@@ -4,24 +4,13 @@
 # rendered kustomizations against Kubernetes' schemas (kubernetes-validate --strict), the KEDA
 # ScaledObject against KEDA's CRD schema, yamllint, nginx -t and promtool check config on
 # deploy/nginx.conf and deploy/prometheus.yml (where installed), and shellcheck. The Python tools are pinned
-# (scripts/deploy-requirements.txt) in a venv under ~/.cache made once and reused.
+# (scripts/deploy-requirements.txt) in a venv under ~/.cache that scripts/provision.sh makes once
+# and reuses; it also installs docker-compose and shellcheck where it can.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 VENV=${VOXD_DEPLOY_VENV:-${XDG_CACHE_HOME:-$HOME/.cache}/voxd/deploy-venv}
-REQS=scripts/deploy-requirements.txt
-PIN=$(sha256sum "$REQS" | cut -d' ' -f1)
-if [[ ! -x $VENV/bin/yamllint || "$(cat "$VENV/.pins" 2>/dev/null)" != "$PIN" ]]; then
-  echo "installing the pinned deployment checkers ($REQS) into $VENV"
-  if ! python3 -c 'import ensurepip, venv' 2>/dev/null && [[ $(id -u) == 0 ]] && command -v apt-get >/dev/null; then
-    (apt-get update -qq || true) >/dev/null 2>&1
-    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-venv >/dev/null
-  fi
-  rm -rf "$VENV"
-  python3 -m venv "$VENV"
-  "$VENV/bin/pip" install -q --disable-pip-version-check -r "$REQS"
-  echo "$PIN" >"$VENV/.pins"
-fi
+scripts/provision.sh deploy-check   # the venv (made once), docker-compose, shellcheck
 B=$VENV/bin
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
@@ -30,11 +19,6 @@ echo "== hadolint Dockerfile"
 "$B/hadolint" Dockerfile
 
 echo "== docker-compose config (Debian's docker-compose)"
-if ! command -v docker-compose >/dev/null && [[ $(id -u) == 0 ]] && command -v apt-get >/dev/null; then
-  echo "installing docker-compose"
-  (apt-get update -qq || true) >/dev/null 2>&1
-  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq docker-compose >/dev/null || true
-fi
 if command -v docker-compose >/dev/null; then
   docker-compose -f deploy/docker-compose.yml config -q
   docker-compose -f deploy/docker-compose.yml --profile gpu config -q
@@ -114,14 +98,9 @@ else
   echo "NOTICE: no promtool (apt-get install prometheus); skipping promtool check config"
 fi
 
-echo "== shellcheck (deploy/local.sh, scripts/deploy-e2e.sh, this script)"
-if ! command -v shellcheck >/dev/null && [[ $(id -u) == 0 ]] && command -v apt-get >/dev/null; then
-  echo "installing shellcheck"
-  (apt-get update -qq || true) >/dev/null 2>&1
-  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq shellcheck >/dev/null || true
-fi
+echo "== shellcheck (deploy/local.sh, scripts/*.sh)"
 if command -v shellcheck >/dev/null; then
-  shellcheck deploy/local.sh scripts/deploy-e2e.sh scripts/deploy-check.sh
+  shellcheck deploy/local.sh scripts/*.sh
 else
   echo "NOTICE: no shellcheck (not root, or apt failed); skipping shellcheck"
 fi

@@ -14,11 +14,7 @@ root=$PWD
 secs=${1:-20}
 shift || true
 
-CARGO_FUZZ_VERSION=0.13.2
-if ! cargo fuzz --version 2>/dev/null | grep -qx "cargo-fuzz $CARGO_FUZZ_VERSION"; then
-  echo "installing cargo-fuzz $CARGO_FUZZ_VERSION"
-  cargo install cargo-fuzz --version "$CARGO_FUZZ_VERSION" --locked
-fi
+scripts/provision.sh fuzz   # cargo-fuzz, pinned (installed once)
 
 out=$root/target/fuzz
 opts=(-s none -a --fuzz-dir "$root/fuzz" --target-dir "$out")

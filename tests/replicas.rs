@@ -5,8 +5,8 @@
 //! single-process (library) result bit for bit; both replicas list the same volumes with the
 //! same ETags; CSG works across replicas; a replica SIGKILLed mid-job has its job finished by
 //! the other while the balancer keeps answering. Skipped with a notice where SeaweedFS, Redis
-//! or nginx is absent (scripts/test.sh installs them and requires them). Loopback only; every
-//! wait is bounded.
+//! or nginx is absent (scripts/provision.sh installs them, scripts/test.sh requires them).
+//! Loopback only; every wait is bounded.
 
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};

