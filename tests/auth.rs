@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use sha2::{Digest, Sha256};
 
-use crate::common::{Resp, data, http_exchange, spawn_serve, tmpdir};
+use crate::common::{data, request, spawn_serve, tmpdir};
 
 fn voxd() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_voxd"));
@@ -26,15 +26,6 @@ fn keygen(name: &str) -> (String, String) {
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(lines.len(), 2, "{text}");
     (lines[0].to_string(), lines[1].to_string())
-}
-
-fn req(addr: &str, method: &str, path: &str, headers: &[(&str, &str)], body: &[u8]) -> Resp {
-    let (status, headers, body) = http_exchange(addr, method, path, headers, body).unwrap();
-    Resp {
-        status,
-        headers,
-        body,
-    }
 }
 
 #[test]
@@ -80,12 +71,12 @@ fn serve_with_api_keys_guards_v1_and_logs_key_names_only() {
     let h = [("authorization", auth.as_str())];
     // Open: the probes. Guarded: /v1, with the challenge.
     for open in ["/healthz", "/readyz", "/metrics"] {
-        req(&addr, "GET", open, &[], b"").ok(200);
+        request(&addr, "GET", open, &[], b"").ok(200);
     }
-    let r = req(&addr, "GET", "/v1/volumes", &[], b"");
+    let r = request(&addr, "GET", "/v1/volumes", &[], b"");
     r.problem(401, "unauthorized");
     assert_eq!(r.header("www-authenticate"), Some("Bearer realm=\"voxd\""));
-    let r = req(
+    let r = request(
         &addr,
         "GET",
         "/v1/volumes",
@@ -100,7 +91,7 @@ fn serve_with_api_keys_guards_v1_and_logs_key_names_only() {
     );
     // A refused upload is not read: the connection closes, and nothing is queued.
     let mesh = std::fs::read(data("spot.obj")).unwrap();
-    req(
+    request(
         &addr,
         "POST",
         "/v1/voxelize?resolution=16",
@@ -108,20 +99,20 @@ fn serve_with_api_keys_guards_v1_and_logs_key_names_only() {
         &mesh,
     )
     .problem(401, "unauthorized");
-    req(&addr, "GET", "/v1/volumes", &h, b"").ok(200);
+    request(&addr, "GET", "/v1/volumes", &h, b"").ok(200);
     // A job with the key: its record names the key.
     let obj = [
         ("authorization", auth.as_str()),
         ("content-type", "model/obj"),
     ];
-    let j = req(&addr, "POST", "/v1/voxelize?resolution=16", &obj, &mesh)
+    let j = request(&addr, "POST", "/v1/voxelize?resolution=16", &obj, &mesh)
         .ok(202)
         .json();
     assert_eq!(j["key_name"], "team-a");
     let id = j["id"].as_str().unwrap().to_string();
     let deadline = Instant::now() + Duration::from_secs(120);
     let done = loop {
-        let j = req(&addr, "GET", &format!("/v1/jobs/{id}"), &h, b"")
+        let j = request(&addr, "GET", &format!("/v1/jobs/{id}"), &h, b"")
             .ok(200)
             .json();
         if j["state"] == "succeeded" {
@@ -135,13 +126,13 @@ fn serve_with_api_keys_guards_v1_and_logs_key_names_only() {
     // first has finished already (then the second simply queues).
     let b = format!("Bearer {other}");
     let bo = [("authorization", b.as_str()), ("content-type", "model/obj")];
-    req(&addr, "POST", "/v1/voxelize?resolution=128", &bo, &mesh).ok(202);
-    let second = req(&addr, "POST", "/v1/voxelize?resolution=16", &bo, &mesh);
+    request(&addr, "POST", "/v1/voxelize?resolution=128", &bo, &mesh).ok(202);
+    let second = request(&addr, "POST", "/v1/voxelize?resolution=16", &bo, &mesh);
     if second.status != 202 {
         second.problem(429, "too-many-jobs");
         assert_eq!(second.header("retry-after"), Some("5"));
     }
-    let m = String::from_utf8(req(&addr, "GET", "/metrics", &[], b"").body).unwrap();
+    let m = String::from_utf8(request(&addr, "GET", "/metrics", &[], b"").body).unwrap();
     assert!(m.contains("voxd_key_requests_total{key=\"team-a\"}"), "{m}");
     assert!(
         m.lines()

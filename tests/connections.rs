@@ -8,14 +8,8 @@ use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::time::{Duration, Instant};
 
-use crate::common::http_exchange;
+use crate::common::{Scratch, http_exchange};
 use crate::service::{Server, box_obj};
-
-fn scratch(name: &str) -> std::path::PathBuf {
-    let d = std::env::temp_dir().join(format!("voxd-conn-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
-}
 
 /// Reads until the peer closes (Ok: bytes read) or `within` passes (Err).
 fn read_until_closed(s: &mut TcpStream, within: Duration) -> Result<Vec<u8>, String> {
@@ -51,7 +45,7 @@ fn open_fds(pid: u32) -> usize {
 
 #[test]
 fn idle_half_sent_and_slow_connections_are_closed() {
-    let dir = scratch("idle");
+    let dir = Scratch::new("conn-idle");
     let srv = Server::start(
         &dir,
         &[
@@ -86,12 +80,11 @@ fn idle_half_sent_and_slow_connections_are_closed() {
     // Still serving.
     let (status, _, _) = http_exchange(&srv.addr, "GET", "/healthz", &[], b"").unwrap();
     assert_eq!(status, 200);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn open_connections_stay_under_the_cap() {
-    let dir = scratch("cap");
+    let dir = Scratch::new("conn-cap");
     let srv = Server::start(&dir, &["--header-timeout", "1", "--max-connections", "8"]);
     let pid = srv.child.id();
     let before = open_fds(pid);
@@ -109,12 +102,11 @@ fn open_connections_stay_under_the_cap() {
     let (status, _, _) = http_exchange(&srv.addr, "GET", "/healthz", &[], b"").unwrap();
     assert_eq!(status, 200);
     drop(socks);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn a_client_that_stops_reading_is_disconnected() {
-    let dir = scratch("send");
+    let dir = Scratch::new("conn-send");
     let srv = Server::start(&dir, &["--send-timeout", "1"]);
     // A 320³ volume: 32 MiB as .npy, more than loopback's socket buffers hold.
     let (status, _, body) = http_exchange(
@@ -147,12 +139,11 @@ fn a_client_that_stops_reading_is_disconnected() {
     );
     let (status, _, _) = http_exchange(&srv.addr, "GET", "/healthz", &[], b"").unwrap();
     assert_eq!(status, 200);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn heads_over_the_limits_get_problem_documents() {
-    let dir = scratch("head");
+    let dir = Scratch::new("conn-head");
     let srv = Server::start(&dir, &[]);
     let problem = |status: u16, slug: &str, path: &str, headers: &[(&str, &str)]| {
         let (s, h, body) = http_exchange(&srv.addr, "GET", path, headers, b"").unwrap();
@@ -182,7 +173,6 @@ fn heads_over_the_limits_get_problem_documents() {
     let ok = "c".repeat(60 << 10);
     let (s, _, _) = http_exchange(&srv.addr, "GET", "/healthz", &[("x-ok", &ok)], b"").unwrap();
     assert_eq!(s, 200);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// An upload refused before its body is read says `Connection: close` (the server cannot
@@ -190,7 +180,7 @@ fn heads_over_the_limits_get_problem_documents() {
 /// served keeps the connection.
 #[test]
 fn refused_uploads_say_the_connection_closes() {
-    let dir = scratch("close");
+    let dir = Scratch::new("conn-close");
     let srv = Server::start(&dir, &[]);
     let mesh = box_obj([0.0; 3], [1.0; 3]);
     for path in [
@@ -220,7 +210,6 @@ fn refused_uploads_say_the_connection_closes() {
     let got = String::from_utf8_lossy(&read_until_closed(&mut s, Duration::from_secs(30)).unwrap())
         .to_string();
     assert_eq!(got.matches("HTTP/1.1 200").count(), 2, "{got}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// `voxd serve` with `--admin-addr` on free ports, and the two addresses it prints.
@@ -259,7 +248,7 @@ fn with_admin(dir: &std::path::Path, extra: &[&str]) -> (std::process::Child, St
 /// `/metrics` at once and nothing else; once the clients leave, the waiting probe is answered.
 #[test]
 fn probes_answer_on_the_admin_listener_while_clients_hold_every_place() {
-    let dir = scratch("admin");
+    let dir = Scratch::new("conn-admin");
     let (mut child, addr, admin) =
         with_admin(&dir, &["--max-connections", "2", "--header-timeout", "30"]);
     // Two idle clients take both places of the service's listener.
@@ -303,7 +292,6 @@ fn probes_answer_on_the_admin_listener_while_clients_hold_every_place() {
     );
     let _ = child.kill();
     let _ = child.wait();
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// After SIGTERM the service's listener closes at once, while the admin listener keeps
@@ -312,7 +300,7 @@ fn probes_answer_on_the_admin_listener_while_clients_hold_every_place() {
 /// cleanly, and the admin listener is closed with it.
 #[test]
 fn the_admin_listener_answers_until_the_server_has_drained() {
-    let dir = scratch("admin-drain");
+    let dir = Scratch::new("conn-admin-drain");
     let (mut child, addr, admin) =
         with_admin(&dir, &["--shutdown-timeout", "60", "--body-timeout", "60"]);
     let (status, _, _) = http_exchange(&admin, "GET", "/readyz", &[], b"").unwrap();
@@ -362,5 +350,4 @@ fn the_admin_listener_answers_until_the_server_has_drained() {
         TcpStream::connect(&admin).is_err(),
         "admin listener still open"
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -22,7 +22,7 @@ use serde_json::Value;
 
 use crate::common::redis_server::RedisServer;
 use crate::common::{Resp, spawn_serve};
-use crate::common::{data, http_exchange, tmpdir};
+use crate::common::{data, decode_bits, http_exchange, tmpdir};
 use voxd::app::{ErrorKind, GridOptions, JobSpec, MeshSource, MethodSpec, VoxelizeRequest};
 use voxd::cancel::Control;
 use voxd::engine::cpu::CpuEngine;
@@ -601,17 +601,6 @@ fn replica_dir(name: &str) -> PathBuf {
     tmpdir(&format!("replicas-{name}"))
 }
 
-fn decode(bytes: &[u8]) -> BitVolume {
-    match voxd::codec::VolumeFormat::sniff(bytes)
-        .unwrap()
-        .decode(bytes)
-        .unwrap()
-    {
-        voxd::volume::Volume::Bits(b) => b,
-        voxd::volume::Volume::Density(_) => panic!("density"),
-    }
-}
-
 #[test]
 fn a_job_submitted_to_one_replica_is_polled_and_downloaded_through_another_bit_for_bit() {
     let Some(redis) = RedisServer::start("two-replicas") else {
@@ -643,7 +632,7 @@ fn a_job_submitted_to_one_replica_is_polled_and_downloaded_through_another_bit_f
             panic!("bits")
         };
         assert!(
-            decode(&db.body) == want,
+            decode_bits(&db.body) == want,
             "resolution {res}: not the library's voxels"
         );
         assert_eq!(
@@ -704,7 +693,7 @@ fn a_replica_killed_mid_job_has_its_job_finished_by_another() {
     let d = b.req("GET", &format!("/v1/volumes/{vid}/data"), &[]);
     assert_eq!(d.status, 200);
     assert_eq!(
-        decode(&d.body).grid().dims,
+        decode_bits(&d.body).grid().dims,
         serde_json::from_value::<[u32; 3]>(j["grid"]["dims"].clone()).unwrap()
     );
     assert_eq!(

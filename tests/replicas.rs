@@ -20,8 +20,8 @@ use voxd::engine::fill::Fill;
 
 use crate::common::nginx::Nginx;
 use crate::common::redis_server::RedisServer;
-use crate::common::{Resp, spawn_serve};
-use crate::common::{data, http_exchange, s3};
+use crate::common::{Resp, decode_bits, request, scratch_root, spawn_serve};
+use crate::common::{data, s3};
 
 struct Replica {
     child: Child,
@@ -40,7 +40,9 @@ impl Replica {
         redis: &RedisServer,
         extra: &[&str],
     ) -> Replica {
-        let dir = std::env::temp_dir().join(format!("voxd-replica-{}", std::process::id()));
+        // One data directory that every replica shares (their volumes and jobs are on S3 and
+        // Redis), under the tests' scratch root; never emptied while a replica may be running.
+        let dir = scratch_root().join("replica");
         let (child, addr) = spawn_serve(
             Command::new(env!("CARGO_BIN_EXE_voxd"))
                 .args(["serve", "--addr", addr, "--engine", "cpu"])
@@ -71,13 +73,7 @@ impl Drop for Replica {
 fn req(addr: &str, method: &str, path: &str, ctype: &str, body: &[u8]) -> Resp {
     let h = [("Content-Type", ctype)];
     let headers: &[(&str, &str)] = if body.is_empty() { &[] } else { &h };
-    let (status, headers, body) = http_exchange(addr, method, path, headers, body)
-        .unwrap_or_else(|e| panic!("{method} {path} via {addr}: {e}"));
-    Resp {
-        status,
-        headers,
-        body,
-    }
+    request(addr, method, path, headers, body)
 }
 
 fn get(addr: &str, path: &str) -> Resp {
@@ -102,17 +98,6 @@ fn until_final(addr: &str, id: &str, secs: u64) -> Value {
             "job {id} not done in {secs} s: {j}"
         );
         std::thread::sleep(Duration::from_millis(25));
-    }
-}
-
-fn bits(bytes: &[u8]) -> voxd::BitVolume {
-    match voxd::codec::VolumeFormat::sniff(bytes)
-        .unwrap()
-        .decode(bytes)
-        .unwrap()
-    {
-        voxd::volume::Volume::Bits(b) => b,
-        voxd::volume::Volume::Density(_) => panic!("density"),
     }
 }
 
@@ -178,7 +163,7 @@ fn two_replicas_on_s3_and_redis_behind_nginx() {
     assert!(da.body == db.body && db.body == dl.body);
     assert_eq!(da.headers.get("etag"), db.headers.get("etag"));
     assert!(
-        bits(&da.body) == library(&fox, 96, Fill::Parity),
+        decode_bits(&da.body) == library(&fox, 96, Fill::Parity),
         "the replicas' fox is not the single-process fox"
     );
     // A second volume made through the other replica; both list both, alike.
@@ -279,6 +264,6 @@ fn two_replicas_on_s3_and_redis_behind_nginx() {
         &format!("/v1/volumes/{}/data", j["volume_id"].as_str().unwrap()),
     );
     assert_eq!(d.status, 200);
-    assert!(bits(&d.body) == library(&holey.into_bytes(), 192, Fill::Winding));
+    assert!(decode_bits(&d.body) == library(&holey.into_bytes(), 192, Fill::Winding));
     assert_eq!(get(&lb.addr, "/readyz").status, 200);
 }

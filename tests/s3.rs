@@ -22,7 +22,7 @@ use voxd::store::s3::{Location, S3Store};
 use voxd::store::{ByteStream, SourceInfo, StoreError, VolumeMeta, VolumeStore, sha256_hex};
 
 use crate::common::s3::{self as s3, BUCKET, Weed};
-use crate::common::{Resp, data, http_exchange, voxelize_file};
+use crate::common::{Resp, data, decode_bits, http_exchange, voxelize_file};
 
 /// Metadata that describes `data` truthfully.
 fn meta(id: &str, data: &[u8]) -> VolumeMeta {
@@ -580,17 +580,6 @@ fn ids(listing: &Value) -> Vec<String> {
         .collect()
 }
 
-fn decode(bytes: &[u8]) -> voxd::BitVolume {
-    match voxd::codec::VolumeFormat::sniff(bytes)
-        .unwrap()
-        .decode(bytes)
-        .unwrap()
-    {
-        voxd::volume::Volume::Bits(b) => b,
-        voxd::volume::Volume::Density(_) => panic!("density"),
-    }
-}
-
 const GRID: &str = "origin=-1,-1,-1&voxel_size=0.05&dims=40,40,44";
 
 #[test]
@@ -650,7 +639,7 @@ fn two_replicas_on_one_bucket_answer_for_each_others_volumes() {
         0,
         Method::Solid,
     );
-    assert_eq!(decode(&db.body).words(), want.words());
+    assert_eq!(decode_bits(&db.body).words(), want.words());
     let cached = b.req(
         "GET",
         &format!("/v1/volumes/{id}/data"),
@@ -702,7 +691,7 @@ fn two_replicas_on_one_bucket_answer_for_each_others_volumes() {
         .req("GET", &format!("/v1/volumes/{dd}/data"), &[], &[])
         .ok(200);
     assert_eq!(
-        decode(&via_b.body).count_ones(),
+        decode_bits(&via_b.body).count_ones(),
         diff["solid_voxels"].as_u64().unwrap()
     );
     // Both list the same four, paged alike; a delete on B is seen by A.

@@ -86,23 +86,6 @@ impl Drop for Server {
     }
 }
 
-fn request(addr: &str, method: &str, path: &str, headers: &[(&str, &str)], body: &[u8]) -> Resp {
-    let (status, headers, body) = http_exchange(addr, method, path, headers, body)
-        .unwrap_or_else(|e| panic!("{method} {path}: {e}"));
-    Resp {
-        status,
-        headers,
-        body,
-    }
-}
-
-fn decode(bytes: &[u8]) -> voxd::BitVolume {
-    match VolumeFormat::sniff(bytes).unwrap().decode(bytes).unwrap() {
-        Volume::Bits(b) => b,
-        Volume::Density(_) => panic!("density"),
-    }
-}
-
 fn assert_problem(r: &Resp, status: u16, slug: &str) -> Value {
     assert_eq!(r.status, status, "{}", String::from_utf8_lossy(&r.body));
     assert_eq!(r.header("content-type"), Some("application/problem+json"));
@@ -240,7 +223,7 @@ fn every_upload_format_and_download_format_matches_the_library() {
                 &[],
             );
             assert_eq!(d.status, 200, "{what} {f}");
-            let got = decode(&d.body);
+            let got = decode_bits(&d.body);
             if f == "binvox" {
                 assert_eq!(got.count_ones(), want.count_ones(), "{what} {f}");
             } else {
@@ -1043,7 +1026,7 @@ fn fills_over_http() {
         assert_eq!(meta["fill"]["warning"].is_string(), used == "parity");
         assert_eq!(meta["fill"]["winding"].is_object(), used == "winding");
         let id = meta["id"].as_str().unwrap();
-        let got = decode(
+        let got = decode_bits(
             &srv.req("GET", &format!("/v1/volumes/{id}/data"), &[], &[])
                 .body,
         );
@@ -1129,7 +1112,7 @@ fn csg_and_intersect_over_http() {
     assert_eq!(meta["provenance"], expr);
     assert_eq!(meta["grid"]["dims"], serde_json::json!([30, 28, 26]));
     let id = meta["id"].as_str().unwrap();
-    let got = decode(
+    let got = decode_bits(
         &srv.req("GET", &format!("/v1/volumes/{id}/data"), &[], &[])
             .body,
     );
@@ -1255,7 +1238,7 @@ fn morphology_over_http() {
         &box_obj([5.0; 3], [12.0; 3]),
     );
     let id = r.json()["id"].as_str().unwrap().to_string();
-    let stored = decode(
+    let stored = decode_bits(
         &srv.req("GET", &format!("/v1/volumes/{id}/data"), &[], &[])
             .body,
     );
@@ -1270,7 +1253,7 @@ fn morphology_over_http() {
     let meta = r.json();
     assert_eq!(meta["grid"]["dims"], serde_json::json!([24, 24, 24]));
     assert_eq!(meta["provenance"]["morphology"]["of"], id.as_str());
-    let got = decode(
+    let got = decode_bits(
         &srv.req(
             "GET",
             &format!("/v1/volumes/{}/data", meta["id"].as_str().unwrap()),

@@ -37,9 +37,7 @@ impl Nginx {
             eprintln!("NOTICE: nginx is not installed; skipping the load-balancer test {name}");
             return None;
         };
-        let dir = std::env::temp_dir().join(format!("voxd-nginx-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = super::tmpdir(&format!("nginx-{name}"));
         let port = std::net::TcpListener::bind("127.0.0.1:0")
             .unwrap()
             .local_addr()

@@ -78,8 +78,7 @@ impl Weed {
             );
             return None;
         };
-        let dir = std::env::temp_dir().join(format!("voxd-weed-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
+        let dir = super::tmpdir(&format!("weed-{name}"));
         std::fs::create_dir_all(dir.join("data")).unwrap();
         let config = serde_json::json!({"identities": [{
             "name": "voxd",

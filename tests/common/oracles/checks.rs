@@ -4,6 +4,7 @@
 use std::f64::consts::PI;
 
 use super::*;
+use crate::common::{Rng, box_mesh, push_octahedron};
 
 /// A random triangle in [-2, 2]³, sometimes degenerate (two corners the same, collinear corners,
 /// a single point) or tiny.
