@@ -1,9 +1,12 @@
 //! Property tests (proptest) of the codecs' round trips: random volumes of random dims (1..40
 //! per axis) on random grids through every format that reads back, compared exactly where the
 //! format keeps a thing and as documented where it does not (npy keeps no grid, binvox is cubic
-//! and stores the cube's edge rather than the voxel size).
+//! and stores the cube's edge rather than the voxel size). proptest draws the cases (dims, grid,
+//! seed, fill probability); the voxels come from the tests' one generator, `common::Rng`.
 
 use proptest::prelude::*;
+
+use crate::common::Rng;
 use voxd::codec::{binvox, npy, vxl};
 use voxd::grid::Grid;
 use voxd::volume::{BitVolume, DensityVolume, Volume};
@@ -35,26 +38,15 @@ fn grid(dims: impl Strategy<Value = [u32; 3]>) -> impl Strategy<Value = Grid> {
         })
 }
 
-/// A deterministic fill of `n` voxels from a seed, each set with probability `p`.
-fn fill(seed: u64, p: f64, n: usize) -> impl Iterator<Item = u64> {
-    let mut s = seed | 1;
-    let cut = (p * u32::MAX as f64) as u64;
-    (0..n).map(move |_| {
-        s ^= s << 13;
-        s ^= s >> 7;
-        s ^= s << 17;
-        if (s >> 32) < cut { s & 0xff } else { u64::MAX }
-    })
-}
-
+/// A bit volume on `grid` with each voxel set with probability `p`, drawn from `seed`.
 fn bits(grid: Grid, seed: u64, p: f64) -> BitVolume {
     let [x, y, z] = grid.dims;
     let mut v = BitVolume::new(grid);
-    let mut f = fill(seed, p, (x * y * z) as usize);
+    let mut rng = Rng::new(seed);
     for i in 0..x {
         for j in 0..y {
             for k in 0..z {
-                if f.next().unwrap() != u64::MAX {
+                if rng.range(0.0, 1.0) < p {
                     v.set(i, j, k, true);
                 }
             }
@@ -63,16 +55,17 @@ fn bits(grid: Grid, seed: u64, p: f64) -> BitVolume {
     v
 }
 
+/// A density volume on `grid` with maximum `max`: each voxel, with probability `p`, a value in
+/// 1..=max drawn from `seed`, else 0.
 fn density(grid: Grid, max: u8, seed: u64, p: f64) -> DensityVolume {
     let [x, y, z] = grid.dims;
     let mut v = DensityVolume::new(grid, max);
-    let mut f = fill(seed, p, (x * y * z) as usize);
+    let mut rng = Rng::new(seed);
     for i in 0..x {
         for j in 0..y {
             for k in 0..z {
-                let r = f.next().unwrap();
-                if r != u64::MAX {
-                    v.set(i, j, k, (r % max as u64 + 1) as u8);
+                if rng.range(0.0, 1.0) < p {
+                    v.set(i, j, k, (rng.below(max as u64) + 1) as u8);
                 }
             }
         }

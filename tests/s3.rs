@@ -22,7 +22,7 @@ use voxd::store::s3::{Location, S3Store};
 use voxd::store::{ByteStream, SourceInfo, StoreError, VolumeMeta, VolumeStore, sha256_hex};
 
 use crate::common::s3::{self as s3, BUCKET, Weed};
-use crate::common::{Resp, data, decode_bits, http_exchange, voxelize_file};
+use crate::common::{Resp, data, decode_bits, http_exchange, request, voxelize_file};
 
 /// Metadata that describes `data` truthfully.
 fn meta(id: &str, data: &[u8]) -> VolumeMeta {
@@ -554,13 +554,7 @@ impl Server {
     }
 
     fn req(&self, method: &str, path: &str, headers: &[(&str, &str)], body: &[u8]) -> Resp {
-        let (status, headers, body) = http_exchange(&self.addr, method, path, headers, body)
-            .unwrap_or_else(|e| panic!("{method} {path}: {e}"));
-        Resp {
-            status,
-            headers,
-            body,
-        }
+        request(&self.addr, method, path, headers, body)
     }
 }
 

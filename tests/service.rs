@@ -1,7 +1,7 @@
 //! The HTTP service, end to end: the real `voxd serve` binary on 127.0.0.1 with an ephemeral
 //! port, spoken to over TCP with a small HTTP/1.1 client. Loopback only; every loop is bounded.
 
-use std::io::{BufRead, BufReader, Read};
+use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -22,35 +22,25 @@ pub(crate) struct Server {
 
 impl Server {
     pub fn start(dir: &Path, extra: &[&str]) -> Server {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_voxd"))
-            .args([
-                "serve",
-                "--addr",
-                "127.0.0.1:0",
-                "--data-dir",
-                dir.to_str().unwrap(),
-            ])
-            // The CPU engine unless `extra` names one.
-            .args(if extra.contains(&"--engine") {
-                &[][..]
-            } else {
-                &["--engine", "cpu"][..]
-            })
-            .args(extra)
-            .env("VOXD_LOG", "warn")
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .unwrap();
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap())
-            .read_line(&mut line)
-            .unwrap();
-        let addr = line
-            .trim()
-            .strip_prefix("voxd listening on http://")
-            .unwrap_or_else(|| panic!("unexpected first line {line:?}"))
-            .to_string();
+        let (child, addr) = spawn_serve(
+            Command::new(env!("CARGO_BIN_EXE_voxd"))
+                .args([
+                    "serve",
+                    "--addr",
+                    "127.0.0.1:0",
+                    "--data-dir",
+                    dir.to_str().unwrap(),
+                ])
+                // The CPU engine unless `extra` names one.
+                .args(if extra.contains(&"--engine") {
+                    &[][..]
+                } else {
+                    &["--engine", "cpu"][..]
+                })
+                .args(extra)
+                .env("VOXD_LOG", "warn")
+                .stderr(Stdio::inherit()),
+        );
         Server {
             child,
             addr,

@@ -1,5 +1,6 @@
 //! The one random generator of the integration tests: seeded, deterministic and dependency-free,
-//! so a failing seed reproduces. Not for property tests (`props` uses proptest's own).
+//! so a failing seed reproduces. Property tests (`props`) draw their cases with proptest and
+//! their voxels from a seed with this. Not for `src/`'s unit tests (another crate).
 
 /// xorshift64*.
 pub struct Rng(u64);
