@@ -454,8 +454,7 @@ fn the_documented_python_reader_reads_vxl() {
     let Some(python) = python_with("numpy, zstandard") else {
         return;
     };
-    let doc = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/format.md"))
-        .unwrap();
+    let doc = std::fs::read_to_string(repo_file("docs/format.md")).unwrap();
     let code = doc
         .split("```python\n")
         .nth(1)

@@ -61,11 +61,7 @@ fn random_meshes_equal_the_cpu() {
         ];
         let mesh = random_mesh(&mut rng, dims, seed);
         let g = if seed % 3 == 0 {
-            Grid {
-                origin: [-0.37, 0.11, -0.5],
-                voxel_size: 0.93,
-                dims,
-            }
+            off_lattice_grid(dims)
         } else {
             unit_grid(dims)
         };

@@ -626,18 +626,14 @@ fn health_metrics_and_the_openapi_document() {
     assert!(!m.contains("voxd_gpu_"), "{m}");
     let doc = srv.req("GET", "/openapi.yaml", &[], &[]);
     assert_eq!(doc.header("content-type"), Some("application/yaml"));
-    assert_eq!(
-        doc.body,
-        std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("openapi.yaml")).unwrap()
-    );
+    assert_eq!(doc.body, std::fs::read(repo_file("openapi.yaml")).unwrap());
 }
 
 /// The route table (voxd::service::ROUTES) and openapi.yaml list the same paths and methods, and every
 /// documented operation answers on the live server (not the fallback).
 #[test]
 fn router_and_openapi_agree() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let yaml = std::fs::read_to_string(root.join("openapi.yaml")).unwrap();
+    let yaml = std::fs::read_to_string(repo_file("openapi.yaml")).unwrap();
     let mut documented = std::collections::BTreeSet::new();
     let mut path = None;
     for line in yaml.lines() {
@@ -732,8 +728,7 @@ fn validate(doc: &Value, schema: &Value, v: &Value, at: &str) -> Result<(), Stri
 /// schemas in openapi.yaml.
 #[test]
 fn real_responses_match_the_openapi_schemas() {
-    let yaml = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("openapi.yaml"))
-        .unwrap();
+    let yaml = std::fs::read_to_string(repo_file("openapi.yaml")).unwrap();
     let doc: Value = serde_norway::from_str(&yaml).unwrap();
     let srv = Server::start(&tmpdir("schemas"), &[]);
     let spot = std::fs::read(data("spot.obj")).unwrap();

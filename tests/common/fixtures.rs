@@ -15,6 +15,12 @@ pub fn data(name: &str) -> PathBuf {
         .join(name)
 }
 
+/// A file of the repository by its path from the root (`openapi.yaml`, `docs/format.md`): what
+/// the tests hold the code to.
+pub fn repo_file(path: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(path)
+}
+
 /// `../shared/meshes`, or `None` with a printed notice.
 pub fn shared_meshes() -> Option<PathBuf> {
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes");

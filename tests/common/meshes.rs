@@ -147,10 +147,21 @@ pub fn random_soup(rng: &mut Rng, dims: [u32; 3]) -> Mesh {
     Mesh::new(p, t).unwrap()
 }
 
+/// The unit lattice: origin 0, voxels of size 1, so a mesh's coordinates are voxel coordinates.
 pub fn unit_grid(dims: [u32; 3]) -> Grid {
     Grid {
         origin: [0.0; 3],
         voxel_size: 1.0,
+        dims,
+    }
+}
+
+/// A grid that is not the unit lattice (odd origin, voxel size 0.93), so that snapping a mesh
+/// made on the unit lattice rounds.
+pub fn off_lattice_grid(dims: [u32; 3]) -> Grid {
+    Grid {
+        origin: [-0.37, 0.11, -0.5],
+        voxel_size: 0.93,
         dims,
     }
 }
