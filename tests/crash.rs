@@ -28,25 +28,14 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use crate::common::{Rng, data, tmpdir};
+use crate::common::{Resp, Rng, data, tmpdir, try_request};
 use serde_json::{Value, json};
 
 /// One aligned grid for the uploads that CSG combines (spot and the unit box fit in it).
 const GRID: &str = "origin=-1,-1,-1&voxel_size=0.05&dims=40,40,44";
 
-struct Resp {
-    status: u16,
-    headers: BTreeMap<String, String>,
-    body: Vec<u8>,
-}
-
-impl Resp {
-    fn json(&self) -> Option<Value> {
-        serde_json::from_slice(&self.body).ok()
-    }
-}
-
-/// One HTTP/1.1 exchange; any failure (the server killed mid-way) is an error, never a panic.
+/// One HTTP/1.1 exchange with a content type (none when empty); any failure (the server killed
+/// mid-way) is an error, never a panic.
 fn request(
     addr: &str,
     method: &str,
@@ -56,12 +45,7 @@ fn request(
 ) -> std::io::Result<Resp> {
     let h = [("Content-Type", ctype)];
     let headers: &[(&str, &str)] = if ctype.is_empty() { &[] } else { &h };
-    let (status, headers, body) = crate::common::http_exchange(addr, method, path, headers, body)?;
-    Ok(Resp {
-        status,
-        headers,
-        body,
-    })
+    try_request(addr, method, path, headers, body)
 }
 
 struct Server {
@@ -190,7 +174,7 @@ impl Known {
             self.server_errors
                 .push(format!("{what}: {} {body}", r.status));
         }
-        let Some(v) = r.json() else { return };
+        let Some(v) = r.try_json() else { return };
         let id = v["id"].as_str().map(str::to_string);
         match (r.status, id) {
             (202, Some(id)) if what.starts_with("POST /v1/voxelize") => {
@@ -368,7 +352,7 @@ fn kill_during_job(srv: &mut Server, rng: &mut Rng, meshes: &Meshes, known: &Mut
     known.lock().unwrap().note(&format!("POST {p}"), &r);
     let job = r
         .ok()
-        .and_then(|r| r.json())
+        .and_then(|r| r.try_json())
         .and_then(|v| v["id"].as_str().map(str::to_string));
     let job = job.expect("the big job was accepted");
     for _ in 0..rng.below(3) {
@@ -384,7 +368,7 @@ fn kill_during_job(srv: &mut Server, rng: &mut Rng, meshes: &Meshes, known: &Mut
         known.lock().unwrap().note(&format!("GET {p}"), &r);
         seen = r
             .ok()
-            .and_then(|r| r.json())
+            .and_then(|r| r.try_json())
             .map(|v| v["state"].clone())
             .unwrap_or_default();
         if seen != "queued" {
@@ -529,7 +513,7 @@ fn check(srv: &Server, dir: &Path, known: &mut Known, round: usize) {
         let Some(page) = next.take() else { break };
         let r = srv.must("GET", &page, b"");
         assert_eq!(r.status, 200);
-        let v = r.json().unwrap();
+        let v = r.try_json().unwrap();
         listed.extend(v["volumes"].as_array().unwrap().iter().cloned());
         next = v["next"].as_str().map(str::to_string);
     }
@@ -552,7 +536,7 @@ fn check(srv: &Server, dir: &Path, known: &mut Known, round: usize) {
         let id = v["id"].as_str().unwrap();
         let meta = srv
             .must("GET", &format!("/v1/volumes/{id}"), b"")
-            .json()
+            .try_json()
             .unwrap();
         let sha = meta["sha256"].as_str().unwrap();
         let r = srv.must("GET", &format!("/v1/volumes/{id}/data"), b"");
@@ -608,7 +592,7 @@ fn check(srv: &Server, dir: &Path, known: &mut Known, round: usize) {
             "round {round}: job {j} was lost: {}",
             String::from_utf8_lossy(&r.body)
         );
-        let v = r.json().unwrap();
+        let v = r.try_json().unwrap();
         let state = v["state"].as_str().unwrap();
         assert!(
             ["succeeded", "failed", "canceled", "queued"].contains(&state),
@@ -652,7 +636,7 @@ fn check(srv: &Server, dir: &Path, known: &mut Known, round: usize) {
         String::from_utf8_lossy(&ready.body)
     );
     assert_eq!(
-        ready.json().unwrap()["stored_bytes"].as_u64(),
+        ready.try_json().unwrap()["stored_bytes"].as_u64(),
         Some(on_disk),
         "round {round}: stored_bytes against the files in volumes/"
     );

@@ -22,7 +22,7 @@ use serde_json::Value;
 
 use crate::common::redis_server::RedisServer;
 use crate::common::{Resp, spawn_serve};
-use crate::common::{data, decode_bits, http_exchange, tmpdir};
+use crate::common::{data, decode_bits, tmpdir};
 use voxd::app::{ErrorKind, GridOptions, JobSpec, MeshSource, MethodSpec, VoxelizeRequest};
 use voxd::cancel::Control;
 use voxd::engine::cpu::CpuEngine;
@@ -521,13 +521,7 @@ impl Replica {
     fn req(&self, method: &str, path: &str, body: &[u8]) -> Resp {
         let h = [("Content-Type", "model/obj")];
         let headers: &[(&str, &str)] = if body.is_empty() { &[] } else { &h };
-        let (status, headers, body) = http_exchange(&self.addr, method, path, headers, body)
-            .unwrap_or_else(|e| panic!("{method} {path}: {e}"));
-        Resp {
-            status,
-            headers,
-            body,
-        }
+        crate::common::request(&self.addr, method, path, headers, body)
     }
 
     fn submit(&self, query: &str, mesh: &[u8]) -> String {

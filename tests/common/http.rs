@@ -99,6 +99,10 @@ impl Resp {
         serde_json::from_slice(&self.body)
             .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&self.body)))
     }
+    /// The body as JSON, or `None` when it is not.
+    pub fn try_json(&self) -> Option<serde_json::Value> {
+        serde_json::from_slice(&self.body).ok()
+    }
     pub fn header(&self, h: &str) -> Option<&str> {
         self.headers.get(h).map(String::as_str)
     }
@@ -168,13 +172,25 @@ pub fn request(
     headers: &[(&str, &str)],
     body: &[u8],
 ) -> Resp {
-    let (status, headers, body) = http_exchange(addr, method, path, headers, body)
-        .unwrap_or_else(|e| panic!("{method} {path} via {addr}: {e}"));
-    Resp {
+    try_request(addr, method, path, headers, body)
+        .unwrap_or_else(|e| panic!("{method} {path} via {addr}: {e}"))
+}
+
+/// One exchange with `addr` as a [`Resp`], a failed one (a server killed mid-way) an error:
+/// for the tests that kill servers on purpose.
+pub fn try_request(
+    addr: &str,
+    method: &str,
+    path: &str,
+    headers: &[(&str, &str)],
+    body: &[u8],
+) -> std::io::Result<Resp> {
+    let (status, headers, body) = http_exchange(addr, method, path, headers, body)?;
+    Ok(Resp {
         status,
         headers,
         body,
-    }
+    })
 }
 
 /// A downloaded volume file (any format, sniffed) as the bit volume it holds; a density volume
