@@ -2,6 +2,11 @@
 //! starts; the fronts only override the fields their flags name (`voxd serve --max-voxels`, a
 //! request's `max_voxels`, which can only lower the server's).
 //!
+//! The [`serve`] module holds `voxd serve`'s other defaults (addresses, workers, connection
+//! timeouts and caps): its flags' `default_value_t`s and the server's own `Default`s both read
+//! them, so a default is written once. Not here: the shared queue's (Redis) options, which the
+//! queue declares.
+//!
 //! Two profiles: [`Limits::SERVICE`] protects a shared server from its clients; [`Limits::LOCAL`]
 //! is the command line and the library's defaults, where the only machine at risk is the
 //! caller's own, so grids and meshes may be larger.
@@ -91,6 +96,35 @@ impl Default for Limits {
     fn default() -> Limits {
         Limits::LOCAL
     }
+}
+
+/// `voxd serve`'s defaults that are not [`Limits`]: each flag's `default_value_t` and the
+/// server's own defaults (`ConnectionLimits::default`) read these constants.
+pub mod serve {
+    /// `--addr`.
+    pub const ADDR: &str = "127.0.0.1:8080";
+    /// `--data-dir`.
+    pub const DATA_DIR: &str = "./voxd-data";
+    /// `--queue-capacity`: jobs that may wait.
+    pub const QUEUE_CAPACITY: usize = 64;
+    /// `--workers`: jobs run at once.
+    pub const WORKERS: usize = 1;
+    /// `--max-store-bytes`: total bytes of stored volumes.
+    pub const MAX_STORE_BYTES: u64 = 10 << 30;
+    /// `--header-timeout`, seconds: to send a request's head, or to sit idle between requests.
+    pub const HEADER_TIMEOUT_S: f64 = 20.0;
+    /// `--body-timeout`, seconds a request body may pause between chunks.
+    pub const BODY_TIMEOUT_S: f64 = 20.0;
+    /// `--min-body-rate`, bytes per second a body must average after its grace period.
+    pub const MIN_BODY_RATE: u64 = 16 << 10;
+    /// `--send-timeout`, seconds a response may wait for its client to read more.
+    pub const SEND_TIMEOUT_S: f64 = 20.0;
+    /// `--max-connections`: open connections at most.
+    pub const MAX_CONNECTIONS: usize = 512;
+    /// `--shutdown-timeout`, seconds shutdown waits for requests and running jobs.
+    pub const SHUTDOWN_TIMEOUT_S: f64 = 30.0;
+    /// `--job-timeout`, seconds one job may run (0: no limit).
+    pub const JOB_TIMEOUT_S: f64 = 600.0;
 }
 
 /// Human form of a voxel budget: `1024³` when it is a cube, else the count.

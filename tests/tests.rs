@@ -16,6 +16,7 @@ mod fill;
 mod gpu;
 mod loaders;
 mod morph;
+mod openapi_enums;
 mod oracles;
 mod props;
 mod query;

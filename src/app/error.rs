@@ -1,7 +1,9 @@
 //! The application's one error type: a stable [`ErrorKind`] and a detail saying what to change.
 //! Every domain error (mesh, grid, engine, CSG, store) becomes one by `From`, classified here and
 //! nowhere else; the HTTP front turns the kind into a problem document (`service/problem.rs`),
-//! the command line prints the detail after the file's name.
+//! the command line prints the detail after the file's name. Each kind's code, HTTP status and
+//! title are one row of the `error_kinds!` table below (a status is a plain `u16`, so this layer
+//! needs no HTTP types); not here: how a problem document is written (`service/problem.rs`).
 
 use serde::{Deserialize, Serialize};
 
@@ -12,127 +14,94 @@ use crate::mesh::MeshError;
 use crate::store::StoreError;
 use crate::volume::csg::CsgError;
 
-/// Kinds of failure. Their names (`code`) are stable: they are the last part of the problem
-/// `type` URIs and are kept in job records.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum ErrorKind {
-    InvalidMesh,
+/// Declares [`ErrorKind`] from one table, in the manner of Meilisearch's `make_error_codes!`:
+/// each row is a variant with its code, HTTP status and title, and the enum, `ALL`, `code()`,
+/// `status()`, `title()` and parsing (through [`Named`](crate::names::Named)) are all generated
+/// from it, so a kind cannot have a code but no status.
+macro_rules! error_kinds {
+    ($( $(#[$doc:meta])* $variant:ident = $code:literal, $status:literal, $title:literal; )+) => {
+        /// Kinds of failure. Their names (`code`) are stable: they are the last part of the
+        /// problem `type` URIs and are kept in job records.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum ErrorKind { $( $(#[$doc])* $variant, )+ }
+
+        impl ErrorKind {
+            /// Every kind, in the table's order.
+            pub const ALL: [ErrorKind; [$(stringify!($variant)),+].len()] =
+                [$(ErrorKind::$variant),+];
+            /// The stable name: the problem `type`'s last part.
+            pub fn code(self) -> &'static str {
+                match self { $(ErrorKind::$variant => $code),+ }
+            }
+            /// The HTTP status of the kind's problem document.
+            pub fn status(self) -> u16 {
+                match self { $(ErrorKind::$variant => $status),+ }
+            }
+            /// The problem document's title (the same for every instance of the kind).
+            pub fn title(self) -> &'static str {
+                match self { $(ErrorKind::$variant => $title),+ }
+            }
+        }
+    };
+}
+
+// One row per kind: `Variant = code, HTTP status, title;`. The codes and statuses are also listed
+// in openapi.yaml (components/schemas/Problem), which `tests/openapi_enums.rs` checks against
+// this table.
+error_kinds! {
+    InvalidMesh = "invalid-mesh", 422, "The mesh cannot be used";
     /// The mesh's format is unknown or not a mesh format.
-    UnsupportedMediaType,
-    ExternalResource,
-    TooManyTriangles,
-    BodyTooLarge,
-    GridTooLarge,
-    InvalidParameter,
-    QueueFull,
+    UnsupportedMediaType = "unsupported-media-type", 415, "Unknown mesh format";
+    ExternalResource = "external-resource", 422, "The glTF refers to external files";
+    TooManyTriangles = "too-many-triangles", 422, "Too many triangles";
+    BodyTooLarge = "body-too-large", 413, "Request body too large";
+    GridTooLarge = "grid-too-large", 422, "Grid too large";
+    InvalidParameter = "invalid-parameter", 400, "Invalid parameter";
+    QueueFull = "queue-full", 429, "The job queue is full";
     /// The shared job queue (Redis) cannot be reached; retry shortly.
-    QueueUnavailable,
-    NotFound,
-    NotCancelable,
-    StorageFull,
+    QueueUnavailable = "queue-unavailable", 503, "The job queue cannot be reached";
+    NotFound = "not-found", 404, "Not found";
+    NotCancelable = "not-cancelable", 409, "The job has already finished";
+    StorageFull = "storage-full", 507, "Storage quota exhausted";
     /// The store cannot be reached or fails (I/O, an S3 endpoint down, a timeout, refused
     /// credentials); retry later.
-    StorageUnavailable,
-    EngineFailure,
-    ShuttingDown,
-    MisalignedGrids,
-    WrongVolumeKind,
-    EmptyIntersection,
+    StorageUnavailable = "storage-unavailable", 503, "The store is unavailable";
+    EngineFailure = "engine-failure", 500, "Voxelization failed";
+    ShuttingDown = "shutting-down", 503, "The server is shutting down";
+    MisalignedGrids = "misaligned-grids", 422, "The volumes' grids do not line up";
+    WrongVolumeKind = "wrong-volume-kind", 422, "Wrong kind of volume";
+    EmptyIntersection = "empty-intersection", 422, "The intersection is empty";
     /// The request's body or work took longer than allowed.
-    Timeout,
+    Timeout = "timeout", 408, "Too slow";
     /// Too much is in flight (uploads' bytes); retry later.
-    Busy,
+    Busy = "busy", 503, "The server is busy";
     /// The route does not answer that method.
-    MethodNotAllowed,
+    MethodNotAllowed = "method-not-allowed", 405, "Method not allowed";
     /// A conditional request's precondition (`If-Match`) does not hold.
-    PreconditionFailed,
+    PreconditionFailed = "precondition-failed", 412, "Precondition failed";
     /// The request's target (path and query) is longer than allowed.
-    UriTooLong,
+    UriTooLong = "uri-too-long", 414, "Request target too long";
     /// The request's head (request line and headers) is larger, or has more headers, than
     /// allowed.
-    HeadersTooLarge,
+    HeadersTooLarge = "headers-too-large", 431, "Request header fields too large";
     /// No API key, or not a valid one, where the service requires one (`--api-keys-file`).
-    Unauthorized,
+    Unauthorized = "unauthorized", 401, "Authentication required";
     /// The API key's request rate is exceeded; retry after `Retry-After`.
-    RateLimited,
+    RateLimited = "rate-limited", 429, "Too many requests for this API key";
     /// The API key already has its most jobs queued or running.
-    TooManyJobs,
-    Internal,
+    TooManyJobs = "too-many-jobs", 429, "Too many jobs for this API key";
+    Internal = "internal", 500, "Internal error";
 }
 
 impl crate::names::Named for ErrorKind {
     const WHAT: &'static str = "error kind";
-    const ALL: &'static [ErrorKind] = &[
-        ErrorKind::InvalidMesh,
-        ErrorKind::UnsupportedMediaType,
-        ErrorKind::ExternalResource,
-        ErrorKind::TooManyTriangles,
-        ErrorKind::BodyTooLarge,
-        ErrorKind::GridTooLarge,
-        ErrorKind::InvalidParameter,
-        ErrorKind::QueueFull,
-        ErrorKind::QueueUnavailable,
-        ErrorKind::NotFound,
-        ErrorKind::NotCancelable,
-        ErrorKind::StorageFull,
-        ErrorKind::StorageUnavailable,
-        ErrorKind::EngineFailure,
-        ErrorKind::ShuttingDown,
-        ErrorKind::MisalignedGrids,
-        ErrorKind::WrongVolumeKind,
-        ErrorKind::EmptyIntersection,
-        ErrorKind::Timeout,
-        ErrorKind::Busy,
-        ErrorKind::MethodNotAllowed,
-        ErrorKind::PreconditionFailed,
-        ErrorKind::UriTooLong,
-        ErrorKind::HeadersTooLarge,
-        ErrorKind::Unauthorized,
-        ErrorKind::RateLimited,
-        ErrorKind::TooManyJobs,
-        ErrorKind::Internal,
-    ];
+    const ALL: &'static [ErrorKind] = &ErrorKind::ALL;
     fn name(self) -> &'static str {
         self.code()
     }
 }
 
 crate::impl_named!(ErrorKind);
-
-impl ErrorKind {
-    pub fn code(self) -> &'static str {
-        match self {
-            ErrorKind::InvalidMesh => "invalid-mesh",
-            ErrorKind::UnsupportedMediaType => "unsupported-media-type",
-            ErrorKind::ExternalResource => "external-resource",
-            ErrorKind::TooManyTriangles => "too-many-triangles",
-            ErrorKind::BodyTooLarge => "body-too-large",
-            ErrorKind::GridTooLarge => "grid-too-large",
-            ErrorKind::InvalidParameter => "invalid-parameter",
-            ErrorKind::QueueFull => "queue-full",
-            ErrorKind::QueueUnavailable => "queue-unavailable",
-            ErrorKind::NotFound => "not-found",
-            ErrorKind::NotCancelable => "not-cancelable",
-            ErrorKind::StorageFull => "storage-full",
-            ErrorKind::StorageUnavailable => "storage-unavailable",
-            ErrorKind::EngineFailure => "engine-failure",
-            ErrorKind::ShuttingDown => "shutting-down",
-            ErrorKind::MisalignedGrids => "misaligned-grids",
-            ErrorKind::WrongVolumeKind => "wrong-volume-kind",
-            ErrorKind::EmptyIntersection => "empty-intersection",
-            ErrorKind::Timeout => "timeout",
-            ErrorKind::Busy => "busy",
-            ErrorKind::MethodNotAllowed => "method-not-allowed",
-            ErrorKind::PreconditionFailed => "precondition-failed",
-            ErrorKind::UriTooLong => "uri-too-long",
-            ErrorKind::HeadersTooLarge => "headers-too-large",
-            ErrorKind::Unauthorized => "unauthorized",
-            ErrorKind::RateLimited => "rate-limited",
-            ErrorKind::TooManyJobs => "too-many-jobs",
-            ErrorKind::Internal => "internal",
-        }
-    }
-}
 
 /// An application error.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, thiserror::Error)]
@@ -261,5 +230,25 @@ impl From<StoreError> for Error {
 impl From<crate::codec::CodecError> for Error {
     fn from(e: crate::codec::CodecError) -> Error {
         Error::new(ErrorKind::InvalidParameter, e.to_string())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::ErrorKind;
+
+    /// Codes are distinct and parse back to their kind; statuses are client or server errors.
+    #[test]
+    fn the_table_is_consistent() {
+        let mut codes = std::collections::HashSet::new();
+        for k in ErrorKind::ALL {
+            assert!(codes.insert(k.code()), "{k:?}'s code is used twice");
+            assert_eq!(k.code().parse::<ErrorKind>(), Ok(k));
+            assert!((400..600).contains(&k.status()), "{k:?}");
+            assert!(!k.title().is_empty(), "{k:?}");
+        }
+        assert_eq!(ErrorKind::InvalidMesh.to_string(), "invalid-mesh");
+        assert_eq!(ErrorKind::StorageFull.status(), 507);
+        assert_eq!(ErrorKind::Timeout.title(), "Too slow");
     }
 }

@@ -11,6 +11,7 @@ use voxd::app::{GridOptions, Limits, MeshSource, MethodSpec, VoxelizeRequest};
 use voxd::engine::fill::Fill;
 use voxd::engine::gpu::SolidStrategy;
 use voxd::engine::{EngineChoice, Method};
+use voxd::limits::serve;
 use voxd::mesh::Format;
 use voxd::names::Named;
 use voxd::service::auth::KeyLimits;
@@ -38,8 +39,12 @@ fn secs(s: f64) -> std::time::Duration {
 }
 
 fn parse_format(s: &str) -> Result<Format, String> {
-    Format::from_name(s)
-        .ok_or_else(|| format!("unknown mesh format {s:?}; expected obj, gltf, glb, stl or ply"))
+    Format::from_name(s).ok_or_else(|| {
+        format!(
+            "unknown mesh format {s:?}; expected {}",
+            voxd::names::choices::<Format>()
+        )
+    })
 }
 
 #[derive(Parser)]
@@ -111,13 +116,13 @@ pub struct VoxelizeArgs {
     /// Output volume; its extension picks the format (.vxl, .binvox, .npy, .raw).
     #[arg(short, long)]
     pub output: PathBuf,
-    #[arg(long, default_value = "solid", value_parser = named::<MethodName>())]
+    #[arg(long, default_value_t = MethodName::Bits(Method::Solid), value_parser = named::<MethodName>())]
     pub method: MethodName,
     /// How solid-based methods (solid, conservative, interior, density) decide inside: parity
     /// (exact for watertight meshes), vote (parity along x, y and z, majority), winding
     /// (generalised winding number ≥ ½), flood (exterior flood fill outside the surface) or auto
     /// (parity when the mesh is watertight, else winding).
-    #[arg(long, default_value = "parity", value_parser = named::<Fill>())]
+    #[arg(long, default_value_t = Fill::DEFAULT, value_parser = named::<Fill>())]
     pub fill: Fill,
     /// Sub-voxels per axis for density: 2 (values 0..8) or 4 (0..64).
     #[arg(long, default_value_t = MethodSpec::DEFAULT_DENSITY_FACTOR, value_parser = clap::value_parser!(u32).range(2..=4))]
@@ -141,7 +146,7 @@ pub struct VoxelizeArgs {
     #[arg(long, default_value_t = 0)]
     pub padding: u32,
     /// auto (the GPU when an adapter exists, else the CPU), gpu or cpu.
-    #[arg(long, default_value = "auto", value_parser = named::<EngineChoice>())]
+    #[arg(long, default_value_t = EngineChoice::DEFAULT, value_parser = named::<EngineChoice>())]
     pub engine: EngineChoice,
     /// Use the GPU adapter whose name contains this (e.g. llvmpipe); also VOXD_ADAPTER.
     #[arg(long, env = "VOXD_ADAPTER")]
@@ -185,7 +190,7 @@ impl VoxelizeArgs {
 #[derive(Args)]
 pub struct ServeArgs {
     /// Address to listen on (port 0 picks a free port; the bound address is printed).
-    #[arg(long, env = "VOXD_ADDR", default_value = "127.0.0.1:8080")]
+    #[arg(long, env = "VOXD_ADDR", default_value = serve::ADDR)]
     pub addr: std::net::SocketAddr,
     /// A second address that answers only /healthz, /readyz and /metrics, with connection
     /// places of its own: probes and scrapes are answered while clients hold every place of
@@ -193,22 +198,22 @@ pub struct ServeArgs {
     #[arg(long, env = "VOXD_ADMIN_ADDR")]
     pub admin_addr: Option<std::net::SocketAddr>,
     /// Where volumes and job records are stored.
-    #[arg(long, env = "VOXD_DATA_DIR", default_value = "./voxd-data")]
+    #[arg(long, env = "VOXD_DATA_DIR", default_value = serve::DATA_DIR)]
     pub data_dir: PathBuf,
     /// Where volumes and job records are stored instead: s3://BUCKET/PREFIX (credentials and
     /// endpoint from AWS_* variables), file:///PATH or a directory. Default: --data-dir.
     #[arg(long, env = "VOXD_STORE", value_name = "URL", value_parser = StoreSpec::parse)]
     pub store: Option<StoreSpec>,
     /// auto, gpu or cpu.
-    #[arg(long, env = "VOXD_ENGINE", default_value = "auto", value_parser = named::<EngineChoice>())]
+    #[arg(long, env = "VOXD_ENGINE", default_value_t = EngineChoice::DEFAULT, value_parser = named::<EngineChoice>())]
     pub engine: EngineChoice,
     #[arg(long, env = "VOXD_ADAPTER")]
     pub adapter: Option<String>,
     /// Jobs that may wait; more are refused with 429.
-    #[arg(long, env = "VOXD_QUEUE_CAPACITY", default_value_t = 64)]
+    #[arg(long, env = "VOXD_QUEUE_CAPACITY", default_value_t = serve::QUEUE_CAPACITY)]
     pub queue_capacity: usize,
     /// Jobs run at once. On a GPU each records its own work and their submissions are batched.
-    #[arg(long, env = "VOXD_WORKERS", default_value_t = 1)]
+    #[arg(long, env = "VOXD_WORKERS", default_value_t = serve::WORKERS)]
     pub workers: usize,
     /// Largest request body in bytes (gzip'd meshes may expand 16× this).
     #[arg(long, env = "VOXD_MAX_BODY_BYTES", default_value_t = Limits::SERVICE.max_body_bytes)]
@@ -219,32 +224,32 @@ pub struct ServeArgs {
     #[arg(long, env = "VOXD_MAX_VOXELS", default_value_t = Limits::SERVICE.max_voxels)]
     pub max_voxels: u64,
     /// Total bytes of stored volumes.
-    #[arg(long, env = "VOXD_MAX_STORE_BYTES", default_value_t = 10 << 30)]
+    #[arg(long, env = "VOXD_MAX_STORE_BYTES", default_value_t = serve::MAX_STORE_BYTES)]
     pub max_store_bytes: u64,
     /// Seconds a connection may take to send a request's head, or sit idle between requests.
-    #[arg(long, env = "VOXD_HEADER_TIMEOUT", default_value_t = 20.0)]
+    #[arg(long, env = "VOXD_HEADER_TIMEOUT", default_value_t = serve::HEADER_TIMEOUT_S)]
     pub header_timeout: f64,
     /// Seconds a request body may pause between chunks (then 408).
-    #[arg(long, env = "VOXD_BODY_TIMEOUT", default_value_t = 20.0)]
+    #[arg(long, env = "VOXD_BODY_TIMEOUT", default_value_t = serve::BODY_TIMEOUT_S)]
     pub body_timeout: f64,
     /// Bytes per second a request body must average after its first 10 s (then 408).
-    #[arg(long, env = "VOXD_MIN_BODY_RATE", default_value_t = 16384)]
+    #[arg(long, env = "VOXD_MIN_BODY_RATE", default_value_t = serve::MIN_BODY_RATE)]
     pub min_body_rate: u64,
     /// Seconds a response may wait for its client to read more of it; past it the connection
     /// is closed and the work behind the response stops.
-    #[arg(long, env = "VOXD_SEND_TIMEOUT", default_value_t = 20.0)]
+    #[arg(long, env = "VOXD_SEND_TIMEOUT", default_value_t = serve::SEND_TIMEOUT_S)]
     pub send_timeout: f64,
     /// Open connections at most (more wait until one closes).
-    #[arg(long, env = "VOXD_MAX_CONNECTIONS", default_value_t = 512)]
+    #[arg(long, env = "VOXD_MAX_CONNECTIONS", default_value_t = serve::MAX_CONNECTIONS)]
     pub max_connections: usize,
     /// Seconds shutdown waits for requests and running jobs.
-    #[arg(long, env = "VOXD_SHUTDOWN_TIMEOUT", default_value_t = 30.0)]
+    #[arg(long, env = "VOXD_SHUTDOWN_TIMEOUT", default_value_t = serve::SHUTDOWN_TIMEOUT_S)]
     pub shutdown_timeout: f64,
     /// Seconds one job may run; past it the job is stopped and fails (0: no limit).
     #[arg(
         long,
         env = "VOXD_JOB_TIMEOUT",
-        default_value_t = 600.0,
+        default_value_t = serve::JOB_TIMEOUT_S,
         value_name = "SECONDS"
     )]
     pub job_timeout: f64,

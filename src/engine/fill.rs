@@ -21,32 +21,22 @@ use crate::grid::Grid;
 use crate::mesh::{Mesh, MeshDiagnostics};
 use crate::volume::BitVolume;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Fill {
-    Parity,
-    Vote,
-    Winding,
-    Flood,
-    Auto,
+crate::named_enum! {
+    /// How solid-based methods decide inside (`fill=`, `--fill`); the module doc says each.
+    pub enum Fill: "fill" {
+        Parity = "parity",
+        Vote = "vote",
+        Winding = "winding",
+        Flood = "flood",
+        Auto = "auto",
+    }
 }
 
 impl Fill {
-    pub const ALL: [Fill; 5] = [
-        Fill::Parity,
-        Fill::Vote,
-        Fill::Winding,
-        Fill::Flood,
-        Fill::Auto,
-    ];
-    pub fn name(self) -> &'static str {
-        match self {
-            Fill::Parity => "parity",
-            Fill::Vote => "vote",
-            Fill::Winding => "winding",
-            Fill::Flood => "flood",
-            Fill::Auto => "auto",
-        }
-    }
+    /// The fill when none is asked for: exact for watertight meshes, and what the solid method
+    /// has always done.
+    pub const DEFAULT: Fill = Fill::Parity;
+
     /// The fill `auto` resolves to for a mesh (others are themselves).
     pub fn resolve(self, diagnostics: &MeshDiagnostics) -> Fill {
         match self {
@@ -56,16 +46,6 @@ impl Fill {
         }
     }
 }
-
-impl crate::names::Named for Fill {
-    const WHAT: &'static str = "fill";
-    const ALL: &'static [Fill] = &Fill::ALL;
-    fn name(self) -> &'static str {
-        Fill::name(self)
-    }
-}
-
-crate::impl_named!(Fill);
 
 /// How a solid was filled, for summaries and volume metadata.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

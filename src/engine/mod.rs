@@ -16,41 +16,17 @@ pub use snap::{FIXED_HALF, FIXED_ONE, FIXED_SHIFT, GridMesh, MAX_FIXED};
 use crate::cancel::{Canceled, Control};
 use crate::volume::BitVolume;
 
-/// What a voxel being set means.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Method {
-    /// The voxel centre is inside (odd number of crossings on the ray towards −z).
-    Solid,
-    /// The closed voxel box touches the surface.
-    Surface,
-    /// `solid ∪ surface`.
-    Conservative,
-    /// `solid − surface`.
-    Interior,
-}
-
-impl Method {
-    pub const ALL: [Method; 4] = [
-        Method::Solid,
-        Method::Surface,
-        Method::Conservative,
-        Method::Interior,
-    ];
-    pub fn name(self) -> &'static str {
-        match self {
-            Method::Solid => "solid",
-            Method::Surface => "surface",
-            Method::Conservative => "conservative",
-            Method::Interior => "interior",
-        }
-    }
-}
-
-impl crate::names::Named for Method {
-    const WHAT: &'static str = "method";
-    const ALL: &'static [Method] = &Method::ALL;
-    fn name(self) -> &'static str {
-        Method::name(self)
+crate::named_enum! {
+    /// What a voxel being set means.
+    pub enum Method: "method" {
+        /// The voxel centre is inside (odd number of crossings on the ray towards −z).
+        Solid = "solid",
+        /// The closed voxel box touches the surface.
+        Surface = "surface",
+        /// `solid ∪ surface`.
+        Conservative = "conservative",
+        /// `solid − surface`.
+        Interior = "interior",
     }
 }
 
@@ -111,31 +87,22 @@ pub trait Engine: Send + Sync {
     }
 }
 
-/// Which engine to use.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum EngineChoice {
-    /// The GPU engine on a hardware adapter when one exists, else the CPU engine. A software
-    /// adapter (lavapipe) is used only when asked for (`gpu`, or an adapter named): on every
-    /// measurement so far it is slower than the CPU engine on the same cores.
-    Auto,
-    Gpu,
-    Cpu,
-}
-
-impl crate::names::Named for EngineChoice {
-    const WHAT: &'static str = "engine";
-    const ALL: &'static [EngineChoice] =
-        &[EngineChoice::Auto, EngineChoice::Gpu, EngineChoice::Cpu];
-    fn name(self) -> &'static str {
-        match self {
-            EngineChoice::Auto => "auto",
-            EngineChoice::Gpu => "gpu",
-            EngineChoice::Cpu => "cpu",
-        }
+crate::named_enum! {
+    /// Which engine to use (`--engine`).
+    pub enum EngineChoice: "engine" {
+        /// The GPU engine on a hardware adapter when one exists, else the CPU engine. A software
+        /// adapter (lavapipe) is used only when asked for (`gpu`, or an adapter named): on every
+        /// measurement so far it is slower than the CPU engine on the same cores.
+        Auto = "auto",
+        Gpu = "gpu",
+        Cpu = "cpu",
     }
 }
 
-crate::impl_named!(Method, EngineChoice);
+impl EngineChoice {
+    /// What `--engine` is when not given (`voxelize` and `serve`).
+    pub const DEFAULT: EngineChoice = EngineChoice::Auto;
+}
 
 /// Opens the chosen engine. `Auto` never fails: without a hardware adapter (or the one
 /// named) it uses the CPU engine and logs why: at `info` when only a software adapter exists

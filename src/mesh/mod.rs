@@ -87,37 +87,24 @@ fn malformed(format: &'static str, detail: impl Into<String>) -> MeshError {
     }
 }
 
-/// Mesh file formats.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Format {
-    Obj,
-    Gltf,
-    Glb,
-    Stl,
-    Ply,
+crate::named_enum! {
+    /// Mesh file formats.
+    pub enum Format: "mesh format" {
+        Obj = "obj",
+        Gltf = "gltf",
+        Glb = "glb",
+        Stl = "stl",
+        Ply = "ply",
+    }
 }
 
 impl Format {
-    pub fn name(self) -> &'static str {
-        match self {
-            Format::Obj => "obj",
-            Format::Gltf => "gltf",
-            Format::Glb => "glb",
-            Format::Stl => "stl",
-            Format::Ply => "ply",
-        }
-    }
-
-    /// `obj`, `gltf`, `glb`, `stl`, `ply` (case-insensitive).
+    /// The format named `s`, case-insensitively (file extensions and `--format` are matched
+    /// this way; `FromStr` is exact, as for every named set).
     pub fn from_name(s: &str) -> Option<Format> {
-        Some(match s.to_ascii_lowercase().as_str() {
-            "obj" => Format::Obj,
-            "gltf" => Format::Gltf,
-            "glb" => Format::Glb,
-            "stl" => Format::Stl,
-            "ply" => Format::Ply,
-            _ => return None,
-        })
+        Format::ALL
+            .into_iter()
+            .find(|f| f.name().eq_ignore_ascii_case(s))
     }
 
     /// From a file name, ignoring a trailing `.gz`.

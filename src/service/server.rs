@@ -23,6 +23,8 @@ use tokio::net::TcpListener;
 use tokio::sync::Semaphore;
 use tower::ServiceExt;
 
+use crate::limits::serve;
+
 /// Connection places of the admin listener (`--admin-addr`): probes and scrapes, a few at a
 /// time, each answered at once.
 pub const ADMIN_CONNECTIONS: usize = 64;
@@ -53,17 +55,19 @@ pub struct ConnectionLimits {
     pub max_inflight_bytes: u64,
 }
 
+/// The defaults of `voxd serve`'s connection flags (`crate::limits::serve`), and the bounds no
+/// flag sets.
 impl Default for ConnectionLimits {
     fn default() -> Self {
         ConnectionLimits {
-            header_read_timeout: Duration::from_secs(20),
-            max_connections: 512,
+            header_read_timeout: Duration::from_secs_f64(serve::HEADER_TIMEOUT_S),
+            max_connections: serve::MAX_CONNECTIONS,
             max_header_bytes: 64 << 10,
             max_headers: 100,
             max_uri_bytes: 8 << 10,
-            send_timeout: Duration::from_secs(20),
-            body_idle_timeout: Duration::from_secs(20),
-            min_body_rate: 16 << 10,
+            send_timeout: Duration::from_secs_f64(serve::SEND_TIMEOUT_S),
+            body_idle_timeout: Duration::from_secs_f64(serve::BODY_TIMEOUT_S),
+            min_body_rate: serve::MIN_BODY_RATE,
             body_grace: Duration::from_secs(10),
             max_inflight_bytes: 1 << 30,
         }
