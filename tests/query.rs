@@ -3,7 +3,7 @@
 use crate::common::*;
 use voxd::grid::Grid;
 use voxd::volume::query::{point_value, ray};
-use voxd::volume::{BitVolume, Volume};
+use voxd::volume::{BitVolume, Volume, VoxelValue};
 
 fn box_volume() -> Volume {
     let mut v = BitVolume::new(Grid {
@@ -80,7 +80,7 @@ fn random_rays_match_a_fine_march_and_points_match_indexing() {
             let mut seen = std::collections::HashSet::new();
             while t < 200.0 {
                 let p = [0, 1, 2].map(|a| o[a] + (t + step / 2.0) * dir[a] / len);
-                if point_value(&v, p) == 1 {
+                if point_value(&v, p).0 {
                     thick += step;
                     seen.insert(
                         [0, 1, 2].map(|a| ((p[a] - g.origin[a]) / g.voxel_size).floor() as i64),
@@ -106,7 +106,7 @@ fn random_rays_match_a_fine_march_and_points_match_indexing() {
             let i = [0, 1, 2].map(|a| ((p[a] - g.origin[a]) / g.voxel_size).floor());
             let inside = (0..3).all(|a| i[a] >= 0.0 && i[a] < g.dims[a] as f64);
             let want = inside && bits.get(i[0] as u32, i[1] as u32, i[2] as u32);
-            assert_eq!(point_value(&v, p), want as u8);
+            assert_eq!(point_value(&v, p), (want, VoxelValue::U8(want as u8)));
         }
     }
 }

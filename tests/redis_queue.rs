@@ -608,7 +608,7 @@ fn decode(bytes: &[u8]) -> BitVolume {
         .unwrap()
     {
         voxd::volume::Volume::Bits(b) => b,
-        voxd::volume::Volume::Density(_) => panic!("density"),
+        _ => panic!("density"),
     }
 }
 

@@ -587,7 +587,7 @@ fn decode(bytes: &[u8]) -> voxd::BitVolume {
         .unwrap()
     {
         voxd::volume::Volume::Bits(b) => b,
-        voxd::volume::Volume::Density(_) => panic!("density"),
+        _ => panic!("density"),
     }
 }
 

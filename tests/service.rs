@@ -99,7 +99,7 @@ fn request(addr: &str, method: &str, path: &str, headers: &[(&str, &str)], body:
 fn decode(bytes: &[u8]) -> voxd::BitVolume {
     match VolumeFormat::sniff(bytes).unwrap().decode(bytes).unwrap() {
         Volume::Bits(b) => b,
-        Volume::Density(_) => panic!("density"),
+        _ => panic!("density"),
     }
 }
 
