@@ -359,7 +359,7 @@ fn version_2_layouts_are_the_documented_ones() {
     // colour: xyz-rgba8.
     let (h, p) = payload(&vols[2]);
     assert_eq!(h["layout"], "xyz-rgba8");
-    let at = ((0 * 9 + 4) * 17 + 9) * 4;
+    let at = (4 * 17 + 9) * 4; // x = 0
     assert_eq!(p[at..at + 4], [255, 128, 1, 200]);
     // channels: the bit words, then each channel's values in set-voxel (column) order.
     let (h, p) = payload(&vols[3]);
@@ -387,4 +387,61 @@ fn version_2_layouts_are_the_documented_ones() {
     assert_eq!(p[4..16], [0, 0, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0]);
     let at = 16 + ((1 * 8 + 0) * 8 + 0) * 4;
     assert_eq!(p[at..at + 4], (-0.75f32).to_le_bytes());
+}
+
+/// A `.vxl` of version 2 from a header and a payload, as a damaged or hostile writer might make.
+fn vxl_v2(header: serde_json::Value, payload: &[u8]) -> Vec<u8> {
+    let h = serde_json::to_vec(&header).unwrap();
+    let mut out = b"\x89VXL\r\n\x1a\n".to_vec();
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(h.len() as u32).to_le_bytes());
+    out.extend_from_slice(&h);
+    out.extend_from_slice(&zstd::encode_all(payload, 3).unwrap());
+    out
+}
+
+#[test]
+fn damaged_version_2_files_are_refused() {
+    let header = |bricks: u64| {
+        serde_json::json!({"kind": "sparse-material", "dims": [9, 8, 8], "origin": [0.0, 0.0, 0.0],
+            "voxel_size": 1.0, "layout": "bricks8-u16le", "bricks": bricks})
+    };
+    let brick = |at: [u32; 3], v: u16| {
+        let mut b: Vec<u8> = at.iter().flat_map(|c| c.to_le_bytes()).collect();
+        b.extend(std::iter::repeat_n(v.to_le_bytes(), 512).flatten());
+        b
+    };
+    let file = |bricks: &[([u32; 3], u16)]| {
+        let mut coords = vec![0u8, 0];
+        let mut values = vec![];
+        for &(at, v) in bricks {
+            let b = brick(at, v);
+            coords.extend_from_slice(&b[..12]);
+            values.extend_from_slice(&b[12..]);
+        }
+        coords.extend_from_slice(&values);
+        vxl_v2(header(bricks.len() as u64), &coords)
+    };
+    let err = |b: &[u8]| vxl::decode(b).unwrap_err().to_string();
+    // Brick (0, 0, 0) lies inside the 9×8×8 grid; brick (1, 0, 0) mostly past it.
+    let Volume::SparseMaterial(s) = vxl::decode(&file(&[([0, 0, 0], 7)])).unwrap().0 else {
+        panic!("kind")
+    };
+    assert_eq!(s.get(7, 7, 7), 7);
+    assert_eq!(s.get(8, 0, 0), 0);
+    assert!(err(&file(&[([1, 0, 0], 7)])).contains("outside the grid"));
+    assert!(err(&file(&[([0, 0, 0], 7), ([0, 0, 0], 7)])).contains("out of order"));
+    assert!(err(&file(&[([0, 1, 0], 7)])).contains("outside the brick grid"));
+    // More bricks than the grid has is refused before the payload is read.
+    assert!(err(&vxl_v2(header(3), &[0; 8])).contains("the grid has 2"));
+    let mut wrong_layout = header(0);
+    wrong_layout["layout"] = "bricks8-f32le".into();
+    assert!(err(&vxl_v2(wrong_layout, &[0, 0])).contains("unknown sparse-material layout"));
+    // Channels: set_voxels must be the bits' count.
+    let ch = serde_json::json!({"kind": "channels", "dims": [1, 1, 3], "origin": [0.0, 0.0, 0.0],
+        "voxel_size": 1.0, "layout": "x-y-zcolumns-u64le+channels", "set_voxels": 1,
+        "channels": [{"name": "id", "value_type": "u8"}]});
+    let mut payload = 0b101u64.to_le_bytes().to_vec();
+    payload.push(9);
+    assert!(err(&vxl_v2(ch, &payload)).contains("set_voxels is 1"));
 }

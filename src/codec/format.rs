@@ -167,4 +167,12 @@ mod tests {
         assert!(VolumeFormat::Npy.holds().contains(&VolumeKind::Density));
         assert!(!VolumeFormat::Binvox.holds().contains(&VolumeKind::Density));
     }
+
+    /// The contract's `?format=` of a download lists this table's names, in its order.
+    #[test]
+    fn the_openapi_download_formats_are_the_table() {
+        let spec = include_str!("../../openapi.yaml");
+        let want = format!("enum: [{}], default: vxl", VolumeFormat::names());
+        assert!(spec.contains(&want), "openapi.yaml lacks {want:?}");
+    }
 }

@@ -28,7 +28,7 @@ use serde::{Deserialize, Serialize};
 use super::{CodecError, malformed};
 use crate::grid::Grid;
 use crate::names::Named;
-use crate::volume::channels::{Attributed, ChannelValues};
+use crate::volume::channels::{Attributed, ChannelValues, MAX_CHANNELS};
 use crate::volume::kind::{from_le_bytes, to_le_bytes};
 use crate::volume::sparse::{BRICK_VOXELS, Sparse};
 use crate::volume::{
@@ -337,6 +337,16 @@ pub fn decode_limited(
         VolumeKind::Channels => {
             let set = h.set_voxels.ok_or_else(|| missing("set_voxels"))?;
             let channels = h.channels.as_ref().ok_or_else(|| missing("channels"))?;
+            // Bounded before the payload's length is trusted with an allocation.
+            if set as u128 > voxels || channels.len() > MAX_CHANNELS {
+                return Err(malformed(
+                    "vxl",
+                    format!(
+                        "{set} set voxels in {voxels}, {} channels (at most {MAX_CHANNELS})",
+                        channels.len()
+                    ),
+                ));
+            }
             column_bytes
                 + channels
                     .iter()
@@ -345,6 +355,13 @@ pub fn decode_limited(
         }
         VolumeKind::SparseDistance | VolumeKind::SparseMaterial | VolumeKind::SparseColour => {
             let bricks = h.bricks.ok_or_else(|| missing("bricks"))? as u128;
+            let grid_bricks: u128 = h.dims.iter().map(|&d| d.div_ceil(8) as u128).product();
+            if bricks > grid_bricks {
+                return Err(malformed(
+                    "vxl",
+                    format!("{bricks} bricks, but the grid has {grid_bricks}"),
+                ));
+            }
             typed + bricks * (12 + typed * BRICK_VOXELS as u128)
         }
         _ => voxels * typed,

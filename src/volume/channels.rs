@@ -74,6 +74,8 @@ pub struct Channel {
 
 /// Longest channel name.
 pub const MAX_CHANNEL_NAME: usize = 64;
+/// Most channels on one volume (bounds what a `.vxl` header can make a reader allocate).
+pub const MAX_CHANNELS: usize = 64;
 
 /// A bit volume with attribute channels.
 #[derive(Clone, Debug, PartialEq)]
@@ -110,6 +112,9 @@ impl Attributed {
             return Err(format!(
                 "a channel name has 1 to {MAX_CHANNEL_NAME} bytes, got {name:?}"
             ));
+        }
+        if self.channels.len() == MAX_CHANNELS {
+            return Err(format!("a volume has at most {MAX_CHANNELS} channels"));
         }
         if self.channel(name).is_some() {
             return Err(format!("there is already a channel {name:?}"));
