@@ -1,9 +1,9 @@
 //! The download formats, one row each ([`FORMATS`]): name (also the file extension), media
-//! type, the volume kinds it can hold, whether it is written a piece at a time, and whether it
-//! can be read back. The codecs, `app::ops`, the volume routes and the command line all read
-//! this table; adding a format is its codec file plus one row (and the arms of
-//! [`VolumeFormat`]'s `write`/`decode` in `codec/mod.rs`). Not here: the bytes (each codec's
-//! module).
+//! type, the volume kinds it can hold, whether it is written a piece at a time, whether it
+//! can be read back, and the bytes its files start with. The codecs, `app::ops`, the volume
+//! routes and the command line all read this table; adding a format is its codec file plus one
+//! row (and the arms of [`VolumeFormat`]'s `write`/`decode` in `codec/mod.rs`). Not here: the
+//! bytes (each codec's module).
 
 use crate::names::Named;
 use crate::volume::VolumeKind;
@@ -32,6 +32,8 @@ pub struct FormatSpec {
     pub streams: bool,
     /// Can a file of it be read back (it carries its dims)?
     pub reads: bool,
+    /// The bytes a file of it starts with, for recognising it (`None`: no header).
+    pub magic: Option<&'static [u8]>,
 }
 
 /// One byte per voxel: a bit's 0/1 or a density's level.
@@ -46,6 +48,7 @@ pub const FORMATS: &[FormatSpec] = &[
         holds: <VolumeKind as Named>::ALL,
         streams: false,
         reads: true,
+        magic: Some(super::vxl::MAGIC),
     },
     FormatSpec {
         format: VolumeFormat::Binvox,
@@ -54,6 +57,7 @@ pub const FORMATS: &[FormatSpec] = &[
         holds: crate::volume::BITS_ONLY,
         streams: true,
         reads: true,
+        magic: Some(b"#binvox"),
     },
     FormatSpec {
         format: VolumeFormat::Npy,
@@ -62,6 +66,7 @@ pub const FORMATS: &[FormatSpec] = &[
         holds: BYTE_KINDS,
         streams: true,
         reads: true,
+        magic: Some(super::npy::MAGIC),
     },
     FormatSpec {
         format: VolumeFormat::Raw,
@@ -70,6 +75,7 @@ pub const FORMATS: &[FormatSpec] = &[
         holds: BYTE_KINDS,
         streams: true,
         reads: false,
+        magic: None,
     },
 ];
 

@@ -35,17 +35,12 @@ pub(crate) fn malformed(format: &'static str, detail: impl Into<String>) -> Code
 }
 
 impl VolumeFormat {
-    /// From the first bytes of a file.
+    /// From the first bytes of a file (its row's `magic`).
     pub fn sniff(bytes: &[u8]) -> Option<VolumeFormat> {
-        if bytes.starts_with(vxl::MAGIC) {
-            Some(VolumeFormat::Vxl)
-        } else if bytes.starts_with(b"#binvox") {
-            Some(VolumeFormat::Binvox)
-        } else if bytes.starts_with(npy::MAGIC) {
-            Some(VolumeFormat::Npy)
-        } else {
-            None
-        }
+        FORMATS
+            .iter()
+            .find(|f| f.magic.is_some_and(|m| bytes.starts_with(m)))
+            .map(|f| f.format)
     }
 
     /// Can this format hold `v` (its row's `holds`)? Checked before anything is written.
