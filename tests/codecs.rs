@@ -445,3 +445,21 @@ fn damaged_version_2_files_are_refused() {
     payload.push(9);
     assert!(err(&vxl_v2(ch, &payload)).contains("set_voxels is 1"));
 }
+
+/// A NaN distance equals nothing, so a volume holding one would not equal itself read back:
+/// refused wherever a `.vxl` holds distances.
+#[test]
+fn nan_distances_are_refused() {
+    let dense = serde_json::json!({"kind": "distance", "dims": [1, 1, 2], "origin": [0.0, 0.0, 0.0],
+        "voxel_size": 1.0, "layout": "xyz-f32le"});
+    let mut p = 1.0f32.to_le_bytes().to_vec();
+    p.extend_from_slice(&f32::NAN.to_le_bytes());
+    let e = vxl::decode(&vxl_v2(dense, &p)).unwrap_err().to_string();
+    assert!(e.contains("NaN"), "{e}");
+    let sparse = serde_json::json!({"kind": "sparse-distance", "dims": [1, 1, 2],
+        "origin": [0.0, 0.0, 0.0], "voxel_size": 1.0, "layout": "bricks8-f32le", "bricks": 0});
+    let e = vxl::decode(&vxl_v2(sparse, &f32::NAN.to_le_bytes()))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("NaN"), "{e}");
+}

@@ -29,7 +29,7 @@ use super::{CodecError, malformed};
 use crate::grid::Grid;
 use crate::names::Named;
 use crate::volume::channels::{Attributed, ChannelValues, MAX_CHANNELS};
-use crate::volume::kind::{from_le_bytes, to_le_bytes};
+use crate::volume::kind::{to_le_bytes, valid_from_le_bytes};
 use crate::volume::sparse::{BRICK_VOXELS, Sparse};
 use crate::volume::{
     BitVolume, Dense, DensityVolume, ValueType, Volume, VolumeKind, Voxel, words_per_column,
@@ -247,7 +247,11 @@ fn sparse_payload<T: Voxel>(s: &Sparse<T>) -> Vec<u8> {
 /// A sparse volume from its payload (of the length the header implies).
 fn read_sparse<T: Voxel>(grid: Grid, payload: &[u8], bricks: usize) -> Result<Sparse<T>, String> {
     let size = T::TYPE.bytes();
-    let mut s = Sparse::new(grid, T::read_le(&payload[..size]));
+    let background = T::read_le(&payload[..size]);
+    if !background.is_valid() {
+        return Err(format!("background {background:?} is not a valid value"));
+    }
+    let mut s = Sparse::new(grid, background);
     let coords = &payload[size..size + 12 * bricks];
     let values = &payload[size + 12 * bricks..];
     let mut last: Option<[u32; 3]> = None;
@@ -263,7 +267,7 @@ fn read_sparse<T: Voxel>(grid: Grid, payload: &[u8], bricks: usize) -> Result<Sp
             ));
         }
         last = Some(at);
-        let vals: Vec<T> = from_le_bytes(v);
+        let vals: Vec<T> = valid_from_le_bytes(v)?;
         s.insert_brick(at, vals.try_into().expect("512 values"))?;
     }
     Ok(s)
@@ -459,7 +463,8 @@ pub fn decode_limited(
             let mut at = split;
             for c in h.channels.unwrap_or_default() {
                 let n = set as usize * c.value_type.bytes();
-                let values = ChannelValues::from_le_bytes(c.value_type, &payload[at..at + n]);
+                let values = ChannelValues::from_le_bytes(c.value_type, &payload[at..at + n])
+                    .map_err(bad)?;
                 a.add(&c.name, values).map_err(bad)?;
                 at += n;
             }
@@ -487,7 +492,7 @@ fn read_bits(grid: Grid, payload: &[u8]) -> Result<BitVolume, String> {
 }
 
 fn read_dense<T: Voxel>(grid: Grid, payload: &[u8]) -> Result<Dense<T>, String> {
-    Dense::from_data(grid, from_le_bytes(payload))
+    Dense::from_data(grid, valid_from_le_bytes(payload)?)
 }
 
 #[cfg(test)]

@@ -5,7 +5,7 @@
 //! the engine's), nor dense per-voxel values (`dense.rs`).
 
 use super::BitVolume;
-use super::kind::{ValueType, Voxel, VoxelValue, from_le_bytes, to_le_bytes};
+use super::kind::{ValueType, Voxel, VoxelValue, to_le_bytes, valid_from_le_bytes};
 
 /// The values of one channel, one per set voxel.
 #[derive(Clone, Debug, PartialEq)]
@@ -54,14 +54,15 @@ impl ChannelValues {
             ChannelValues::Rgba8(v) => to_le_bytes(v),
         }
     }
-    /// From little-endian bytes, a whole number of values of `t` (checked by the caller).
-    pub fn from_le_bytes(t: ValueType, b: &[u8]) -> ChannelValues {
-        match t {
-            ValueType::U8 => ChannelValues::U8(from_le_bytes(b)),
-            ValueType::U16 => ChannelValues::U16(from_le_bytes(b)),
-            ValueType::F32 => ChannelValues::F32(from_le_bytes(b)),
-            ValueType::Rgba8 => ChannelValues::Rgba8(from_le_bytes(b)),
-        }
+    /// From little-endian bytes, a whole number of values of `t` (checked by the caller); a
+    /// NaN is refused ([`Voxel::is_valid`]).
+    pub fn from_le_bytes(t: ValueType, b: &[u8]) -> Result<ChannelValues, String> {
+        Ok(match t {
+            ValueType::U8 => ChannelValues::U8(valid_from_le_bytes(b)?),
+            ValueType::U16 => ChannelValues::U16(valid_from_le_bytes(b)?),
+            ValueType::F32 => ChannelValues::F32(valid_from_le_bytes(b)?),
+            ValueType::Rgba8 => ChannelValues::Rgba8(valid_from_le_bytes(b)?),
+        })
     }
 }
 

@@ -194,6 +194,11 @@ pub trait Voxel: Copy + PartialEq + std::fmt::Debug + Send + Sync + 'static {
     /// inside of a signed distance field).
     fn occupied(self) -> bool;
     fn value(self) -> VoxelValue;
+    /// Can a volume hold this value? Every value but a NaN distance (which equals nothing, so a
+    /// volume holding one would not equal itself read back).
+    fn is_valid(self) -> bool {
+        true
+    }
 }
 
 impl Voxel for u8 {
@@ -243,6 +248,9 @@ impl Voxel for f32 {
     fn occupied(self) -> bool {
         self <= 0.0
     }
+    fn is_valid(self) -> bool {
+        !self.is_nan()
+    }
     fn value(self) -> VoxelValue {
         VoxelValue::F32(self)
     }
@@ -280,6 +288,15 @@ pub fn from_le_bytes<T: Voxel>(bytes: &[u8]) -> Vec<T> {
         .chunks_exact(T::TYPE.bytes())
         .map(T::read_le)
         .collect()
+}
+
+/// [`from_le_bytes`], refusing a value that is not [`Voxel::is_valid`].
+pub fn valid_from_le_bytes<T: Voxel>(bytes: &[u8]) -> Result<Vec<T>, String> {
+    let v = from_le_bytes::<T>(bytes);
+    match v.iter().find(|x| !x.is_valid()) {
+        Some(x) => Err(format!("{x:?} is not a valid {} value", T::TYPE)),
+        None => Ok(v),
+    }
 }
 
 #[cfg(test)]
