@@ -35,4 +35,4 @@ pub(crate) const PAR_PIECE: usize = 1 << 12;
 pub use engine::Method;
 pub use grid::{Grid, GridLimits, GridSpec};
 pub use mesh::Mesh;
-pub use volume::{BitVolume, DensityVolume, Volume};
+pub use volume::{Attributed, BitVolume, Dense, DensityVolume, Sparse, Volume, VolumeKind};

@@ -208,3 +208,258 @@ fn damaged_files_are_refused() {
     assert_eq!(VolumeFormat::sniff(&n), Some(VolumeFormat::Npy));
     assert_eq!(VolumeFormat::sniff(&b), Some(VolumeFormat::Binvox));
 }
+
+/// The volumes of tests/data/v1-{bits,density}.vxl, which the version-1 writer made (commit
+/// 117d9fa, before the other kinds existed): rebuilt here by the same rule.
+fn v1_volumes() -> (Volume, Volume) {
+    let g = Grid {
+        origin: [-1.5, 0.25, 2.0],
+        voxel_size: 0.125,
+        dims: [5, 3, 70],
+    };
+    let mut b = BitVolume::new(g);
+    for x in 0..5u32 {
+        for y in 0..3u32 {
+            for z in 0..70u32 {
+                if (x * 7 + y * 13 + z * 3) % 5 < 2 || z == 69 {
+                    b.set(x, y, z, true);
+                }
+            }
+        }
+    }
+    let g = Grid {
+        origin: [0.0, -2.0, 1.0],
+        voxel_size: 0.5,
+        dims: [4, 6, 5],
+    };
+    let mut d = DensityVolume::new(g, 8);
+    for x in 0..4u32 {
+        for y in 0..6u32 {
+            for z in 0..5u32 {
+                d.set(x, y, z, ((x + 2 * y + 3 * z) % 9) as u8);
+            }
+        }
+    }
+    (Volume::Bits(b), Volume::Density(d))
+}
+
+#[test]
+fn version_1_files_read_back_identically_and_are_still_written_byte_for_byte() {
+    let (bits, density) = v1_volumes();
+    for (file, want, method) in [
+        ("v1-bits.vxl", bits, "solid"),
+        ("v1-density.vxl", density, "density"),
+    ] {
+        let bytes = std::fs::read(crate::common::data(file)).unwrap();
+        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 1);
+        let (got, meta) = vxl::decode(&bytes).unwrap();
+        assert_eq!(got, want, "{file}");
+        assert_eq!(meta["method"], method, "{file}");
+        // The writer still writes version 1 for these kinds, the same bytes: a stored volume's
+        // sha256 does not change.
+        assert_eq!(vxl::encode(&got, &meta).unwrap(), bytes, "{file}");
+    }
+}
+
+/// The kinds added after version 1, one small volume each.
+fn new_kinds() -> Vec<Volume> {
+    use voxd::volume::{Attributed, ChannelValues, Dense, Sparse};
+    let g = Grid {
+        origin: [0.5, -1.0, 2.0],
+        voxel_size: 0.25,
+        dims: [3, 9, 17],
+    };
+    let mut distance = Dense::new(g, 2.5f32);
+    distance.set(1, 8, 16, -0.75);
+    let mut material = Dense::new(g, 0u16);
+    material.set(2, 0, 3, 513);
+    let mut colour = Dense::new(g, [0u8; 4]);
+    colour.set(0, 4, 9, [255, 128, 1, 200]);
+    let mut bits = BitVolume::new(g);
+    for p in [[0, 0, 0], [2, 8, 16], [1, 3, 9]] {
+        bits.set(p[0], p[1], p[2], true);
+    }
+    let mut channels = Attributed::new(bits);
+    channels
+        .add(
+            "colour",
+            ChannelValues::Rgba8(vec![[1, 2, 3, 4], [5, 6, 7, 8], [9, 9, 9, 9]]),
+        )
+        .unwrap();
+    channels
+        .add(
+            "distance",
+            ChannelValues::F32(vec![0.5, -1.0, f32::INFINITY]),
+        )
+        .unwrap();
+    let sparse_distance = Sparse::from_dense(&distance, 2.5);
+    let sparse_material = Sparse::from_dense(&material, 0);
+    let sparse_colour = Sparse::from_dense(&colour, [0; 4]);
+    vec![
+        Volume::Distance(distance),
+        Volume::Material(material),
+        Volume::Colour(colour),
+        Volume::Channels(channels),
+        Volume::SparseDistance(sparse_distance),
+        Volume::SparseMaterial(sparse_material),
+        Volume::SparseColour(sparse_colour),
+    ]
+}
+
+#[test]
+fn new_kinds_round_trip_through_vxl_version_2_and_other_formats_refuse_them() {
+    for vol in new_kinds() {
+        let kind = vol.kind();
+        let e = vxl::encode(&vol, &Default::default()).unwrap();
+        assert_eq!(
+            u32::from_le_bytes(e[8..12].try_into().unwrap()),
+            2,
+            "{kind}"
+        );
+        let hl = u32::from_le_bytes(e[12..16].try_into().unwrap()) as usize;
+        let h: serde_json::Value = serde_json::from_slice(&e[16..16 + hl]).unwrap();
+        assert_eq!(h["kind"], kind.as_str());
+        assert_eq!(vxl::decode(&e).unwrap().0, vol, "{kind}");
+        for f in [VolumeFormat::Npy, VolumeFormat::Binvox, VolumeFormat::Raw] {
+            let err = f.check(&vol).unwrap_err().to_string();
+            assert!(err.contains(kind.as_str()), "{f:?} {kind}: {err}");
+        }
+        // A version-1 header may not name a kind version 1 did not have.
+        let mut v1 = e.clone();
+        v1[8] = 1;
+        assert!(
+            vxl::decode(&v1)
+                .unwrap_err()
+                .to_string()
+                .contains("unknown kind")
+        );
+    }
+}
+
+#[test]
+fn version_2_layouts_are_the_documented_ones() {
+    let vols = new_kinds();
+    let payload = |v: &Volume| {
+        let e = vxl::encode(v, &Default::default()).unwrap();
+        let hl = u32::from_le_bytes(e[12..16].try_into().unwrap()) as usize;
+        let h: serde_json::Value = serde_json::from_slice(&e[16..16 + hl]).unwrap();
+        (h, zstd::decode_all(&e[16 + hl..]).unwrap())
+    };
+    // distance: xyz-f32le, voxel (1, 8, 16) at (1·9 + 8)·17 + 16.
+    let (h, p) = payload(&vols[0]);
+    assert_eq!(h["layout"], "xyz-f32le");
+    let at = ((1 * 9 + 8) * 17 + 16) * 4;
+    assert_eq!(p[at..at + 4], (-0.75f32).to_le_bytes());
+    assert_eq!(p[..4], 2.5f32.to_le_bytes());
+    // material: xyz-u16le.
+    let (h, p) = payload(&vols[1]);
+    assert_eq!(h["layout"], "xyz-u16le");
+    let at = ((2 * 9 + 0) * 17 + 3) * 2;
+    assert_eq!(p[at..at + 2], [1, 2]);
+    // colour: xyz-rgba8.
+    let (h, p) = payload(&vols[2]);
+    assert_eq!(h["layout"], "xyz-rgba8");
+    let at = (4 * 17 + 9) * 4; // x = 0
+    assert_eq!(p[at..at + 4], [255, 128, 1, 200]);
+    // channels: the bit words, then each channel's values in set-voxel (column) order.
+    let (h, p) = payload(&vols[3]);
+    assert_eq!(h["layout"], "x-y-zcolumns-u64le+channels");
+    assert_eq!(h["set_voxels"], 3);
+    assert_eq!(
+        h["channels"],
+        serde_json::json!([
+            {"name": "colour", "value_type": "rgba8"},
+            {"name": "distance", "value_type": "f32le"}
+        ])
+    );
+    let words = 3 * 9 * 1 * 8;
+    assert_eq!(p.len(), words + 3 * 4 + 3 * 4);
+    assert_eq!(p[words..words + 12], [1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 9]);
+    assert_eq!(p[words + 16..words + 20], (-1.0f32).to_le_bytes());
+    // sparse: background, brick coordinates (3 × u32), 512 values per brick in
+    // ((x%8)·8 + y%8)·8 + z%8 order. The distance's one differing voxel (1, 8, 16) is in
+    // brick (0, 1, 2) at offset (1·8 + 0)·8 + 0.
+    let (h, p) = payload(&vols[4]);
+    assert_eq!(h["layout"], "bricks8-f32le");
+    assert_eq!(h["bricks"], 1);
+    assert_eq!(p.len(), 4 + 12 + 512 * 4);
+    assert_eq!(p[..4], 2.5f32.to_le_bytes());
+    assert_eq!(p[4..16], [0, 0, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0]);
+    let at = 16 + ((1 * 8 + 0) * 8 + 0) * 4;
+    assert_eq!(p[at..at + 4], (-0.75f32).to_le_bytes());
+}
+
+/// A `.vxl` of version 2 from a header and a payload, as a damaged or hostile writer might make.
+fn vxl_v2(header: serde_json::Value, payload: &[u8]) -> Vec<u8> {
+    let h = serde_json::to_vec(&header).unwrap();
+    let mut out = b"\x89VXL\r\n\x1a\n".to_vec();
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(h.len() as u32).to_le_bytes());
+    out.extend_from_slice(&h);
+    out.extend_from_slice(&zstd::encode_all(payload, 3).unwrap());
+    out
+}
+
+#[test]
+fn damaged_version_2_files_are_refused() {
+    let header = |bricks: u64| {
+        serde_json::json!({"kind": "sparse-material", "dims": [9, 8, 8], "origin": [0.0, 0.0, 0.0],
+            "voxel_size": 1.0, "layout": "bricks8-u16le", "bricks": bricks})
+    };
+    let brick = |at: [u32; 3], v: u16| {
+        let mut b: Vec<u8> = at.iter().flat_map(|c| c.to_le_bytes()).collect();
+        b.extend(std::iter::repeat_n(v.to_le_bytes(), 512).flatten());
+        b
+    };
+    let file = |bricks: &[([u32; 3], u16)]| {
+        let mut coords = vec![0u8, 0];
+        let mut values = vec![];
+        for &(at, v) in bricks {
+            let b = brick(at, v);
+            coords.extend_from_slice(&b[..12]);
+            values.extend_from_slice(&b[12..]);
+        }
+        coords.extend_from_slice(&values);
+        vxl_v2(header(bricks.len() as u64), &coords)
+    };
+    let err = |b: &[u8]| vxl::decode(b).unwrap_err().to_string();
+    // Brick (0, 0, 0) lies inside the 9×8×8 grid; brick (1, 0, 0) mostly past it.
+    let Volume::SparseMaterial(s) = vxl::decode(&file(&[([0, 0, 0], 7)])).unwrap().0 else {
+        panic!("kind")
+    };
+    assert_eq!(s.get(7, 7, 7), 7);
+    assert_eq!(s.get(8, 0, 0), 0);
+    assert!(err(&file(&[([1, 0, 0], 7)])).contains("outside the grid"));
+    assert!(err(&file(&[([0, 0, 0], 7), ([0, 0, 0], 7)])).contains("out of order"));
+    assert!(err(&file(&[([0, 1, 0], 7)])).contains("outside the brick grid"));
+    // More bricks than the grid has is refused before the payload is read.
+    assert!(err(&vxl_v2(header(3), &[0; 8])).contains("the grid has 2"));
+    let mut wrong_layout = header(0);
+    wrong_layout["layout"] = "bricks8-f32le".into();
+    assert!(err(&vxl_v2(wrong_layout, &[0, 0])).contains("unknown sparse-material layout"));
+    // Channels: set_voxels must be the bits' count.
+    let ch = serde_json::json!({"kind": "channels", "dims": [1, 1, 3], "origin": [0.0, 0.0, 0.0],
+        "voxel_size": 1.0, "layout": "x-y-zcolumns-u64le+channels", "set_voxels": 1,
+        "channels": [{"name": "id", "value_type": "u8"}]});
+    let mut payload = 0b101u64.to_le_bytes().to_vec();
+    payload.push(9);
+    assert!(err(&vxl_v2(ch, &payload)).contains("set_voxels is 1"));
+}
+
+/// A NaN distance equals nothing, so a volume holding one would not equal itself read back:
+/// refused wherever a `.vxl` holds distances.
+#[test]
+fn nan_distances_are_refused() {
+    let dense = serde_json::json!({"kind": "distance", "dims": [1, 1, 2], "origin": [0.0, 0.0, 0.0],
+        "voxel_size": 1.0, "layout": "xyz-f32le"});
+    let mut p = 1.0f32.to_le_bytes().to_vec();
+    p.extend_from_slice(&f32::NAN.to_le_bytes());
+    let e = vxl::decode(&vxl_v2(dense, &p)).unwrap_err().to_string();
+    assert!(e.contains("NaN"), "{e}");
+    let sparse = serde_json::json!({"kind": "sparse-distance", "dims": [1, 1, 2],
+        "origin": [0.0, 0.0, 0.0], "voxel_size": 1.0, "layout": "bricks8-f32le", "bricks": 0});
+    let e = vxl::decode(&vxl_v2(sparse, &f32::NAN.to_le_bytes()))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("NaN"), "{e}");
+}

@@ -3,7 +3,7 @@
 use crate::common::*;
 use voxd::grid::Grid;
 use voxd::volume::query::{point_value, ray};
-use voxd::volume::{BitVolume, Volume};
+use voxd::volume::{BitVolume, Volume, VoxelValue};
 
 fn box_volume() -> Volume {
     let mut v = BitVolume::new(Grid {
@@ -80,7 +80,7 @@ fn random_rays_match_a_fine_march_and_points_match_indexing() {
             let mut seen = std::collections::HashSet::new();
             while t < 200.0 {
                 let p = [0, 1, 2].map(|a| o[a] + (t + step / 2.0) * dir[a] / len);
-                if point_value(&v, p) == 1 {
+                if point_value(&v, p).0 {
                     thick += step;
                     seen.insert(
                         [0, 1, 2].map(|a| ((p[a] - g.origin[a]) / g.voxel_size).floor() as i64),
@@ -106,7 +106,59 @@ fn random_rays_match_a_fine_march_and_points_match_indexing() {
             let i = [0, 1, 2].map(|a| ((p[a] - g.origin[a]) / g.voxel_size).floor());
             let inside = (0..3).all(|a| i[a] >= 0.0 && i[a] < g.dims[a] as f64);
             let want = inside && bits.get(i[0] as u32, i[1] as u32, i[2] as u32);
-            assert_eq!(point_value(&v, p), want as u8);
+            assert_eq!(point_value(&v, p), (want, VoxelValue::U8(want as u8)));
         }
     }
+}
+
+/// A point query answers in the voxel's own type (a distance as a number, a colour as four), and
+/// an operation given a kind it does not take says `wrong-volume-kind`, naming both kinds.
+#[test]
+fn values_come_in_their_own_type_and_other_kinds_are_refused_by_name() {
+    use voxd::app::{ErrorKind, PreviewRequest, PreviewView, QueryRequest, ops};
+    use voxd::volume::Dense;
+    let g = Grid {
+        origin: [0.0; 3],
+        voxel_size: 1.0,
+        dims: [2, 2, 2],
+    };
+    let mut d = Dense::new(g, 1.5f32);
+    d.set(1, 1, 1, -0.25);
+    let v = Volume::Distance(d);
+    let limits = voxd::limits::Limits::LOCAL;
+    let q = QueryRequest {
+        points: vec![[1.5, 1.5, 1.5], [0.5, 0.5, 0.5], [9.0, 0.0, 0.0]],
+        rays: vec![],
+    };
+    let a = serde_json::to_value(ops::query(&v, &q, &limits).unwrap()).unwrap();
+    assert_eq!(
+        a["points"],
+        serde_json::json!([
+            {"inside": true, "value": -0.25},
+            {"inside": false, "value": 1.5},
+            {"inside": false, "value": null}
+        ])
+    );
+    let mut colour = Dense::new(g, [0u8; 4]);
+    colour.set(0, 0, 0, [10, 20, 30, 255]);
+    let a = ops::query(&Volume::Colour(colour), &q, &limits).unwrap();
+    assert_eq!(a.points[1].value, VoxelValue::Rgba8([10, 20, 30, 255]));
+    let req = PreviewRequest {
+        axis: 2,
+        view: PreviewView::Slice(0),
+    };
+    let e = ops::preview_png(&v, &req, &limits).unwrap_err();
+    assert_eq!(e.kind, ErrorKind::WrongVolumeKind);
+    assert!(
+        e.detail.contains("a distance volume") && e.detail.contains("density volumes"),
+        "{}",
+        e.detail
+    );
+    let e = ops::require_bits(v, "CSG").unwrap_err();
+    assert_eq!(e.kind, ErrorKind::WrongVolumeKind);
+    assert!(
+        e.detail.contains("CSG works on bit volumes"),
+        "{}",
+        e.detail
+    );
 }

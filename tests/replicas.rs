@@ -122,7 +122,7 @@ fn library(mesh: &[u8], resolution: u32, fill: Fill) -> voxd::BitVolume {
     let (_, out) = voxd::app::voxelize(&req, &CpuEngine).unwrap();
     match out.volume {
         voxd::volume::Volume::Bits(b) => b,
-        voxd::volume::Volume::Density(_) => panic!("density"),
+        _ => panic!("density"),
     }
 }
 

@@ -73,6 +73,7 @@ pub fn counts(v: &Volume) -> (u64, f64) {
             (n, n as f64)
         }
         Volume::Density(d) => (d.count_nonzero(), d.occupied_voxels()),
+        other => (other.count_occupied(), other.count_occupied() as f64),
     }
 }
 

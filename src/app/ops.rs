@@ -20,7 +20,7 @@ use crate::limits::Limits;
 use crate::names::Named;
 use crate::store::{ByteStream, StoreError, VolumeMeta, VolumeStore};
 use crate::volume::morph::{self, MorphOp};
-use crate::volume::{BitVolume, Volume, csg};
+use crate::volume::{BitVolume, Volume, VolumeKind, VoxelValue, WrongKind, csg};
 
 /// The engine name derived volumes record.
 const DERIVED_ENGINE: &str = "cpu";
@@ -63,17 +63,20 @@ pub async fn on_pool<T: Send + 'static>(
     }
 }
 
-/// The bit volume, or why a density volume cannot be used for `what` (`CSG`, `morphology`).
+/// `wrong-volume-kind`, naming the kind given and the kinds taken.
+fn wrong_kind(e: WrongKind) -> Error {
+    Error::new(ErrorKind::WrongVolumeKind, e.to_string())
+}
+
+/// Refuses `v` unless `accepts` (an operation's `ACCEPTS`) holds its kind.
+pub fn require(v: &Volume, accepts: &'static [VolumeKind], what: &str) -> Result<()> {
+    v.kind().require(accepts, what).map_err(wrong_kind)
+}
+
+/// The bit volume, or why another kind cannot be used for `what` (`CSG`, `morphology`: the
+/// operations that take [`crate::volume::BITS_ONLY`]).
 pub fn require_bits(v: Volume, what: &str) -> Result<BitVolume> {
-    match v {
-        Volume::Bits(b) => Ok(b),
-        Volume::Density(_) => Err(Error::new(
-            ErrorKind::WrongVolumeKind,
-            format!(
-                "a density volume; {what} works on bit volumes (solid, surface, conservative, interior)"
-            ),
-        )),
-    }
+    v.into_bits(what).map_err(wrong_kind)
 }
 
 /// Runs CPU work on the blocking pool under `ctl`; dropping the returned future (a client that
@@ -210,24 +213,24 @@ pub struct QueryAnswer {
     pub rays: Vec<crate::volume::query::RayHit>,
 }
 
+/// A point's answer: whether its voxel is occupied, and the voxel's value in its own type (0/1
+/// for bits, 0..=max for density: numbers, as always).
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct PointAnswer {
     pub inside: bool,
-    pub value: u8,
+    pub value: VoxelValue,
 }
 
 pub fn query(v: &Volume, q: &QueryRequest, limits: &Limits) -> Result<QueryAnswer> {
-    use crate::volume::query::{point_value, ray};
+    use crate::volume::query::{ACCEPTS, point_value, ray};
+    require(v, ACCEPTS, "a query")?;
     q.check(limits)?;
     let points = q
         .points
         .iter()
         .map(|&p| {
-            let x = point_value(v, p);
-            PointAnswer {
-                inside: x > 0,
-                value: x,
-            }
+            let (inside, value) = point_value(v, p);
+            PointAnswer { inside, value }
         })
         .collect();
     let rays = q
@@ -258,6 +261,7 @@ pub fn normals_at(
     points: &[[f64; 3]],
     limits: &Limits,
 ) -> Result<Vec<Option<[f64; 3]>>> {
+    require(v, crate::volume::normals::ACCEPTS, "normals")?;
     check_normal_points(points, limits)?;
     Ok(points
         .iter()
@@ -268,6 +272,7 @@ pub fn normals_at(
 /// A preview picture as PNG, within the pixel limit.
 pub fn preview_png(v: &Volume, req: &PreviewRequest, limits: &Limits) -> Result<Vec<u8>> {
     use crate::volume::preview;
+    require(v, preview::ACCEPTS, "a preview")?;
     let d = v.grid().dims;
     let pixels: u64 = (0..3)
         .filter(|&a| a != req.axis)
@@ -304,14 +309,35 @@ pub fn preview_png(v: &Volume, req: &PreviewRequest, limits: &Limits) -> Result<
     ))
 }
 
-/// Can `format` hold a volume of `kind` (`bits`, `density`)?
-pub fn check_format(kind: &str, format: VolumeFormat) -> Result<()> {
-    if kind == "density" && format == VolumeFormat::Binvox {
-        return Err(Error::invalid(
-            "binvox holds one bit per voxel; download a density volume as vxl, npy or raw",
-        ));
+/// Can `format` hold a volume of `kind` (its row of [`crate::codec::FORMATS`])? A refusal is
+/// an invalid parameter (the format asked for), naming the formats that do hold the kind.
+pub fn check_format(kind: VolumeKind, format: VolumeFormat) -> Result<()> {
+    if format.holds().contains(&kind) {
+        return Ok(());
     }
-    Ok(())
+    let held: Vec<&str> = format.holds().iter().map(|k| k.describe()).collect();
+    let can: Vec<&str> = crate::codec::FORMATS
+        .iter()
+        .filter(|f| f.holds.contains(&kind))
+        .map(|f| f.name)
+        .collect();
+    let can = match can.split_last() {
+        Some((last, rest)) if !rest.is_empty() => format!("{} or {last}", rest.join(", ")),
+        _ => can.concat(),
+    };
+    Err(Error::invalid(format!(
+        "{} holds {}; download a {kind} volume as {can}",
+        format.name(),
+        held.join(" or ")
+    )))
+}
+
+/// The kind a catalogue entry names (its `kind` field); a name this build does not know is an
+/// internal error (the store holds only what this code wrote).
+pub fn kind_of(meta: &VolumeMeta) -> Result<VolumeKind> {
+    meta.kind
+        .parse()
+        .map_err(|e| Error::internal(format!("volume {}: {e}", meta.id)))
 }
 
 /// Refuses a conversion whose output would be larger than the voxel budget, before any of it
@@ -376,9 +402,17 @@ pub async fn load(store: &dyn VolumeStore, id: &str) -> Result<Volume> {
     .await
 }
 
-/// A stored bit volume, for `what`.
-pub async fn load_bits(store: &dyn VolumeStore, id: &str, what: &str) -> Result<BitVolume> {
-    require_bits(load(store, id).await?, what).map_err(|e| e.context(format!("volume {id}")))
+/// A stored bit volume, for `what`, an operation that takes `accepts` (bit volumes only).
+pub async fn load_bits(
+    store: &dyn VolumeStore,
+    id: &str,
+    accepts: &'static [VolumeKind],
+    what: &str,
+) -> Result<BitVolume> {
+    let v = load(store, id).await?;
+    require(&v, accepts, what)
+        .and_then(|()| require_bits(v, what))
+        .map_err(|e| e.context(format!("volume {id}")))
 }
 
 /// Stores a volume computed from others.
@@ -427,14 +461,9 @@ pub async fn check_csg(store: &dyn VolumeStore, expr: &CsgExpr, limits: &Limits)
             .get(&id)
             .await?
             .ok_or_else(|| Error::not_found("volume", &id))?;
-        if meta.kind != "bits" {
-            return Err(Error::new(
-                ErrorKind::WrongVolumeKind,
-                format!(
-                    "volume {id}: a density volume; CSG works on bit volumes (solid, surface, conservative, interior)"
-                ),
-            ));
-        }
+        kind_of(&meta)?
+            .require(csg::ACCEPTS, "CSG")
+            .map_err(|e| wrong_kind(e).context(format!("volume {id}")))?;
         grids.insert(id, meta.grid);
     }
     fn grid_of(
@@ -490,7 +519,7 @@ pub async fn csg_stored_with(
 ) -> Result<VolumeMeta> {
     let mut vols = HashMap::new();
     for id in expr.volume_ids() {
-        let v = load_bits(store, &id, "CSG").await?;
+        let v = load_bits(store, &id, csg::ACCEPTS, "CSG").await?;
         vols.insert(id, Arc::new(v));
     }
     let provenance = expr.to_json();
@@ -521,7 +550,7 @@ pub async fn morphology_stored_with(
     ctl: &Control,
 ) -> Result<VolumeMeta> {
     req.check(&limits)?;
-    let v = load_bits(store, id, "morphology").await?;
+    let v = load_bits(store, id, morph::ACCEPTS, "morphology").await?;
     let out = blocking_with(ctl, move |ctl| morphology_with(&v, &req, &limits, ctl)).await?;
     ctl.check()?;
     store_derived(
@@ -536,11 +565,11 @@ pub async fn morphology_stored_with(
 
 /// Shared voxels of two stored volumes; nothing is stored.
 pub async fn intersect_stored(store: &dyn VolumeStore, a: &str, b: &str) -> Result<Overlap> {
-    let va = load_bits(store, a, "CSG").await?;
+    let va = load_bits(store, a, csg::ACCEPTS, "CSG").await?;
     let vb = if a == b {
         va.clone()
     } else {
-        load_bits(store, b, "CSG").await?
+        load_bits(store, b, csg::ACCEPTS, "CSG").await?
     };
     let (a, b) = (a.to_string(), b.to_string());
     blocking(move || {
@@ -570,7 +599,7 @@ pub async fn stats_stored_with(
     id: &str,
     ctl: &Control,
 ) -> Result<crate::volume::stats::Stats> {
-    let v = load_bits(store, id, "statistics").await?;
+    let v = load_bits(store, id, crate::volume::stats::ACCEPTS, "statistics").await?;
     blocking_with(ctl, move |ctl| {
         Ok(crate::volume::stats::stats_with(&v, ctl)?)
     })

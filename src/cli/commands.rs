@@ -157,6 +157,7 @@ pub fn info(p: &Path) -> Result<(), String> {
                 d.occupied_voxels()
             );
         }
+        other => outln!(out, "occupied:   {} voxels", other.count_occupied()),
     }
     emit(out)
 }

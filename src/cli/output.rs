@@ -74,15 +74,17 @@ pub fn write_volume(
     if let Some(w) = ops::conversion_warning(v.grid(), f) {
         eprintln!("{}: {w}", path.display());
     }
-    // Encoded before the file is created, so a volume the format cannot hold leaves no file.
+    f.check(v).map_err(|e| err(&e))?;
+    // A format that streams (its row of the table) is written a piece at a time into the
+    // temporary file; the others are encoded first (`.vxl` with `meta` in its header).
     let bytes = match f {
-        VolumeFormat::Npy => None,
+        _ if f.spec().streams => None,
         VolumeFormat::Vxl => Some(vxl::encode(v, meta).map_err(|e| err(&e))?),
         other => Some(other.encode(v).map_err(|e| err(&e))?),
     };
     voxd::store::atomic::write_with(path, |w| match &bytes {
         Some(b) => std::io::Write::write_all(w, b),
-        None => voxd::codec::npy::write(v, w),
+        None => f.write(v, w),
     })
     .map_err(|e| err(&e))
 }
@@ -91,7 +93,18 @@ pub fn read_volume(p: &Path) -> Result<Volume, String> {
     let bytes = std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))?;
     let f = VolumeFormat::sniff(&bytes)
         .or_else(|| VolumeFormat::from_path(p))
-        .ok_or_else(|| format!("{}: not a volume file (.vxl, .binvox, .npy)", p.display()))?;
+        .ok_or_else(|| {
+            let readable: Vec<String> = voxd::codec::FORMATS
+                .iter()
+                .filter(|f| f.reads)
+                .map(|f| format!(".{}", f.name))
+                .collect();
+            format!(
+                "{}: not a volume file ({})",
+                p.display(),
+                readable.join(", ")
+            )
+        })?;
     // A few bytes of .vxl or .binvox can name a huge grid: refused before it is allocated.
     f.decode_limited(&bytes, voxd::limits::Limits::LOCAL.max_voxels)
         .map_err(|e| format!("{}: {e}", p.display()))

@@ -7,15 +7,9 @@ use super::{CodecError, malformed};
 use crate::grid::Grid;
 use crate::volume::{BitVolume, Volume};
 
-/// Can `.binvox` hold `v`? (Bit volumes only.)
+/// Can `.binvox` hold `v`? (Its row of the format table: bit volumes only.)
 pub fn check(v: &Volume) -> Result<(), CodecError> {
-    match v {
-        Volume::Bits(_) => Ok(()),
-        Volume::Density(_) => Err(CodecError::Unsupported {
-            format: "binvox",
-            detail: "it stores one bit per voxel; use vxl or npy for density".into(),
-        }),
-    }
+    super::VolumeFormat::Binvox.check(v)
 }
 
 pub fn encode(v: &Volume) -> Result<Vec<u8>, CodecError> {

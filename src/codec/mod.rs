@@ -1,12 +1,15 @@
-//! Volumes to bytes and back: the native `.vxl` (zstd), `.binvox` and `.npy`. Nothing here knows
-//! about meshes or engines; every format states its axis and bit order in its own module docs.
+//! Volumes to bytes and back: the native `.vxl` (zstd), `.binvox` and `.npy`, and `.png`
+//! pictures. Which formats there are, and what each holds, is the table of `format.rs`; every
+//! format states its axis and bit order in its own module docs. Nothing here knows about meshes
+//! or engines.
 
 pub mod binvox;
+pub mod format;
 pub mod npy;
 pub mod png;
 pub mod vxl;
 
-use std::path::Path;
+pub use format::{FORMATS, FormatSpec, VolumeFormat};
 
 use crate::volume::Volume;
 
@@ -31,60 +34,30 @@ pub(crate) fn malformed(format: &'static str, detail: impl Into<String>) -> Code
     }
 }
 
-/// Volume file formats.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum VolumeFormat {
-    Vxl,
-    Binvox,
-    Npy,
-    /// One byte per voxel, C order of (X, Y, Z), no header: written, never read back.
-    Raw,
-}
-
 impl VolumeFormat {
-    pub const ALL: [VolumeFormat; 4] = [
-        VolumeFormat::Vxl,
-        VolumeFormat::Binvox,
-        VolumeFormat::Npy,
-        VolumeFormat::Raw,
-    ];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            VolumeFormat::Vxl => "vxl",
-            VolumeFormat::Binvox => "binvox",
-            VolumeFormat::Npy => "npy",
-            VolumeFormat::Raw => "raw",
-        }
-    }
-    pub fn from_name(s: &str) -> Option<VolumeFormat> {
-        VolumeFormat::ALL
-            .into_iter()
-            .find(|f| f.name().eq_ignore_ascii_case(s))
-    }
-    pub fn from_path(p: &Path) -> Option<VolumeFormat> {
-        VolumeFormat::from_name(p.extension()?.to_str()?)
-    }
-    /// From the first bytes of a file.
+    /// From the first bytes of a file (its row's `magic`).
     pub fn sniff(bytes: &[u8]) -> Option<VolumeFormat> {
-        if bytes.starts_with(vxl::MAGIC) {
-            Some(VolumeFormat::Vxl)
-        } else if bytes.starts_with(b"#binvox") {
-            Some(VolumeFormat::Binvox)
-        } else if bytes.starts_with(npy::MAGIC) {
-            Some(VolumeFormat::Npy)
-        } else {
-            None
-        }
+        FORMATS
+            .iter()
+            .find(|f| f.magic.is_some_and(|m| bytes.starts_with(m)))
+            .map(|f| f.format)
     }
 
-    /// Can this format hold `v`? (`.binvox` holds bit volumes only.) Checked before anything
-    /// is written.
+    /// Can this format hold `v` (its row's `holds`)? Checked before anything is written.
     pub fn check(self, v: &Volume) -> Result<(), CodecError> {
-        match self {
-            VolumeFormat::Binvox => binvox::check(v),
-            _ => Ok(()),
+        let holds = self.holds();
+        if holds.contains(&v.kind()) {
+            return Ok(());
         }
+        let names: Vec<&str> = holds.iter().map(|k| k.as_str()).collect();
+        Err(CodecError::Unsupported {
+            format: self.name(),
+            detail: format!(
+                "it holds {} volumes, not {}; use vxl",
+                names.join(" or "),
+                v.kind()
+            ),
+        })
     }
 
     pub fn encode(self, v: &Volume) -> Result<Vec<u8>, CodecError> {

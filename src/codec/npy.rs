@@ -56,6 +56,10 @@ pub fn write_data(v: &Volume, out: &mut impl std::io::Write) -> std::io::Result<
             }
             Ok(())
         }
+        other => Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            format!("npy and raw hold bits or density, not {}", other.kind()),
+        )),
     }
 }
 

@@ -1,15 +1,25 @@
-//! The native `.vxl` format (version 1), documented with a Python reader in `docs/format.md`.
+//! The native `.vxl` format, documented byte by byte with a Python reader in `docs/format.md`.
 //!
 //! ```text
 //! bytes 0..8     magic  "\x89VXL\r\n\x1a\n"
-//! bytes 8..12    format version, u32 little-endian (1)
+//! bytes 8..12    format version, u32 little-endian: 1 for bits and density, 2 for the other kinds
 //! bytes 12..16   header length H, u32 little-endian
 //! bytes 16..16+H header, UTF-8 JSON (see `Header`)
-//! rest           one zstd frame (with content checksum) holding the payload:
-//!                kind "bits":    X·Y·W little-endian u64 words, W = ceil(Z/64); column (x, y) at
-//!                                word (x·Y + y)·W; bit k%64 of word k/64 is voxel (x, y, k)
-//!                kind "density": X·Y·Z bytes, C order of an (X, Y, Z) array, values 0..=max
+//! rest           one zstd frame (with content checksum) holding the payload, by `layout`:
+//!   "x-y-zcolumns-u64le"  (bits) X·Y·W little-endian u64 words, W = ceil(Z/64); column (x, y)
+//!                         at word (x·Y + y)·W; bit k%64 of word k/64 is voxel (x, y, k)
+//!   "xyz-u8"              (density) X·Y·Z bytes, C order of an (X, Y, Z) array, 0..=max
+//!   "xyz-<t>"             (distance f32le, material u16le, colour rgba8) X·Y·Z values of
+//!                         type t, little-endian, C order
+//!   "x-y-zcolumns-u64le+channels" (channels) the bits' words, then per channel of the header's
+//!                         `channels`, in order, `set_voxels` values of its type
+//!   "bricks8-<t>"         (sparse-*) the background value, then `bricks` brick coordinates
+//!                         (3 × u32 little-endian each, strictly increasing in (x, y, z) order),
+//!                         then 512 values per brick in the same order
 //! ```
+//!
+//! Version-1 files (bits and density) are written byte for byte as before the other kinds were
+//! added, so the sha256 of a stored volume does not change.
 
 use std::io::Read;
 
@@ -17,10 +27,19 @@ use serde::{Deserialize, Serialize};
 
 use super::{CodecError, malformed};
 use crate::grid::Grid;
-use crate::volume::{BitVolume, DensityVolume, Volume, words_per_column};
+use crate::names::Named;
+use crate::volume::channels::{Attributed, ChannelValues, MAX_CHANNELS};
+use crate::volume::kind::{to_le_bytes, valid_from_le_bytes};
+use crate::volume::sparse::{BRICK_VOXELS, Sparse};
+use crate::volume::{
+    BitVolume, Dense, DensityVolume, ValueType, Volume, VolumeKind, Voxel, words_per_column,
+};
 
 pub const MAGIC: &[u8; 8] = b"\x89VXL\r\n\x1a\n";
+/// The version bits and density volumes are written with (and the oldest read).
 pub const VERSION: u32 = 1;
+/// The version of every other kind, and the newest read.
+pub const VERSION_2: u32 = 2;
 const MAX_HEADER: usize = 1 << 20;
 const ZSTD_LEVEL: i32 = 3;
 
@@ -34,45 +53,138 @@ struct Header {
     layout: String,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     density_max: Option<u8>,
+    /// Channels (version 2): the set voxels, each channel's length.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    set_voxels: Option<u64>,
+    /// Channels (version 2): name and value type of each, in payload order.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    channels: Option<Vec<ChannelHeader>>,
+    /// Sparse kinds (version 2): the number of occupied bricks.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    bricks: Option<u64>,
     /// Free-form provenance (method, source mesh, ...).
     #[serde(default)]
     meta: serde_json::Map<String, serde_json::Value>,
 }
 
+#[derive(Serialize, Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+struct ChannelHeader {
+    name: String,
+    value_type: ValueType,
+}
+
 const BITS_LAYOUT: &str = "x-y-zcolumns-u64le";
-const DENSITY_LAYOUT: &str = "xyz-u8";
+
+/// The value type of a typed kind's payload (dense or sparse); `None` for bits and channels.
+fn value_type(kind: VolumeKind) -> Option<ValueType> {
+    match kind {
+        VolumeKind::Bits | VolumeKind::Channels => None,
+        VolumeKind::Density => Some(ValueType::U8),
+        VolumeKind::Distance | VolumeKind::SparseDistance => Some(ValueType::F32),
+        VolumeKind::Material | VolumeKind::SparseMaterial => Some(ValueType::U16),
+        VolumeKind::Colour | VolumeKind::SparseColour => Some(ValueType::Rgba8),
+    }
+}
+
+/// The one layout each kind is written in.
+fn layout_of(kind: VolumeKind) -> String {
+    let t = value_type(kind).map(|t| t.name());
+    match kind {
+        VolumeKind::Bits => BITS_LAYOUT.into(),
+        VolumeKind::Channels => format!("{BITS_LAYOUT}+channels"),
+        VolumeKind::SparseDistance | VolumeKind::SparseMaterial | VolumeKind::SparseColour => {
+            format!("bricks8-{}", t.expect("typed"))
+        }
+        _ => format!("xyz-{}", t.expect("typed")),
+    }
+}
+
+/// The version a kind is written with.
+fn version_of(kind: VolumeKind) -> u32 {
+    match kind {
+        VolumeKind::Bits | VolumeKind::Density => VERSION,
+        _ => VERSION_2,
+    }
+}
 
 pub fn encode(
     v: &Volume,
     meta: &serde_json::Map<String, serde_json::Value>,
 ) -> Result<Vec<u8>, CodecError> {
     let g = v.grid();
-    let header = Header {
-        kind: v.kind().into(),
+    let kind = v.kind();
+    let mut header = Header {
+        kind: kind.as_str().into(),
         dims: g.dims,
         origin: g.origin,
         voxel_size: g.voxel_size,
-        layout: match v {
-            Volume::Bits(_) => BITS_LAYOUT,
-            Volume::Density(_) => DENSITY_LAYOUT,
-        }
-        .into(),
-        density_max: match v {
-            Volume::Density(d) => Some(d.max()),
-            Volume::Bits(_) => None,
-        },
+        layout: layout_of(kind),
+        density_max: None,
+        set_voxels: None,
+        channels: None,
+        bricks: None,
         meta: meta.clone(),
+    };
+    let owned: Vec<u8>;
+    let payload: &[u8] = match v {
+        Volume::Bits(b) => words_as_bytes(b.words()),
+        Volume::Density(d) => {
+            header.density_max = Some(d.max());
+            d.data()
+        }
+        Volume::Distance(d) => {
+            owned = to_le_bytes(d.data());
+            &owned
+        }
+        Volume::Material(d) => {
+            owned = to_le_bytes(d.data());
+            &owned
+        }
+        Volume::Colour(d) => {
+            owned = to_le_bytes(d.data());
+            &owned
+        }
+        Volume::Channels(c) => {
+            header.set_voxels = Some(c.len());
+            header.channels = Some(
+                c.channels()
+                    .iter()
+                    .map(|ch| ChannelHeader {
+                        name: ch.name.clone(),
+                        value_type: ch.values.value_type(),
+                    })
+                    .collect(),
+            );
+            let mut p = words_as_bytes(c.bits().words()).to_vec();
+            for ch in c.channels() {
+                p.extend_from_slice(&ch.values.to_le_bytes());
+            }
+            owned = p;
+            &owned
+        }
+        Volume::SparseDistance(s) => {
+            header.bricks = Some(s.brick_count() as u64);
+            owned = sparse_payload(s);
+            &owned
+        }
+        Volume::SparseMaterial(s) => {
+            header.bricks = Some(s.brick_count() as u64);
+            owned = sparse_payload(s);
+            &owned
+        }
+        Volume::SparseColour(s) => {
+            header.bricks = Some(s.brick_count() as u64);
+            owned = sparse_payload(s);
+            &owned
+        }
     };
     let json = serde_json::to_vec(&header).expect("header serialises");
     let mut out = Vec::with_capacity(16 + json.len());
     out.extend_from_slice(MAGIC);
-    out.extend_from_slice(&VERSION.to_le_bytes());
+    out.extend_from_slice(&version_of(kind).to_le_bytes());
     out.extend_from_slice(&(json.len() as u32).to_le_bytes());
     out.extend_from_slice(&json);
-    let payload: &[u8] = match v {
-        Volume::Bits(b) => words_as_bytes(b.words()),
-        Volume::Density(d) => d.data(),
-    };
     if payload.len() <= ONE_SHOT_MAX {
         let start = out.len();
         out.resize(start + zstd::zstd_safe::compress_bound(payload.len()), 0);
@@ -114,6 +226,53 @@ fn one_shot_compressor() -> std::io::Result<zstd::bulk::Compressor<'static>> {
     Ok(c)
 }
 
+/// A sparse volume's payload: background, brick coordinates, brick values.
+fn sparse_payload<T: Voxel>(s: &Sparse<T>) -> Vec<u8> {
+    let n = s.brick_count();
+    let mut out = Vec::with_capacity(T::TYPE.bytes() * (1 + n * BRICK_VOXELS) + 12 * n);
+    s.background().write_le(&mut out);
+    for (at, _) in s.bricks() {
+        for c in at {
+            out.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    for (_, values) in s.bricks() {
+        for &v in values.iter() {
+            v.write_le(&mut out);
+        }
+    }
+    out
+}
+
+/// A sparse volume from its payload (of the length the header implies).
+fn read_sparse<T: Voxel>(grid: Grid, payload: &[u8], bricks: usize) -> Result<Sparse<T>, String> {
+    let size = T::TYPE.bytes();
+    let background = T::read_le(&payload[..size]);
+    if !background.is_valid() {
+        return Err(format!("background {background:?} is not a valid value"));
+    }
+    let mut s = Sparse::new(grid, background);
+    let coords = &payload[size..size + 12 * bricks];
+    let values = &payload[size + 12 * bricks..];
+    let mut last: Option<[u32; 3]> = None;
+    for (c, v) in coords
+        .chunks_exact(12)
+        .zip(values.chunks_exact(size * BRICK_VOXELS))
+    {
+        let u = |i: usize| u32::from_le_bytes(c[i..i + 4].try_into().unwrap());
+        let at = [u(0), u(4), u(8)];
+        if last.is_some_and(|l| l >= at) {
+            return Err(format!(
+                "brick {at:?} is out of order (bricks are listed in increasing (x, y, z))"
+            ));
+        }
+        last = Some(at);
+        let vals: Vec<T> = valid_from_le_bytes(v)?;
+        s.insert_brick(at, vals.try_into().expect("512 values"))?;
+    }
+    Ok(s)
+}
+
 fn words_as_bytes(w: &[u64]) -> &[u8] {
     // SAFETY: u64 has no padding and any byte pattern is a valid u8; the crate is little-endian
     // only (lib.rs), so these are the little-endian words the format stores.
@@ -137,10 +296,12 @@ pub fn decode_limited(
         return Err(malformed("vxl", "not a .vxl file (bad magic)"));
     }
     let version = u32::from_le_bytes(bytes[8..12].try_into().unwrap());
-    if version != VERSION {
+    if !(VERSION..=VERSION_2).contains(&version) {
         return Err(malformed(
             "vxl",
-            format!("format version {version} is not supported (this build reads {VERSION})"),
+            format!(
+                "format version {version} is not supported (this build reads {VERSION} to {VERSION_2})"
+            ),
         ));
     }
     let hlen = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
@@ -161,10 +322,53 @@ pub fn decode_limited(
         return Err(malformed("vxl", "header has an invalid grid"));
     }
     let voxels = h.dims.iter().map(|&d| d as u128).product::<u128>();
-    let expected: u128 = match h.kind.as_str() {
-        "bits" => h.dims[0] as u128 * h.dims[1] as u128 * words_per_column(h.dims[2]) as u128 * 8,
-        "density" => voxels,
-        k => return Err(malformed("vxl", format!("unknown kind {k:?}"))),
+    let kind = match h.kind.parse::<VolumeKind>() {
+        Ok(k) if version_of(k) <= version => k,
+        _ => return Err(malformed("vxl", format!("unknown kind {:?}", h.kind))),
+    };
+    if h.layout != layout_of(kind) {
+        return Err(malformed(
+            "vxl",
+            format!("unknown {kind} layout {:?}", h.layout),
+        ));
+    }
+    let column_bytes =
+        h.dims[0] as u128 * h.dims[1] as u128 * words_per_column(h.dims[2]) as u128 * 8;
+    let typed = value_type(kind).map_or(0, |t| t.bytes() as u128);
+    let missing = |what: &str| malformed("vxl", format!("a {kind} volume without {what}"));
+    let expected: u128 = match kind {
+        VolumeKind::Bits => column_bytes,
+        VolumeKind::Channels => {
+            let set = h.set_voxels.ok_or_else(|| missing("set_voxels"))?;
+            let channels = h.channels.as_ref().ok_or_else(|| missing("channels"))?;
+            // Bounded before the payload's length is trusted with an allocation.
+            if set as u128 > voxels || channels.len() > MAX_CHANNELS {
+                return Err(malformed(
+                    "vxl",
+                    format!(
+                        "{set} set voxels in {voxels}, {} channels (at most {MAX_CHANNELS})",
+                        channels.len()
+                    ),
+                ));
+            }
+            column_bytes
+                + channels
+                    .iter()
+                    .map(|c| set as u128 * c.value_type.bytes() as u128)
+                    .sum::<u128>()
+        }
+        VolumeKind::SparseDistance | VolumeKind::SparseMaterial | VolumeKind::SparseColour => {
+            let bricks = h.bricks.ok_or_else(|| missing("bricks"))? as u128;
+            let grid_bricks: u128 = h.dims.iter().map(|&d| d.div_ceil(8) as u128).product();
+            if bricks > grid_bricks {
+                return Err(malformed(
+                    "vxl",
+                    format!("{bricks} bricks, but the grid has {grid_bricks}"),
+                ));
+            }
+            typed + bricks * (12 + typed * BRICK_VOXELS as u128)
+        }
+        _ => voxels * typed,
     };
     if expected > isize::MAX as u128 / 2 {
         return Err(malformed("vxl", "volume too large"));
@@ -233,36 +437,62 @@ pub fn decode_limited(
             format!("payload has {got} bytes, expected {expected}"),
         ));
     }
-    let v = match h.kind.as_str() {
-        "bits" => {
-            if h.layout != BITS_LAYOUT {
-                return Err(malformed(
-                    "vxl",
-                    format!("unknown bits layout {:?}", h.layout),
-                ));
-            }
-            let words = payload
-                .chunks_exact(8)
-                .map(|c| u64::from_le_bytes(c.try_into().unwrap()))
-                .collect();
-            Volume::Bits(BitVolume::from_words(grid, words).map_err(|e| malformed("vxl", e))?)
-        }
-        _ => {
-            if h.layout != DENSITY_LAYOUT {
-                return Err(malformed(
-                    "vxl",
-                    format!("unknown density layout {:?}", h.layout),
-                ));
-            }
+    let bad = |e: String| malformed("vxl", e);
+    let v = match kind {
+        VolumeKind::Bits => Volume::Bits(read_bits(grid, &payload).map_err(bad)?),
+        VolumeKind::Density => {
             let max = h
                 .density_max
                 .ok_or_else(|| malformed("vxl", "density volume without density_max"))?;
-            Volume::Density(
-                DensityVolume::from_data(grid, max, payload).map_err(|e| malformed("vxl", e))?,
-            )
+            Volume::Density(DensityVolume::from_data(grid, max, payload).map_err(bad)?)
         }
+        VolumeKind::Distance => Volume::Distance(read_dense(grid, &payload).map_err(bad)?),
+        VolumeKind::Material => Volume::Material(read_dense(grid, &payload).map_err(bad)?),
+        VolumeKind::Colour => Volume::Colour(read_dense(grid, &payload).map_err(bad)?),
+        VolumeKind::Channels => {
+            let split = column_bytes as usize;
+            let bits = read_bits(grid, &payload[..split]).map_err(bad)?;
+            let set = h.set_voxels.unwrap_or(0);
+            if bits.count_ones() != set {
+                return Err(malformed(
+                    "vxl",
+                    format!("set_voxels is {set}, the bits hold {}", bits.count_ones()),
+                ));
+            }
+            let mut a = Attributed::new(bits);
+            let mut at = split;
+            for c in h.channels.unwrap_or_default() {
+                let n = set as usize * c.value_type.bytes();
+                let values = ChannelValues::from_le_bytes(c.value_type, &payload[at..at + n])
+                    .map_err(bad)?;
+                a.add(&c.name, values).map_err(bad)?;
+                at += n;
+            }
+            Volume::Channels(a)
+        }
+        VolumeKind::SparseDistance => Volume::SparseDistance(
+            read_sparse(grid, &payload, h.bricks.unwrap_or(0) as usize).map_err(bad)?,
+        ),
+        VolumeKind::SparseMaterial => Volume::SparseMaterial(
+            read_sparse(grid, &payload, h.bricks.unwrap_or(0) as usize).map_err(bad)?,
+        ),
+        VolumeKind::SparseColour => Volume::SparseColour(
+            read_sparse(grid, &payload, h.bricks.unwrap_or(0) as usize).map_err(bad)?,
+        ),
     };
     Ok((v, h.meta))
+}
+
+fn read_bits(grid: Grid, payload: &[u8]) -> Result<BitVolume, String> {
+    let words = payload
+        .chunks_exact(8)
+        .map(|c| u64::from_le_bytes(c.try_into().unwrap()))
+        .collect();
+    BitVolume::from_words(grid, words)
+}
+
+fn read_dense<T: Voxel>(grid: Grid, payload: &[u8]) -> Result<Dense<T>, String> {
+    Dense::from_data(grid, valid_from_le_bytes(payload)?)
 }
 
 #[cfg(test)]

@@ -3,7 +3,10 @@
 //! bounding grid of the operands; intersection, their overlap; difference, the first operand's.
 //! Volumes are moved onto the result grid by whole columns and word-wise shifts along z.
 
-use super::{BitVolume, tail_mask};
+use super::{BitVolume, VolumeKind, tail_mask};
+
+/// The kinds CSG combines.
+pub const ACCEPTS: &[VolumeKind] = super::BITS_ONLY;
 use crate::cancel::{Canceled, Control};
 use crate::grid::Grid;
 

@@ -1,4 +1,8 @@
-//! Volumes on a grid: [`BitVolume`] (one bit per voxel) and [`DensityVolume`] (one byte per voxel).
+//! Volumes on a grid, of any kind ([`Volume`], [`VolumeKind`]): [`BitVolume`] (one bit per
+//! voxel, here), dense typed volumes ([`Dense`], [`DensityVolume`]: `dense.rs`), bit volumes with
+//! attribute channels ([`Attributed`]: `channels.rs`) and sparse 8³ bricks ([`Sparse`]:
+//! `sparse.rs`). Operations on them live in the sibling modules, each stating which kinds it
+//! takes; nothing here reads or writes files (that is `codec`).
 //!
 //! A `BitVolume` is a set of Z-columns. Column (x, y) is `words_per_column` little-endian `u64`
 //! words at `(x * Y + y) * words_per_column`; bit `k % 64` of word `k / 64` is voxel (x, y, k).
@@ -6,12 +10,21 @@
 //! words on a little-endian machine, the same memory is the GPU's layout (bit `k % 32` of word
 //! `k / 32`).
 
+pub mod channels;
 pub mod csg;
+pub mod dense;
+pub mod kind;
 pub mod morph;
 pub mod normals;
 pub mod preview;
 pub mod query;
+pub mod sparse;
 pub mod stats;
+
+pub use channels::{Attributed, Channel, ChannelValues};
+pub use dense::{Dense, DensityVolume};
+pub use kind::{ValueType, VolumeKind, Voxel, VoxelValue, WrongKind};
+pub use sparse::Sparse;
 
 use crate::grid::Grid;
 
@@ -229,89 +242,105 @@ impl Iterator for BitIter {
     }
 }
 
-/// One byte per voxel, `(x * Y + y) * Z + z` (C order of an (X, Y, Z) array), values `0..=max`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct DensityVolume {
-    grid: Grid,
-    max: u8,
-    data: Vec<u8>,
-}
-
-impl DensityVolume {
-    pub fn new(grid: Grid, max: u8) -> DensityVolume {
-        DensityVolume {
-            grid,
-            max,
-            data: vec![0; grid.voxel_count() as usize],
-        }
-    }
-    pub fn from_data(grid: Grid, max: u8, data: Vec<u8>) -> Result<DensityVolume, String> {
-        if data.len() as u64 != grid.voxel_count() {
-            return Err(format!(
-                "expected {} density bytes for dims {:?}, got {}",
-                grid.voxel_count(),
-                grid.dims,
-                data.len()
-            ));
-        }
-        if let Some(v) = data.iter().find(|&&v| v > max) {
-            return Err(format!("density value {v} exceeds the maximum {max}"));
-        }
-        Ok(DensityVolume { grid, max, data })
-    }
-    pub fn grid(&self) -> &Grid {
-        &self.grid
-    }
-    pub fn max(&self) -> u8 {
-        self.max
-    }
-    pub fn data(&self) -> &[u8] {
-        &self.data
-    }
-    fn index(&self, x: u32, y: u32, z: u32) -> usize {
-        let [_, ny, nz] = self.grid.dims;
-        assert!(
-            z < nz && y < ny && x < self.grid.dims[0],
-            "voxel outside the grid"
-        );
-        (x as usize * ny as usize + y as usize) * nz as usize + z as usize
-    }
-    pub fn get(&self, x: u32, y: u32, z: u32) -> u8 {
-        self.data[self.index(x, y, z)]
-    }
-    pub fn set(&mut self, x: u32, y: u32, z: u32, v: u8) {
-        assert!(v <= self.max);
-        let i = self.index(x, y, z);
-        self.data[i] = v;
-    }
-    /// Voxels with any occupancy.
-    pub fn count_nonzero(&self) -> u64 {
-        self.data.iter().filter(|&&v| v != 0).count() as u64
-    }
-    /// Sum of occupancies divided by `max`: the occupied volume in voxels.
-    pub fn occupied_voxels(&self) -> f64 {
-        self.data.iter().map(|&v| v as u64).sum::<u64>() as f64 / self.max as f64
-    }
-}
-
-/// Any stored volume.
+/// Any stored volume. Code that works on volumes goes through the methods here (the one place
+/// that matches every kind) or takes the variant it accepts after [`VolumeKind::require`]; a new
+/// kind is a variant, a row of [`VolumeKind`], and an arm in each method below.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Volume {
     Bits(BitVolume),
     Density(DensityVolume),
+    Distance(Dense<f32>),
+    Material(Dense<u16>),
+    Colour(Dense<[u8; 4]>),
+    Channels(Attributed),
+    SparseDistance(Sparse<f32>),
+    SparseMaterial(Sparse<u16>),
+    SparseColour(Sparse<[u8; 4]>),
 }
+
+/// One arm per variant: `$t` with `$v` bound to the [`Dense`] or [`Sparse`] inside any typed
+/// variant (they share `grid`, `get` and `count_occupied`), and one arm each for the rest.
+macro_rules! each {
+    ($vol:expr, $v:ident => $t:expr,
+     Bits($b:ident) => $bits:expr, Density($d:ident) => $dens:expr, Channels($c:ident) => $ch:expr) => {
+        match $vol {
+            Volume::Bits($b) => $bits,
+            Volume::Density($d) => $dens,
+            Volume::Channels($c) => $ch,
+            Volume::Distance($v) => $t,
+            Volume::Material($v) => $t,
+            Volume::Colour($v) => $t,
+            Volume::SparseDistance($v) => $t,
+            Volume::SparseMaterial($v) => $t,
+            Volume::SparseColour($v) => $t,
+        }
+    };
+}
+
+/// The kinds bit-volume operations take.
+pub const BITS_ONLY: &[VolumeKind] = &[VolumeKind::Bits];
 
 impl Volume {
     pub fn grid(&self) -> &Grid {
+        each!(self, v => v.grid(),
+            Bits(b) => b.grid(), Density(d) => d.grid(), Channels(c) => c.bits().grid())
+    }
+
+    pub fn kind(&self) -> VolumeKind {
         match self {
-            Volume::Bits(b) => b.grid(),
-            Volume::Density(d) => d.grid(),
+            Volume::Bits(_) => VolumeKind::Bits,
+            Volume::Density(_) => VolumeKind::Density,
+            Volume::Distance(_) => VolumeKind::Distance,
+            Volume::Material(_) => VolumeKind::Material,
+            Volume::Colour(_) => VolumeKind::Colour,
+            Volume::Channels(_) => VolumeKind::Channels,
+            Volume::SparseDistance(_) => VolumeKind::SparseDistance,
+            Volume::SparseMaterial(_) => VolumeKind::SparseMaterial,
+            Volume::SparseColour(_) => VolumeKind::SparseColour,
         }
     }
-    pub fn kind(&self) -> &'static str {
+
+    /// Voxel (x, y, z)'s value in its own type: 0/1 for bits (and a channel volume's bits),
+    /// 0..=max for density. Panics outside the grid.
+    pub fn value(&self, x: u32, y: u32, z: u32) -> VoxelValue {
+        each!(self, v => v.get(x, y, z).value(),
+            Bits(b) => VoxelValue::U8(b.get(x, y, z) as u8),
+            Density(d) => VoxelValue::U8(d.get(x, y, z)),
+            Channels(c) => VoxelValue::U8(c.bits().get(x, y, z) as u8))
+    }
+
+    /// The value of every point outside the grid: empty (0; a distance of +∞), or a sparse
+    /// volume's background.
+    pub fn outside(&self) -> VoxelValue {
+        each!(self, v => v.outside().value(),
+            Bits(_b) => VoxelValue::U8(0), Density(_d) => VoxelValue::U8(0),
+            Channels(_c) => VoxelValue::U8(0))
+    }
+
+    /// Is voxel (x, y, z) occupied (set, non-zero, inside: [`Voxel::occupied`])? Panics outside
+    /// the grid.
+    pub fn occupied(&self, x: u32, y: u32, z: u32) -> bool {
+        each!(self, v => v.get(x, y, z).occupied(),
+            Bits(b) => b.get(x, y, z),
+            Density(d) => d.get(x, y, z) != 0,
+            Channels(c) => c.bits().get(x, y, z))
+    }
+
+    /// Occupied voxels.
+    pub fn count_occupied(&self) -> u64 {
+        each!(self, v => v.count_occupied(),
+            Bits(b) => b.count_ones(), Density(d) => d.count_nonzero(), Channels(c) => c.len())
+    }
+
+    /// The bit volume, or the refusal of `what` (an operation that takes [`BITS_ONLY`]).
+    pub fn into_bits(self, what: &str) -> Result<BitVolume, WrongKind> {
         match self {
-            Volume::Bits(_) => "bits",
-            Volume::Density(_) => "density",
+            Volume::Bits(b) => Ok(b),
+            other => Err(WrongKind {
+                given: other.kind(),
+                accepts: BITS_ONLY,
+                what: what.into(),
+            }),
         }
     }
 }

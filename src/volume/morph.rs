@@ -30,7 +30,10 @@
 use rayon::prelude::*;
 
 use super::csg::regrid;
-use super::{BitVolume, tail_mask};
+use super::{BitVolume, VolumeKind, tail_mask};
+
+/// The kinds morphology works on.
+pub const ACCEPTS: &[VolumeKind] = super::BITS_ONLY;
 use crate::cancel::{Canceled, Control};
 use crate::grid::Grid;
 

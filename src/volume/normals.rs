@@ -3,7 +3,10 @@
 //! bit volume counts as 0/1), and n = −∇d / |∇d|. `None` where the gradient vanishes (deep inside,
 //! far outside, or a symmetric configuration).
 
-use super::Volume;
+use super::{Volume, VolumeKind};
+
+/// The kinds normals are taken of: occupancy levels (a density's, or a bit's 0/1).
+pub const ACCEPTS: &[VolumeKind] = &[VolumeKind::Bits, VolumeKind::Density];
 
 /// The voxel value with the grid's outside as 0.
 fn value(v: &Volume, i: [i64; 3]) -> i32 {
@@ -13,8 +16,8 @@ fn value(v: &Volume, i: [i64; 3]) -> i32 {
     }
     let (x, y, z) = (i[0] as u32, i[1] as u32, i[2] as u32);
     match v {
-        Volume::Bits(b) => b.get(x, y, z) as i32,
         Volume::Density(dv) => dv.get(x, y, z) as i32,
+        other => other.occupied(x, y, z) as i32,
     }
 }
 
@@ -42,8 +45,8 @@ pub fn normal_at(v: &Volume, p: [f64; 3]) -> Option<[f64; 3]> {
 pub fn boundary_normals(v: &Volume) -> Vec<[i8; 3]> {
     let d = v.grid().dims;
     let full = match v {
-        Volume::Bits(_) => 1,
         Volume::Density(dv) => dv.max() as i32,
+        _ => 1,
     };
     let mut out = Vec::with_capacity(v.grid().voxel_count() as usize);
     for x in 0..d[0] as i64 {
@@ -52,7 +55,7 @@ pub fn boundary_normals(v: &Volume) -> Vec<[i8; 3]> {
                 let here = value(v, [x, y, z]);
                 let boundary = match v {
                     Volume::Density(_) => here > 0 && here < full,
-                    Volume::Bits(_) => {
+                    _ => {
                         let faces = [
                             [-1, 0, 0],
                             [1, 0, 0],

@@ -2,7 +2,10 @@
 //! the chosen axis with the other two axes in their natural order (x before y before z), the
 //! second of them pointing up: rows run from its top index down.
 
-use super::Volume;
+use super::{Volume, VolumeKind};
+
+/// The kinds previews picture: occupancy levels (a density's, or a bit's 0/1).
+pub const ACCEPTS: &[VolumeKind] = &[VolumeKind::Bits, VolumeKind::Density];
 
 /// An 8-bit grayscale picture.
 pub struct Picture {
@@ -21,8 +24,8 @@ pub enum Projection {
 
 fn value(v: &Volume, p: [u32; 3]) -> (u32, u32) {
     match v {
-        Volume::Bits(b) => (b.get(p[0], p[1], p[2]) as u32, 1),
         Volume::Density(d) => (d.get(p[0], p[1], p[2]) as u32, d.max() as u32),
+        other => (other.occupied(p[0], p[1], p[2]) as u32, 1),
     }
 }
 

@@ -8,16 +8,18 @@
 
 use serde::Serialize;
 
-use super::Volume;
+use super::kind::Named;
+use super::{Volume, VolumeKind, VoxelValue};
 
-/// The value at a point: 0/1 for bits, 0..=max for density.
-pub fn point_value(v: &Volume, p: [f64; 3]) -> u8 {
-    let Some(idx) = v.grid().voxel_containing(p) else {
-        return 0;
-    };
-    match v {
-        Volume::Bits(b) => b.get(idx[0], idx[1], idx[2]) as u8,
-        Volume::Density(d) => d.get(idx[0], idx[1], idx[2]),
+/// The kinds queried: every kind has a value per voxel (points) and an occupancy (rays).
+pub const ACCEPTS: &[VolumeKind] = <VolumeKind as Named>::ALL;
+
+/// Whether the point is in an occupied voxel, and that voxel's value in its own type (0/1 for
+/// bits, 0..=max for density); outside the grid, unoccupied and [`Volume::outside`].
+pub fn point_value(v: &Volume, p: [f64; 3]) -> (bool, VoxelValue) {
+    match v.grid().voxel_containing(p) {
+        Some([x, y, z]) => (v.occupied(x, y, z), v.value(x, y, z)),
+        None => (false, v.outside()),
     }
 }
 
@@ -108,10 +110,7 @@ pub fn ray(v: &Volume, origin: [f64; 3], direction: [f64; 3]) -> Option<RayHit> 
             .min_by(|&i, &j| t_max[i].total_cmp(&t_max[j]))
             .unwrap();
         let t_next = t_max[a].min(t1);
-        let solid = match v {
-            Volume::Bits(b) => b.get(idx[0] as u32, idx[1] as u32, idx[2] as u32),
-            Volume::Density(dv) => dv.get(idx[0] as u32, idx[1] as u32, idx[2] as u32) > 0,
-        };
+        let solid = v.occupied(idx[0] as u32, idx[1] as u32, idx[2] as u32);
         if solid && t_next > t {
             hit.solid_voxels += 1;
             hit.entry.get_or_insert(t);

@@ -9,7 +9,10 @@
 
 use serde::Serialize;
 
-use super::BitVolume;
+use super::{BitVolume, VolumeKind};
+
+/// The kinds statistics describe.
+pub const ACCEPTS: &[VolumeKind] = super::BITS_ONLY;
 use crate::cancel::{Canceled, Control};
 
 #[derive(Clone, Debug, PartialEq, Serialize)]

@@ -198,6 +198,6 @@ pub fn try_request(
 pub fn decode_bits(bytes: &[u8]) -> BitVolume {
     match VolumeFormat::sniff(bytes).unwrap().decode(bytes).unwrap() {
         Volume::Bits(b) => b,
-        Volume::Density(_) => panic!("density"),
+        _ => panic!("not a bit volume"),
     }
 }

@@ -23,7 +23,8 @@ use super::App;
 use super::problem::Problem;
 use crate::app::ErrorKind;
 
-pub const VXL_MEDIA_TYPE: &str = "application/vnd.voxd.vxl";
+/// The `.vxl` media type (its row of `codec::FORMATS`): already compressed, so not again.
+pub const VXL_MEDIA_TYPE: &str = crate::codec::VolumeFormat::Vxl.media_type();
 
 /// Every path and the methods it answers.
 pub const ROUTES: &[(&str, &[&str])] = &[

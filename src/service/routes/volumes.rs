@@ -12,7 +12,7 @@ use serde_json::{Value, json};
 
 use super::super::extract::{Json, Query};
 use super::super::problem::Problem;
-use super::{AppState, VXL_MEDIA_TYPE, created};
+use super::{AppState, created};
 use crate::app::{
     CsgExpr, Error, ErrorKind, MorphologyRequest, PreviewRequest, PreviewView, QueryRequest, ops,
 };
@@ -151,7 +151,10 @@ pub async fn data(
     let format = match &q.format {
         None => VolumeFormat::Vxl,
         Some(f) => VolumeFormat::from_name(f).ok_or_else(|| {
-            Problem::invalid(format!("format={f:?} is not one of vxl, binvox, npy, raw"))
+            Problem::invalid(format!(
+                "format={f:?} is not one of {}",
+                VolumeFormat::names()
+            ))
         })?,
     };
     let meta = app
@@ -160,7 +163,8 @@ pub async fn data(
         .await
         .map_err(Error::from)?
         .ok_or_else(|| Error::not_found("volume", &id))?;
-    ops::check_format(&meta.kind, format)?;
+    let kind = ops::kind_of(&meta)?;
+    ops::check_format(kind, format)?;
     ops::check_conversion(&meta.grid, format, &app.limits)?;
     // One ETag per representation: the identity body's, and (set on the way out, see
     // `etag_per_coding`) one per content coding; a cached copy of any of them is fresh.
@@ -178,15 +182,13 @@ pub async fn data(
     // same budget as request bodies, for as long as the download lasts.
     let hold = match format {
         VolumeFormat::Vxl => None,
-        _ => Some(app.hold_memory(decoded_bytes(&meta), "downloads").await?),
+        _ => {
+            let bytes = kind.decoded_bytes(meta.grid.voxel_count());
+            Some(app.hold_memory(bytes, "downloads").await?)
+        }
     };
     let download = ops::download(&*app.store, &meta, format).await?;
-    let media = match format {
-        VolumeFormat::Vxl => VXL_MEDIA_TYPE,
-        VolumeFormat::Npy => "application/x-npy",
-        VolumeFormat::Binvox => "application/x-binvox",
-        VolumeFormat::Raw => "application/octet-stream",
-    };
+    let media = format.media_type();
     let name = meta.name.clone().unwrap_or_else(|| id.clone()).replace(
         |c: char| !c.is_ascii_alphanumeric() && c != '-' && c != '_',
         "_",
@@ -215,21 +217,11 @@ pub async fn data(
     );
     if let Ok(v) = HeaderValue::from_str(&format!(
         "attachment; filename=\"{name}.{}\"",
-        format.name()
+        format.extension()
     )) {
         h.insert(header::CONTENT_DISPOSITION, v);
     }
     Ok(r)
-}
-
-/// Bytes of a stored volume once decoded (one bit or one byte per voxel).
-fn decoded_bytes(meta: &crate::store::VolumeMeta) -> u64 {
-    let n = meta.grid.voxel_count();
-    if meta.kind == "density" {
-        n
-    } else {
-        n.div_ceil(8)
-    }
 }
 
 /// Content codings the compression layer may apply.

@@ -1,0 +1,184 @@
+//! The download formats, one row each ([`FORMATS`]): name (also the file extension), media
+//! type, the volume kinds it can hold, whether it is written a piece at a time, whether it
+//! can be read back, and the bytes its files start with. The codecs, `app::ops`, the volume
+//! routes and the command line all read this table; adding a format is its codec file plus one
+//! row (and the arms of [`VolumeFormat`]'s `write`/`decode` in `codec/mod.rs`). Not here: the
+//! bytes (each codec's module).
+
+use crate::names::Named;
+use crate::volume::VolumeKind;
+
+/// Volume file formats.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VolumeFormat {
+    Vxl,
+    Binvox,
+    Npy,
+    /// One byte per voxel, C order of (X, Y, Z), no header: written, never read back.
+    Raw,
+}
+
+/// One format's row.
+#[derive(Debug)]
+pub struct FormatSpec {
+    pub format: VolumeFormat,
+    /// Its name in `?format=`, and its file extension.
+    pub name: &'static str,
+    pub media_type: &'static str,
+    /// The kinds it can hold.
+    pub holds: &'static [VolumeKind],
+    /// Written a piece at a time (a column, a run): never held whole in memory. The others
+    /// are encoded whole first (`.vxl` is compressed, so it is small).
+    pub streams: bool,
+    /// Can a file of it be read back (it carries its dims)?
+    pub reads: bool,
+    /// The bytes a file of it starts with, for recognising it (`None`: no header).
+    pub magic: Option<&'static [u8]>,
+}
+
+/// One byte per voxel: a bit's 0/1 or a density's level.
+const BYTE_KINDS: &[VolumeKind] = &[VolumeKind::Bits, VolumeKind::Density];
+
+/// The formats, in the order messages list them; row `i` is `VolumeFormat` value `i`.
+pub const FORMATS: &[FormatSpec] = &[
+    FormatSpec {
+        format: VolumeFormat::Vxl,
+        name: "vxl",
+        media_type: "application/vnd.voxd.vxl",
+        holds: <VolumeKind as Named>::ALL,
+        streams: false,
+        reads: true,
+        magic: Some(super::vxl::MAGIC),
+    },
+    FormatSpec {
+        format: VolumeFormat::Binvox,
+        name: "binvox",
+        media_type: "application/x-binvox",
+        holds: crate::volume::BITS_ONLY,
+        streams: true,
+        reads: true,
+        magic: Some(b"#binvox"),
+    },
+    FormatSpec {
+        format: VolumeFormat::Npy,
+        name: "npy",
+        media_type: "application/x-npy",
+        holds: BYTE_KINDS,
+        streams: true,
+        reads: true,
+        magic: Some(super::npy::MAGIC),
+    },
+    FormatSpec {
+        format: VolumeFormat::Raw,
+        name: "raw",
+        media_type: "application/octet-stream",
+        holds: BYTE_KINDS,
+        streams: true,
+        reads: false,
+        magic: None,
+    },
+];
+
+const _: () = {
+    let mut i = 0;
+    while i < FORMATS.len() {
+        assert!(
+            FORMATS[i].format as usize == i,
+            "FORMATS is in VolumeFormat's order"
+        );
+        i += 1;
+    }
+};
+
+impl Named for VolumeFormat {
+    const WHAT: &'static str = "format";
+    const ALL: &'static [VolumeFormat] = &[
+        VolumeFormat::Vxl,
+        VolumeFormat::Binvox,
+        VolumeFormat::Npy,
+        VolumeFormat::Raw,
+    ];
+    fn name(self) -> &'static str {
+        self.spec().name
+    }
+}
+
+crate::impl_named!(VolumeFormat);
+
+impl VolumeFormat {
+    /// This format's row.
+    pub const fn spec(self) -> &'static FormatSpec {
+        &FORMATS[self as usize]
+    }
+    pub const fn name(self) -> &'static str {
+        self.spec().name
+    }
+    /// The file extension (without the dot): the name.
+    pub const fn extension(self) -> &'static str {
+        self.spec().name
+    }
+    pub const fn media_type(self) -> &'static str {
+        self.spec().media_type
+    }
+    /// The kinds this format can hold.
+    pub const fn holds(self) -> &'static [VolumeKind] {
+        self.spec().holds
+    }
+    /// The format named `s`, in any case.
+    pub fn from_name(s: &str) -> Option<VolumeFormat> {
+        FORMATS
+            .iter()
+            .find(|f| f.name.eq_ignore_ascii_case(s))
+            .map(|f| f.format)
+    }
+    /// By file extension.
+    pub fn from_path(p: &std::path::Path) -> Option<VolumeFormat> {
+        VolumeFormat::from_name(p.extension()?.to_str()?)
+    }
+    /// The names, comma-separated ("vxl, binvox, npy, raw"), for messages.
+    pub fn names() -> String {
+        FORMATS
+            .iter()
+            .map(|f| f.name)
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+    /// The extensions of the formats that read back, as a command line lists them
+    /// (".vxl, .binvox or .npy").
+    pub fn readable_extensions() -> String {
+        let e: Vec<String> = FORMATS
+            .iter()
+            .filter(|f| f.reads)
+            .map(|f| format!(".{}", f.name))
+            .collect();
+        match e.split_last() {
+            Some((last, rest)) if !rest.is_empty() => format!("{} or {last}", rest.join(", ")),
+            _ => e.concat(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rows_name_their_formats() {
+        assert_eq!(VolumeFormat::names(), "vxl, binvox, npy, raw");
+        assert_eq!(VolumeFormat::readable_extensions(), ".vxl, .binvox or .npy");
+        for &f in <VolumeFormat as Named>::ALL {
+            assert_eq!(VolumeFormat::from_name(&f.name().to_uppercase()), Some(f));
+            assert_eq!(f.name().parse::<VolumeFormat>(), Ok(f));
+        }
+        assert!(VolumeFormat::Npy.holds().contains(&VolumeKind::Density));
+        assert!(!VolumeFormat::Binvox.holds().contains(&VolumeKind::Density));
+    }
+
+    /// The contract's `?format=` of a download lists this table's names, in its order.
+    #[test]
+    fn the_openapi_download_formats_are_the_table() {
+        let spec = include_str!("../../openapi.yaml");
+        let want = format!("enum: [{}], default: vxl", VolumeFormat::names());
+        assert!(spec.contains(&want), "openapi.yaml lacks {want:?}");
+    }
+}

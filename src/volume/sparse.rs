@@ -1,0 +1,239 @@
+//! Sparse volumes of 8³ bricks ([`Sparse<T>`]), OpenVDB's leaf nodes without the tree above
+//! them: a background value, and a table of the occupied bricks, each holding its 512 values.
+//! Voxel (x, y, z) lies in brick (x/8, y/8, z/8) at offset `((x%8)·8 + y%8)·8 + z%8` (OpenVDB's
+//! leaf order, so a `.vdb` leaf is one brick). Bricks at the grid's high faces extend past it;
+//! their voxels outside the grid always hold the background. A voxel in no brick is the
+//! background. Meant for narrow-band distance fields (`Sparse<f32>`, background +∞ or the band's
+//! width) and other mostly-uniform volumes. Not here: the `.vxl` layout (`codec::vxl`).
+
+use std::collections::BTreeMap;
+
+use super::dense::Dense;
+use super::kind::Voxel;
+use crate::grid::Grid;
+
+/// Voxels along a brick's edge.
+pub const BRICK: u32 = 8;
+/// Voxels in a brick.
+pub const BRICK_VOXELS: usize = (BRICK * BRICK * BRICK) as usize;
+
+/// 8³ bricks around a background value.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sparse<T> {
+    grid: Grid,
+    background: T,
+    /// Keyed by brick coordinates, in (x, y, z) order: the order `.vxl` stores them in.
+    bricks: BTreeMap<[u32; 3], Box<[T; BRICK_VOXELS]>>,
+}
+
+/// The offset of voxel (x, y, z) in its brick.
+fn offset(x: u32, y: u32, z: u32) -> usize {
+    (((x % BRICK) * BRICK + y % BRICK) * BRICK + z % BRICK) as usize
+}
+
+impl<T: Voxel> Sparse<T> {
+    /// Every voxel the background; no bricks.
+    pub fn new(grid: Grid, background: T) -> Sparse<T> {
+        Sparse {
+            grid,
+            background,
+            bricks: BTreeMap::new(),
+        }
+    }
+    pub fn grid(&self) -> &Grid {
+        &self.grid
+    }
+    pub fn background(&self) -> T {
+        self.background
+    }
+    /// Bricks along each axis: `ceil(dims / 8)`.
+    pub fn brick_dims(&self) -> [u32; 3] {
+        self.grid.dims.map(|d| d.div_ceil(BRICK))
+    }
+    /// The occupied bricks, by brick coordinates in (x, y, z) order, with their values.
+    pub fn bricks(&self) -> impl Iterator<Item = ([u32; 3], &[T; BRICK_VOXELS])> {
+        self.bricks.iter().map(|(k, v)| (*k, &**v))
+    }
+    pub fn brick_count(&self) -> usize {
+        self.bricks.len()
+    }
+
+    /// Adds (or replaces) brick `at` whole. Fails when `at` is outside the brick grid or a value
+    /// outside the grid is not the background.
+    pub fn insert_brick(&mut self, at: [u32; 3], values: [T; BRICK_VOXELS]) -> Result<(), String> {
+        let bd = self.brick_dims();
+        if (0..3).any(|a| at[a] >= bd[a]) {
+            return Err(format!("brick {at:?} is outside the brick grid {bd:?}"));
+        }
+        let d = self.grid.dims;
+        for (i, v) in values.iter().enumerate() {
+            let (bx, by, bz) = (i as u32 / 64, i as u32 / 8 % 8, i as u32 % 8);
+            let p = [at[0] * BRICK + bx, at[1] * BRICK + by, at[2] * BRICK + bz];
+            if (0..3).any(|a| p[a] >= d[a]) && *v != self.background {
+                return Err(format!(
+                    "brick {at:?} holds a value other than the background outside the grid"
+                ));
+            }
+        }
+        self.bricks.insert(at, Box::new(values));
+        Ok(())
+    }
+
+    pub fn get(&self, x: u32, y: u32, z: u32) -> T {
+        let d = self.grid.dims;
+        assert!(x < d[0] && y < d[1] && z < d[2], "voxel outside the grid");
+        match self.bricks.get(&[x / BRICK, y / BRICK, z / BRICK]) {
+            Some(b) => b[offset(x, y, z)],
+            None => self.background,
+        }
+    }
+
+    /// Sets a voxel, making its brick when it has none (unless `v` is the background).
+    pub fn set(&mut self, x: u32, y: u32, z: u32, v: T) {
+        let d = self.grid.dims;
+        assert!(x < d[0] && y < d[1] && z < d[2], "voxel outside the grid");
+        let key = [x / BRICK, y / BRICK, z / BRICK];
+        if v == self.background && !self.bricks.contains_key(&key) {
+            return;
+        }
+        let bg = self.background;
+        self.bricks
+            .entry(key)
+            .or_insert_with(|| Box::new([bg; BRICK_VOXELS]))[offset(x, y, z)] = v;
+    }
+
+    /// Drops the bricks that hold only the background.
+    pub fn prune(&mut self) {
+        let bg = self.background;
+        self.bricks.retain(|_, b| b.iter().any(|v| *v != bg));
+    }
+
+    /// The bricks of `d` that hold anything but `background`.
+    pub fn from_dense(d: &Dense<T>, background: T) -> Sparse<T> {
+        let mut s = Sparse::new(*d.grid(), background);
+        let [nx, ny, nz] = d.dims();
+        let bd = s.brick_dims();
+        for bx in 0..bd[0] {
+            for by in 0..bd[1] {
+                for bz in 0..bd[2] {
+                    let mut brick = [background; BRICK_VOXELS];
+                    let mut any = false;
+                    for x in bx * BRICK..(bx * BRICK + BRICK).min(nx) {
+                        for y in by * BRICK..(by * BRICK + BRICK).min(ny) {
+                            for z in bz * BRICK..(bz * BRICK + BRICK).min(nz) {
+                                let v = d.get(x, y, z);
+                                any |= v != background;
+                                brick[offset(x, y, z)] = v;
+                            }
+                        }
+                    }
+                    if any {
+                        s.bricks.insert([bx, by, bz], Box::new(brick));
+                    }
+                }
+            }
+        }
+        s
+    }
+
+    /// Every voxel, densely.
+    pub fn to_dense(&self) -> Dense<T> {
+        let mut d = Dense::new(self.grid, self.background);
+        let [nx, ny, nz] = self.grid.dims;
+        for (&[bx, by, bz], b) in &self.bricks {
+            for x in bx * BRICK..(bx * BRICK + BRICK).min(nx) {
+                for y in by * BRICK..(by * BRICK + BRICK).min(ny) {
+                    for z in bz * BRICK..(bz * BRICK + BRICK).min(nz) {
+                        d.set(x, y, z, b[offset(x, y, z)]);
+                    }
+                }
+            }
+        }
+        d
+    }
+
+    /// The value of points outside the grid: the background.
+    pub fn outside(&self) -> T {
+        self.background
+    }
+
+    /// Voxels whose value is occupied ([`Voxel::occupied`]).
+    pub fn count_occupied(&self) -> u64 {
+        let [nx, ny, nz] = self.grid.dims.map(u64::from);
+        let in_bricks: u64 = self.bricks.len() as u64 * BRICK_VOXELS as u64;
+        let inside_bricks: u64 = self
+            .bricks
+            .keys()
+            .map(|&[bx, by, bz]| {
+                let e = |b: u32, n: u64| (n - b as u64 * 8).min(8);
+                e(bx, nx) * e(by, ny) * e(bz, nz)
+            })
+            .sum();
+        let background = if self.background.occupied() {
+            nx * ny * nz - inside_bricks
+        } else {
+            0
+        };
+        // Voxels past the grid's faces hold the background: not counted.
+        let past = if self.background.occupied() {
+            in_bricks - inside_bricks
+        } else {
+            0
+        };
+        let occupied: u64 = self
+            .bricks
+            .values()
+            .map(|b| b.iter().filter(|v| v.occupied()).count() as u64)
+            .sum();
+        background + occupied - past
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bricks_hold_what_differs_from_the_background() {
+        let g = Grid {
+            origin: [0.0; 3],
+            voxel_size: 1.0,
+            dims: [9, 17, 3],
+        };
+        let mut s = Sparse::new(g, f32::INFINITY);
+        s.set(8, 16, 2, -1.0);
+        s.set(0, 0, 0, 0.5);
+        s.set(4, 4, 1, f32::INFINITY);
+        assert_eq!(s.brick_count(), 2);
+        assert_eq!(s.get(8, 16, 2), -1.0);
+        assert_eq!(s.get(1, 1, 1), f32::INFINITY);
+        assert_eq!(s.count_occupied(), 1);
+        let d = s.to_dense();
+        assert_eq!(d.count_occupied(), 1);
+        assert_eq!(Sparse::from_dense(&d, f32::INFINITY), s);
+        s.set(0, 0, 0, f32::INFINITY);
+        s.prune();
+        assert_eq!(s.brick_count(), 1);
+        let mut bad = [f32::INFINITY; BRICK_VOXELS];
+        bad[offset(1, 7, 3)] = 1.0; // y = 15: inside; z = 3 is past the grid's 3
+        assert!(s.clone().insert_brick([0, 1, 0], bad).is_err());
+        assert!(
+            s.insert_brick([2, 0, 0], [f32::INFINITY; BRICK_VOXELS])
+                .is_err()
+        );
+    }
+
+    #[test]
+    fn an_occupied_background_counts_the_grid_not_the_bricks_past_it() {
+        let g = Grid {
+            origin: [0.0; 3],
+            voxel_size: 1.0,
+            dims: [3, 3, 3],
+        };
+        let mut s = Sparse::new(g, 1u16);
+        assert_eq!(s.count_occupied(), 27);
+        s.set(1, 1, 1, 0);
+        assert_eq!(s.count_occupied(), 26);
+        assert_eq!(s.to_dense().count_occupied(), 26);
+    }
+}
