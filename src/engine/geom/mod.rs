@@ -59,9 +59,10 @@ pub(crate) fn dist2_to_triangle(p: [f64; 3], t: &[[f64; 3]; 3]) -> f64 {
 }
 
 /// The point of triangle t closest to p (Ericson, *Real-Time Collision Detection*, 5.1.5): a
-/// vertex, a point of an edge, or of the face, by the Voronoi region p lies in. For a degenerate
-/// triangle (zero area) the face case divides by zero; callers that meet those take the edges'
-/// distances too (see the winding fill's leaf kernel).
+/// vertex, a point of an edge, or of the face, by the Voronoi region p lies in. For a triangle
+/// whose area is zero or lost to rounding the point can be off the triangle, or NaN: callers that
+/// meet such triangles take the least of this and the edges' distances (as the winding fill's
+/// leaf kernel does).
 #[inline]
 pub(crate) fn closest_on_triangle(p: [f64; 3], t: &[[f64; 3]; 3]) -> [f64; 3] {
     let [a, b, c] = *t;

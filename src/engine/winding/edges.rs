@@ -35,7 +35,7 @@ struct EdgeNode {
     moment: [[f64; 3]; 3],
     /// Its antisymmetric part as a vector: (M₁₂ − M₂₁, M₂₀ − M₀₂, M₀₁ − M₁₀).
     anti: [f64; 3],
-    /// As [`Node`]: a leaf's range, or `first` the left child and `right` the right one.
+    /// As [`super::trees::Node`]: a leaf's range, or `first` the left child and `right` the right one.
     first: u32,
     count: u32,
     right: u32,

@@ -51,21 +51,21 @@
 //! exceeds the margin; a voxel's only where |w| is within the hierarchy's error of ½.
 //!
 //! The eight 2³ blocks of a 4³ block left open are taken together: one traversal of the caps'
-//! tree gives all eight intervals ([`traverse::spread_lanes`]), one more the Taylor models of
-//! those still open ([`traverse::taylor_lanes`]), one of the chain their fields
-//! ([`edges::field_lanes`]); a node is opened for the balls that need it and taken through
+//! tree gives all eight intervals (`traverse::spread_lanes`), one more the Taylor models of
+//! those still open (`traverse::taylor_lanes`), one of the chain their fields
+//! (`edges::field_lanes`); a node is opened for the balls that need it and taken through
 //! its children by the others, which bounds them as well. The eight 4³ blocks of an open 8³
 //! block get their caps' intervals the same way. The solid angles, distances, expansions and
-//! the bounds built on them are computed eight at a time ([`lanes`]).
+//! the bounds built on them are computed eight at a time (`lanes`).
 //!
 //! Both parts run on the CPU; the signed counts use the same integer crossing rule as `solid`.
 //!
-//! The files: this one drives a fill through its phases ([`solid_impl`]: close the mesh, certify
-//! the blocks, settle the ties, count the crossings); [`caps`] closes the boundary;
-//! [`certifier`] decides blocks and voxels; [`trees`] holds the hierarchies, [`bounds`] their
-//! intervals and Taylor models over a ball, [`traverse`] the same for eight balls at once,
-//! [`edges`] the boundary chain's tree and fields, [`lanes`] the eight-lane kernels. The
-//! geometry of triangles and the bounding-volume hierarchy come from [`crate::engine::geom`].
+//! The files: this one drives a fill through its phases (`solid_impl`: close the mesh, certify
+//! the blocks, settle the ties, count the crossings); `caps` closes the boundary;
+//! `certifier` decides blocks and voxels; `trees` holds the hierarchies, `bounds` their
+//! intervals and Taylor models over a ball, `traverse` the same for eight balls at once,
+//! `edges` the boundary chain's tree and fields, `lanes` the eight-lane kernels. The
+//! geometry of triangles and the bounding-volume hierarchy come from `crate::engine::geom`.
 //!
 //! Not here: the other fills (parity, vote, flood: [`super::fill`]), or the crossing count
 //! itself ([`crate::engine::cpu`]), which the last phase calls with its own decision per block.
@@ -121,7 +121,7 @@ const TIE: f64 = 0.01;
 /// many block radii of the block exactly at each voxel.
 const TAYLOR_NEAR: f64 = 10.0;
 /// Boundary clusters farther than this many radii from a query enter the field by their
-/// expansion ([`EdgeTree::field`]).
+/// expansion ([`edges::EdgeTree::field`]).
 const FIELD_OPEN: f64 = 4.0;
 
 /// How the voxels of a winding fill were decided.

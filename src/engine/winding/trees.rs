@@ -35,7 +35,7 @@ pub(super) struct Trees {
 }
 
 impl Trees {
-    /// `closed` and `caps` from [`closed_by_caps`].
+    /// `closed` and `caps` from [`super::caps::closed_by_caps`].
     pub(super) fn new(mesh: &Mesh, closed: &Mesh, caps: &[[u32; 3]], grid: &Grid) -> Trees {
         // The caps exactly as the crossing count sees them: on the 1/256-voxel lattice.
         let cap_positions: Vec<[f64; 3]> = closed
