@@ -6,8 +6,8 @@
 pub mod cpu;
 pub mod density;
 pub mod fill;
+mod geom;
 pub mod gpu;
-mod lanes;
 mod snap;
 pub mod winding;
 

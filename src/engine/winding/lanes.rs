@@ -7,6 +7,12 @@
 //! operations in the same order (no fused multiply-adds: Rust never contracts `a * b + c`), so
 //! all three give the same bits; `atan2` is Cephes' (as Go's `math.Atan`), written without
 //! branches so that it vectorizes, within a few ulps of the C library's.
+//!
+//! Not here: the traversals that call the kernels for a node or a leaf and keep the sums
+//! ([`super::traverse`], [`super::edges`], [`super::trees`]), or the scalar geometry they must
+//! agree with ([`crate::engine::geom`]; the tests compare). The small vector helpers at the end
+//! are this file's own, marked `#[inline(always)]`, so that they are inlined into every
+//! instruction set's copy of a kernel.
 
 // Loops run over lane indices on purpose: that is the shape that vectorizes.
 #![allow(clippy::needless_range_loop)]
@@ -22,12 +28,12 @@ macro_rules! dispatch {
         $vis fn $name($($arg: $ty),*) -> $ret {
             #[cfg(target_arch = "x86_64")]
             {
-                match $crate::engine::lanes::simd() {
+                match $crate::engine::winding::lanes::simd() {
                     // SAFETY: the processor has AVX-512F (`simd` checked).
-                    $crate::engine::lanes::Simd::Avx512 => return unsafe { $avx512($($arg),*) },
+                    $crate::engine::winding::lanes::Simd::Avx512 => return unsafe { $avx512($($arg),*) },
                     // SAFETY: the processor has AVX2 (`simd` checked).
-                    $crate::engine::lanes::Simd::Avx2 => return unsafe { $avx2($($arg),*) },
-                    $crate::engine::lanes::Simd::Baseline => {}
+                    $crate::engine::winding::lanes::Simd::Avx2 => return unsafe { $avx2($($arg),*) },
+                    $crate::engine::winding::lanes::Simd::Baseline => {}
                 }
             }
             $body($($arg),*)
@@ -36,14 +42,14 @@ macro_rules! dispatch {
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = "avx512f")]
         $(#[$m])*
-        fn $avx512($($arg: $ty),*) -> $ret {
+        $vis fn $avx512($($arg: $ty),*) -> $ret {
             $body($($arg),*)
         }
 
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = "avx2")]
         $(#[$m])*
-        fn $avx2($($arg: $ty),*) -> $ret {
+        $vis fn $avx2($($arg: $ty),*) -> $ret {
             $body($($arg),*)
         }
     };
@@ -144,8 +150,9 @@ impl Leaf {
 }
 
 dispatch! {
-    /// For each lane's triangle: its solid angle seen from q (as [`super::winding::solid_angle`])
-    /// and q's squared distance to it (of a degenerate triangle: to its edges).
+    /// For each lane's triangle: its solid angle seen from q (as
+    /// [`crate::engine::geom::solid_angle`]) and q's squared distance to it (of a degenerate
+    /// triangle: to its edges).
     pub fn leaf(
         l: &Leaf,
         q: [f64; 3],
@@ -209,7 +216,7 @@ dispatch! {
 
 /// A hierarchy node's expansion folded for evaluation: with r the offset from the query to the
 /// node's centre and d = |r|, 4π × its winding number is about
-/// (n1·r + tr)/d³ − (rᵀ M r + w·r)/d⁵ + Σ_i r_i (rᵀ C_i r)/d⁷ (see `winding::folded`).
+/// (n1·r + tr)/d³ − (rᵀ M r + w·r)/d⁵ + Σ_i r_i (rᵀ C_i r)/d⁷ (see `trees::folded`).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Far {
     pub n1: [f64; 3],
@@ -322,7 +329,7 @@ pub struct EdgeLanes {
 }
 
 /// The segments `segs` of a leaf of the boundary chain's hierarchy, seen from eight points q:
-/// `acc` plus their Biot–Savart fields ∫ dl × (x − q)/|x − q|³ (as `winding::segment_field`,
+/// `acc` plus their Biot–Savart fields ∫ dl × (x − q)/|x − q|³ (as `edges::segment_field`,
 /// added one by one in order), and whether q lies on one of them (where the field is
 /// infinite; NaN counts as on), lane by lane.
 #[inline(always)]
@@ -352,7 +359,7 @@ pub(super) fn edge_leaf_body(
 
 /// One cluster of the boundary chain seen from eight points q: the distances from q to its
 /// centre m, and the first-order expansion of its Biot–Savart field at each
-/// (`net × K + anti/d³ − 3 (M r) × r/d⁵`, r = m − q, K = r/d³; see `winding::EdgeTree::field`).
+/// (`net × K + anti/d³ − 3 (M r) × r/d⁵`, r = m − q, K = r/d³; see `edges::EdgeTree::field`).
 #[inline(always)]
 pub(super) fn edge_node_body(
     centre: [f64; 3],
@@ -388,7 +395,7 @@ pub(super) fn edge_node_body(
 }
 
 #[inline(always)]
-fn leaf_body(l: &Leaf, q: [f64; 3]) -> ([f64; LANES], [f64; LANES]) {
+pub(super) fn leaf_body(l: &Leaf, q: [f64; 3]) -> ([f64; LANES], [f64; LANES]) {
     let mut angle = [0.0; LANES];
     let mut dist2 = [0.0; LANES];
     for i in 0..LANES {
@@ -481,7 +488,7 @@ fn min(a: f64, b: f64) -> f64 {
 }
 
 #[inline(always)]
-fn point_sums_body(
+pub(super) fn point_sums_body(
     tris: &[[[f64; 3]; 3]],
     near: &[(u32, f64)],
     q: &[[f64; LANES]; 3],
@@ -600,384 +607,4 @@ fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 #[inline(always)]
 fn norm(a: [f64; 3]) -> f64 {
     dot(a, a).sqrt()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::engine::winding::{dist2_to_segment, dist2_to_triangle, solid_angle};
-
-    /// xorshift, so that the cases are the same every run.
-    struct Rng(u64);
-    impl Rng {
-        fn next(&mut self) -> f64 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64
-        }
-        fn point(&mut self, scale: f64) -> [f64; 3] {
-            [0, 1, 2].map(|_| (self.next() * 2.0 - 1.0) * scale)
-        }
-    }
-
-    /// Random triangles, with degenerate ones among them: collinear, a repeated vertex, a
-    /// point, slivers, and ones far larger or smaller than their distance to the query.
-    fn triangle(rng: &mut Rng, i: usize) -> [[f64; 3]; 3] {
-        let [a, b, c] = [rng.point(1.0), rng.point(1.0), rng.point(1.0)];
-        match i % 7 {
-            0 => [a, b, [0, 1, 2].map(|k| a[k] + 0.37 * (b[k] - a[k]))],
-            1 => [a, a, c],
-            2 => [a, a, a],
-            3 => [
-                a,
-                b,
-                [0, 1, 2].map(|k| a[k] + 0.5 * (b[k] - a[k]) + 1e-9 * c[k]),
-            ],
-            4 => [a, b, c].map(|p| p.map(|v| v * 1e-3)),
-            5 => [a, b, c].map(|p| p.map(|v| v * 1e3)),
-            _ => [a, b, c],
-        }
-    }
-
-    #[test]
-    fn atan2_matches_the_c_library() {
-        let mut rng = Rng(7);
-        let mut worst: f64 = 0.0;
-        let specials = [
-            0.0,
-            -0.0,
-            1e-300,
-            -1e-300,
-            1.0,
-            -1.0,
-            0.66,
-            2.414_213_562_373_095,
-        ];
-        for &y in &specials {
-            for &x in &specials {
-                if y == 0.0 && x == 0.0 {
-                    continue;
-                }
-                let (ours, libm) = (atan2(y, x), y.atan2(x));
-                if y == 0.0 || x == 0.0 {
-                    // The axes, signs of zero included: exactly.
-                    assert_eq!(ours.to_bits(), libm.to_bits(), "atan2({y}, {x})");
-                } else {
-                    assert!((ours - libm).abs() <= 4e-16 * libm.abs(), "atan2({y}, {x})");
-                }
-            }
-        }
-        for _ in 0..200_000 {
-            let (y, x) = (rng.next() * 2.0 - 1.0, rng.next() * 2.0 - 1.0);
-            let scale = 10f64.powi((rng.next() * 12.0) as i32 - 6);
-            let (ours, libm) = (atan2(y * scale, x), (y * scale).atan2(x));
-            worst = worst.max((ours - libm).abs() / libm.abs().max(1e-300));
-        }
-        assert!(worst < 4e-16, "relative error {worst:e}");
-    }
-
-    #[test]
-    fn leaves_match_the_scalar_solid_angle_and_distance() {
-        let mut rng = Rng(11);
-        let mut checked = 0;
-        for case in 0..4000 {
-            let count = 1 + case % LANES;
-            let tris: Vec<_> = (0..count).map(|i| triangle(&mut rng, case + i)).collect();
-            let areas: Vec<f64> = (0..count).map(|_| rng.next()).collect();
-            let leaf_ = Leaf::new(&tris, &areas);
-            let q = rng.point(if case % 3 == 0 { 0.3 } else { 3.0 });
-            let (angles, dist2) = leaf(&leaf_, q);
-            let rq = rng.next() * 0.5;
-            let (sp, ta) = (leaf_spread(&leaf_, q, rq), leaf_taylor(&leaf_, q, rq));
-            for (j, t) in tris.iter().enumerate() {
-                // The bounds, from the distance and each triangle's own area, as `spread` and
-                // `taylor` define them.
-                let g = dist2[j].sqrt() - rq;
-                let by_distance = areas[j] / (g * g);
-                let want = [
-                    (sp.angle[j], angles[j]),
-                    (sp.g[j], g),
-                    (sp.magnitude[j], by_distance.min(2.0 * PI)),
-                    (sp.variation[j], 2.0 * rq * areas[j] / (g * g * g)),
-                    (ta.angle[j], angles[j]),
-                    (ta.dist[j], dist2[j].sqrt()),
-                    (ta.hessian[j], areas[j] / g.powi(4)),
-                ];
-                for (k, (got, want)) in want.into_iter().enumerate() {
-                    assert!(
-                        (got - want).abs() <= 1e-12 * want.abs().max(1e-300),
-                        "case {case} lane {j} bound {k}: {got} against {want}"
-                    );
-                }
-                // Ericson's distance, but never more than the edges' (which it can exceed, or
-                // be NaN, for a triangle whose area is lost to rounding or zero).
-                let edges = (0..3)
-                    .map(|e| dist2_to_segment(q, &[t[e], t[(e + 1) % 3]]))
-                    .fold(f64::INFINITY, f64::min);
-                let d = dist2_to_triangle(q, t).min(edges);
-                let a = solid_angle(t, q);
-                assert!(
-                    (angles[j] - a).abs() <= 1e-12,
-                    "case {case} lane {j}: solid angle {} against {a}",
-                    angles[j]
-                );
-                assert!(
-                    (dist2[j] - d).abs() <= 1e-12 * d.max(1e-12),
-                    "case {case} lane {j}: squared distance {} against {d}",
-                    dist2[j]
-                );
-                checked += 1;
-            }
-        }
-        assert!(checked > 10_000);
-    }
-
-    #[test]
-    fn nodes_match_the_scalar_bounds() {
-        let mut rng = Rng(19);
-        for case in 0..500 {
-            let far = Far {
-                n1: rng.point(1.0),
-                tr: rng.next(),
-                m: std::array::from_fn(|_| rng.next() - 0.5),
-                w: rng.point(1.0),
-                c: std::array::from_fn(|_| std::array::from_fn(|_| rng.next() - 0.5)),
-            };
-            let centre = rng.point(1.0);
-            let (radius, area, rq) = (rng.next() * 0.5, rng.next(), rng.next() * 0.2);
-            let qs = [0, 1, 2].map(|_| std::array::from_fn(|_| rng.next() * 6.0 - 3.0));
-            // The expansion is computed where some point lies beyond `reach2` (and 0 elsewhere):
-            // from some cases' points, from all, from none.
-            let reach2 = [0.0, 4.0, 9.0, 1e9][case % 4];
-            let (sp, ta) = (
-                node_body::<true>(&far, centre, radius, area, rq, reach2, &qs),
-                node_body::<false>(&far, centre, radius, area, rq, reach2, &qs),
-            );
-            let any = (0..LANES).any(|i| {
-                let r = [0, 1, 2].map(|a| centre[a] - qs[a][i]);
-                dot(r, r) > reach2
-            });
-            for i in 0..LANES {
-                let r = [0, 1, 2].map(|a| centre[a] - qs[a][i]);
-                let d2 = dot(r, r);
-                let g = d2.sqrt() - radius - rq;
-                let expansion = if any { far_one(&far, r, d2) } else { 0.0 };
-                let want = [
-                    (sp.d2[i], d2),
-                    (sp.far[i], expansion),
-                    (sp.g[i], g),
-                    (sp.magnitude[i], area / (g * g)),
-                    (sp.extra[i], 2.0 * rq * area / (g * g * g)),
-                    (ta.d2[i], d2),
-                    (ta.far[i], expansion),
-                    (ta.g[i], g),
-                    (ta.magnitude[i], area / (g * g)),
-                    (ta.extra[i], area / g.powi(4)),
-                ];
-                for (k, (got, want)) in want.into_iter().enumerate() {
-                    assert!(
-                        (got - want).abs() <= 1e-12 * want.abs().max(1e-300),
-                        "case {case} lane {i} output {k}: {got} against {want}"
-                    );
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn point_sums_match_the_scalar_sum() {
-        let mut rng = Rng(13);
-        let tris: Vec<_> = (0..40).map(|i| triangle(&mut rng, i)).collect();
-        let twice_area = |t: &[[f64; 3]; 3]| norm(cross(sub(t[1], t[0]), sub(t[2], t[0])));
-        let near: Vec<(u32, f64)> = (0..tris.len() as u32)
-            .map(|i| (i, twice_area(&tris[i as usize])))
-            .filter(|&(_, a)| a > 0.0)
-            .collect();
-        let mut saw_close = false;
-        for case in 0..500 {
-            let points: [[f64; 3]; LANES] = std::array::from_fn(|_| rng.point(2.0));
-            // Some queries on a triangle's plane.
-            let mut points = points;
-            if case % 5 == 0 {
-                let t = tris[case % tris.len()];
-                points[1] = [0, 1, 2].map(|k| 0.25 * t[0][k] + 0.25 * t[1][k] + 0.5 * t[2][k]);
-            }
-            let q = [0, 1, 2].map(|a| points.map(|p| p[a]));
-            let gap = 1e-6;
-            let (sums, close) = point_sums(&tris, &near, &q, gap);
-            for (i, p) in points.iter().enumerate() {
-                let exact: f64 = near
-                    .iter()
-                    .map(|&(t, _)| solid_angle(&tris[t as usize], *p))
-                    .sum();
-                let any_close = near.iter().any(|&(t, ta)| {
-                    let [a, b, c] = tris[t as usize].map(|v| sub(v, *p));
-                    let det = dot(a, cross(b, c));
-                    det.abs() <= 2.0 * gap * ta || det.is_nan()
-                });
-                assert_eq!(close[i], any_close, "case {case} point {i}");
-                saw_close |= any_close;
-                if !any_close {
-                    assert!(
-                        (sums[i] - exact).abs() < 1e-10,
-                        "case {case}: {} against {exact}",
-                        sums[i]
-                    );
-                }
-            }
-        }
-        assert!(saw_close, "no query came close to a plane");
-    }
-
-    // The node and cluster kernels run inlined into the winding fill's traversals; compiled
-    // here on their own, per instruction set, for the comparison below.
-    dispatch! {
-        #[allow(dead_code)]
-        fn nodes(
-            f: &Far,
-            centre: [f64; 3],
-            radius: f64,
-            area: f64,
-            rq: f64,
-            reach2: f64,
-            q: &[[f64; LANES]; 3],
-        ) -> (NodeLanes, NodeLanes)
-            = nodes_body, nodes_avx512, nodes_avx2;
-    }
-
-    /// The node kernel for `spread` and for `taylor`.
-    #[inline(always)]
-    fn nodes_body(
-        f: &Far,
-        centre: [f64; 3],
-        radius: f64,
-        area: f64,
-        rq: f64,
-        reach2: f64,
-        q: &[[f64; LANES]; 3],
-    ) -> (NodeLanes, NodeLanes) {
-        (
-            node_body::<true>(f, centre, radius, area, rq, reach2, q),
-            node_body::<false>(f, centre, radius, area, rq, reach2, q),
-        )
-    }
-
-    dispatch! {
-        #[allow(dead_code)]
-        fn edge_node(
-            centre: [f64; 3],
-            net: [f64; 3],
-            moment: &[[f64; 3]; 3],
-            anti: [f64; 3],
-            q: &[[f64; LANES]; 3],
-        ) -> EdgeLanes
-            = edge_node_body, edge_node_avx512, edge_node_avx2;
-    }
-
-    dispatch! {
-        #[allow(dead_code)]
-        fn edge_leaf(
-            segs: &[[[f64; 3]; 2]],
-            q: &[[f64; LANES]; 3],
-            acc: [[f64; LANES]; 3],
-        ) -> ([[f64; LANES]; 3], [bool; LANES])
-            = edge_leaf_body, edge_leaf_avx512, edge_leaf_avx2;
-    }
-
-    #[test]
-    fn every_instruction_set_gives_the_same_bits() {
-        let mut rng = Rng(17);
-        let tris: Vec<_> = (0..LANES).map(|i| triangle(&mut rng, i)).collect();
-        let areas: Vec<f64> = (0..LANES).map(|_| rng.next()).collect();
-        let leaf_ = Leaf::new(&tris, &areas);
-        let near: Vec<(u32, f64)> = (0..LANES as u32).map(|i| (i, 1.0)).collect();
-        let far = Far {
-            n1: rng.point(1.0),
-            tr: rng.next(),
-            m: std::array::from_fn(|_| rng.next() - 0.5),
-            w: rng.point(1.0),
-            c: std::array::from_fn(|_| std::array::from_fn(|_| rng.next() - 0.5)),
-        };
-        let moment = [rng.point(1.0), rng.point(1.0), rng.point(1.0)];
-        let (net, anti, centre) = (rng.point(1.0), rng.point(1.0), rng.point(3.0));
-        let (radius, area, rq) = (0.3, 0.7, 0.05);
-        let segs: Vec<[[f64; 3]; 2]> = (0..LANES)
-            .map(|_| [rng.point(1.0), rng.point(1.0)])
-            .collect();
-        let acc = [0, 1, 2].map(|_| std::array::from_fn(|_| rng.next()));
-        // Every kernel's outputs by one instruction set (0 the baseline, 1 AVX2, 2 AVX-512), as
-        // bits.
-        let outputs = |path: u32, q: [f64; 3], qs: &[[f64; LANES]; 3]| -> Vec<u64> {
-            // SAFETY: each path is run only where the processor has its instructions (below).
-            let (l, ls, lt, p, (ns, nt), e, el) = unsafe {
-                match path {
-                    #[cfg(target_arch = "x86_64")]
-                    1 => (
-                        leaf_avx2(&leaf_, q),
-                        leaf_spread_avx2(&leaf_, q, rq),
-                        leaf_taylor_avx2(&leaf_, q, rq),
-                        point_sums_avx2(&tris, &near, qs, 1e-9),
-                        nodes_avx2(&far, centre, radius, area, rq, 0.0, qs),
-                        edge_node_avx2(centre, net, &moment, anti, qs),
-                        edge_leaf_avx2(&segs, qs, acc),
-                    ),
-                    #[cfg(target_arch = "x86_64")]
-                    2 => (
-                        leaf_avx512(&leaf_, q),
-                        leaf_spread_avx512(&leaf_, q, rq),
-                        leaf_taylor_avx512(&leaf_, q, rq),
-                        point_sums_avx512(&tris, &near, qs, 1e-9),
-                        nodes_avx512(&far, centre, radius, area, rq, 0.0, qs),
-                        edge_node_avx512(centre, net, &moment, anti, qs),
-                        edge_leaf_avx512(&segs, qs, acc),
-                    ),
-                    _ => (
-                        leaf_body(&leaf_, q),
-                        leaf_spread_body(&leaf_, q, rq),
-                        leaf_taylor_body(&leaf_, q, rq),
-                        point_sums_body(&tris, &near, qs, 1e-9),
-                        nodes_body(&far, centre, radius, area, rq, 0.0, qs),
-                        edge_node_body(centre, net, &moment, anti, qs),
-                        edge_leaf_body(&segs, qs, acc),
-                    ),
-                }
-            };
-            let nodes = [ns, nt]
-                .into_iter()
-                .flat_map(|n| [n.d2, n.far, n.g, n.magnitude, n.extra]);
-            let values = [l.0, l.1, p.0]
-                .into_iter()
-                .chain([ls.angle, ls.g, ls.magnitude, ls.variation])
-                .chain([lt.angle, lt.dist, lt.hessian])
-                .chain(nodes)
-                .chain([e.d, e.field[0], e.field[1], e.field[2]])
-                .chain(el.0);
-            let mut bits: Vec<u64> = values.flat_map(|v| v.map(f64::to_bits)).collect();
-            bits.extend(p.1.map(u64::from));
-            bits.extend(el.1.map(u64::from));
-            bits
-        };
-        let mut paths = Vec::new();
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx2") {
-                paths.push((1, "AVX2"));
-            }
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                paths.push((2, "AVX-512"));
-            }
-        }
-        if paths.is_empty() {
-            eprintln!("NOTICE: no AVX2 or AVX-512 here; only the baseline path ran");
-        }
-        for _ in 0..200 {
-            let q = rng.point(2.0);
-            let qs = [0, 1, 2].map(|_| std::array::from_fn(|_| rng.next() * 2.0 - 1.0));
-            let plain = outputs(0, q, &qs);
-            for &(path, name) in &paths {
-                assert_eq!(plain, outputs(path, q, &qs), "{name}");
-            }
-        }
-    }
 }
