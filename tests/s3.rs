@@ -16,10 +16,12 @@ use futures_util::StreamExt;
 use object_store::ObjectStoreExt;
 use object_store::path::Path as Key;
 use serde_json::Value;
+use voxd::app::store::{
+    ByteStream, SourceInfo, StoreError, VolumeMeta, VolumeStore, Vxl, sha256_hex,
+};
 use voxd::engine::Method;
 use voxd::grid::GridSpec;
 use voxd::store::s3::{Location, S3Store};
-use voxd::store::{ByteStream, SourceInfo, StoreError, VolumeMeta, VolumeStore, sha256_hex};
 
 use crate::common::s3::{self as s3, BUCKET, Weed};
 use crate::common::{Resp, data, http_exchange, voxelize_file};
@@ -118,7 +120,7 @@ fn the_store_contract_holds_on_s3() {
         for (id, d) in ids.iter().zip(&datas) {
             let t = Instant::now();
             store
-                .put(meta(id, d), Bytes::from(d.clone()))
+                .put(meta(id, d), Vxl::new(Bytes::from(d.clone())))
                 .await
                 .unwrap();
             eprintln!("s3 put of {} bytes: {:?}", d.len(), t.elapsed());
@@ -192,7 +194,7 @@ fn the_store_contract_holds_on_s3() {
         assert!(!store.delete("../x").await.unwrap());
         assert!(
             store
-                .put(meta("../x", b"a"), Bytes::from_static(b"a"))
+                .put(meta("../x", b"a"), Vxl::new(Bytes::from_static(b"a")))
                 .await
                 .is_err()
         );
@@ -200,7 +202,7 @@ fn the_store_contract_holds_on_s3() {
         let mut lying = meta("e", b"abc");
         lying.sha256 = sha256_hex(b"something else");
         assert!(matches!(
-            store.put(lying, Bytes::from_static(b"abc")).await,
+            store.put(lying, Vxl::new(Bytes::from_static(b"abc"))).await,
             Err(StoreError::Corrupt(m)) if m.contains("sha256")
         ));
         assert!(store.get("e").await.unwrap().is_none());
@@ -266,8 +268,12 @@ fn replicas_on_one_bucket_see_each_others_puts_and_deletes() {
         let a = open(weed, &prefix, 1 << 30).await;
         let b = open(weed, &prefix, 1 << 30).await;
         let d = patterned(5000, 9);
-        a.put(meta("r1", &d), Bytes::from(d.clone())).await.unwrap();
-        b.put(meta("r2", &d), Bytes::from(d.clone())).await.unwrap();
+        a.put(meta("r1", &d), Vxl::new(Bytes::from(d.clone())))
+            .await
+            .unwrap();
+        b.put(meta("r2", &d), Vxl::new(Bytes::from(d.clone())))
+            .await
+            .unwrap();
         for s in [&a, &b] {
             let (page, more) = s.list(None, 10).await.unwrap();
             assert_eq!(
@@ -309,7 +315,7 @@ fn the_quota_holds_across_replicas_and_counts_metadata() {
                 let s = if n % 2 == 0 { a.clone() } else { b.clone() };
                 let data = data.clone();
                 tokio::spawn(async move {
-                    s.put(meta(&format!("q{n}"), &data), Bytes::from(data))
+                    s.put(meta(&format!("q{n}"), &data), Vxl::new(Bytes::from(data)))
                         .await
                 })
             })
@@ -330,7 +336,10 @@ fn the_quota_holds_across_replicas_and_counts_metadata() {
         loop {
             let s = if n % 2 == 0 { &a } else { &b };
             match s
-                .put(meta(&format!("q{n}"), &data), Bytes::from(data.clone()))
+                .put(
+                    meta(&format!("q{n}"), &data),
+                    Vxl::new(Bytes::from(data.clone())),
+                )
                 .await
             {
                 Ok(()) => n += 1,
@@ -350,7 +359,7 @@ fn the_quota_holds_across_replicas_and_counts_metadata() {
         let mut big = meta("qbig", &data);
         big.provenance = Some(serde_json::json!({"operands": ["x".repeat(100_000)]}));
         assert!(matches!(
-            a.put(big, Bytes::from(data.clone())).await,
+            a.put(big, Vxl::new(Bytes::from(data.clone()))).await,
             Err(StoreError::Full { need, .. }) if need > 100_000
         ));
         assert_eq!(bytes_in_bucket(weed, &prefix).await, 2 * per);
@@ -368,7 +377,7 @@ fn damaged_torn_or_missing_data_is_corrupt_never_served() {
         let client = weed.client();
         let data = patterned(600_000, 3);
         for id in ["a", "b", "c", "d"] {
-            store.put(meta(id, &data), Bytes::from(data.clone())).await.unwrap();
+            store.put(meta(id, &data), Vxl::new(Bytes::from(data.clone()))).await.unwrap();
         }
         let key = |id: &str| Key::from(format!("{prefix}/volumes/{id}.vxl"));
         // One byte flipped, behind the store's back.
@@ -405,7 +414,7 @@ fn interrupted_puts_are_never_listed_and_are_swept_once_old() {
         let client = weed.client();
         let d = patterned(2000, 1);
         store
-            .put(meta("kept", &d), Bytes::from(d.clone()))
+            .put(meta("kept", &d), Vxl::new(Bytes::from(d.clone())))
             .await
             .unwrap();
         // Data without its metadata: what a replica killed between the two PUTs leaves.

@@ -225,6 +225,13 @@ impl From<EngineError> for Error {
     }
 }
 
+/// Classified like the engine error it is (the map above).
+impl From<crate::cancel::Canceled> for Error {
+    fn from(c: crate::cancel::Canceled) -> Self {
+        EngineError::from(c).into()
+    }
+}
+
 impl From<DensityError> for Error {
     fn from(e: DensityError) -> Error {
         match e {

@@ -401,9 +401,7 @@ pub async fn store_derived(
         )
     })
     .await?;
-    store
-        .put(built.meta.clone(), Bytes::from(built.vxl))
-        .await?;
+    store.put(built.meta.clone(), built.vxl).await?;
     Ok(built.meta)
 }
 

@@ -3,16 +3,16 @@
 //! the next one; the job's record lives in Redis, so every replica answers for every job.
 //!
 //! - **Submit**: the upload's bytes go to the store first ([`VolumeStore::put_upload`]), then
-//!   the job (its request as data, [`JobSpec`]) enters the stream of its size class, in one
+//!   the job (its request as data, a `JobSpec`) enters the stream of its size class, in one
 //!   script that also checks the shared capacity (`429` when full). The request was prepared
 //!   (validated) before, so a bad mesh is refused at once.
 //! - **Classes**: one stream per size class by estimated cost (small ≤ a 256³ job, medium ≤
 //!   512³, large beyond). A worker takes, of the classes' next jobs, the one with the lowest
 //!   `cost − 256³ × seconds waited`, the in-process queue's rule: small jobs overtake large
 //!   ones, and a large one that has waited long enough is not overtaken again.
-//! - **Running**: the worker that took a job (XREADGROUP) prepares it again from the stored
-//!   upload (on the blocking pool; a job submitted to this very replica reuses its prepared
-//!   mesh), and renews its lease every `min(lease/3, 1 s)` while it runs: the renewal resets the
+//! - **Running**: the worker that took a job (XREADGROUP) is handed its stored request
+//!   ([`Work::Stored`]), which the application's worker prepares from the stored upload (a job
+//!   submitted to this very replica is handed its prepared mesh instead), and renews its lease every `min(lease/3, 1 s)` while it runs: the renewal resets the
 //!   entry's idle time (XCLAIM by its own consumer), reports progress and hears a cancel.
 //! - **Dead workers**: an entry idle for a lease (`--lease-seconds`) belongs to a worker that
 //!   stopped: the next replica looking for work takes it over (XAUTOCLAIM) and runs it again, at
@@ -46,20 +46,27 @@ use futures_util::StreamExt;
 use redis::aio::{ConnectionManager, ConnectionManagerConfig};
 use tokio::sync::{Notify, broadcast, watch};
 
-use super::{Claim, CommitGuard, JobQueue, JobRecord, NewJob, QueueStats, State, Timings};
-use crate::app::{self, Error, ErrorKind, JobSpec, Limits, Prepared, Result};
+use crate::app::queue::{
+    AGE_CREDIT_PER_SEC, Claim, CommitGuard, Error, ErrorKind, JobQueue, JobRecord, NewJob, Owner,
+    QueueStats, Result, State, Timings, Work,
+};
+use crate::app::store::{VolumeStore, sha256_hex};
 use crate::cancel::Control;
-use crate::store::VolumeStore;
+use crate::limits::Limits;
 use scripts::{Cancel, Claimed, Finished, Lease, Redis, Run, Submitted};
 
 /// The size classes, each a stream, in the order their names sort jobs (small first).
 pub const CLASSES: [&str; 3] = ["small", "medium", "large"];
 
-/// Cost credit per second of waiting (a 256³ job), as in the in-process queue.
-const AGE_CREDIT_PER_SEC: f64 = 256.0 * 256.0 * 256.0;
-
 /// How often an idle worker looks for work (and expired leases) without being woken.
 const IDLE_POLL: Duration = Duration::from_millis(500);
+
+/// Lease of a running job (`--lease-seconds`): a default `voxd serve` and [`RedisOptions::new`]
+/// share.
+pub const DEFAULT_LEASE_S: f64 = 30.0;
+
+/// Starts of one job at most (`--max-attempts`).
+pub const DEFAULT_MAX_ATTEMPTS: u32 = 3;
 
 /// Prepared meshes of jobs submitted here, kept for when this replica runs them.
 const PREPARED_KEPT: usize = 8;
@@ -67,7 +74,7 @@ const PREPARED_KEPT: usize = 8;
 /// How long a worker keeps trying to record a job's end while Redis is unreachable.
 const FINISH_RETRY: Duration = Duration::from_secs(120);
 
-/// The size class of a job of estimated `cost` ([`Prepared::cost`]).
+/// The size class of a job of estimated `cost` ([`NewJob::cost`]).
 pub fn class_of(cost: f64) -> &'static str {
     if cost <= 256f64.powi(3) {
         "small"
@@ -81,7 +88,7 @@ pub fn class_of(cost: f64) -> &'static str {
 /// The id of job `job`'s volume: 16 hex digits of sha256("voxd-volume:" + job), the same on
 /// every replica and every attempt.
 pub fn volume_id_for(job: &str) -> String {
-    app::sha256_hex(format!("voxd-volume:{job}").as_bytes())[..16].to_string()
+    sha256_hex(format!("voxd-volume:{job}").as_bytes())[..16].to_string()
 }
 
 /// How a [`RedisQueue`] behaves.
@@ -100,7 +107,7 @@ pub struct RedisOptions {
     pub prefix: String,
     /// How long the records of finished jobs are kept.
     pub record_ttl: Duration,
-    /// This process's limits: a job prepared again here is held to them too.
+    /// This process's limits: a job its worker prepares again here is held to them too.
     pub limits: Limits,
 }
 
@@ -108,8 +115,8 @@ impl RedisOptions {
     pub fn new(capacity: usize) -> RedisOptions {
         RedisOptions {
             capacity,
-            lease: Duration::from_secs(30),
-            max_attempts: 3,
+            lease: Duration::from_secs_f64(DEFAULT_LEASE_S),
+            max_attempts: DEFAULT_MAX_ATTEMPTS,
             job_timeout: None,
             prefix: "voxd".into(),
             record_ttl: Duration::from_secs(7 * 24 * 3600),
@@ -143,7 +150,7 @@ struct Inner {
     done: broadcast::Sender<String>,
     closed: watch::Sender<bool>,
     running: Mutex<HashMap<String, Running>>,
-    prepared: Mutex<VecDeque<(String, Arc<Prepared>)>>,
+    prepared: Mutex<VecDeque<(String, Work)>>,
 }
 
 pub struct RedisQueue {
@@ -158,6 +165,20 @@ impl Drop for RedisQueue {
             r.renewal.abort();
         }
     }
+}
+
+/// Six hex digits that differ between processes (and between queues of one process): a
+/// consumer name's tail.
+fn nonce() -> String {
+    use std::hash::{BuildHasher, Hasher};
+    let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+    h.write_u128(
+        std::time::SystemTime::now()
+            .duration_since(std::time::SystemTime::UNIX_EPOCH)
+            .unwrap_or_default()
+            .as_nanos(),
+    );
+    format!("{:06x}", h.finish() & 0xff_ffff)
 }
 
 /// `url` without its password.
@@ -231,7 +252,7 @@ impl RedisQueue {
             .map(|h| h.trim().to_string())
             .filter(|h| !h.is_empty())
             .unwrap_or_else(|| "voxd".into());
-        let consumer = format!("{host}-{}-{}", std::process::id(), &app::new_id()[..6]);
+        let consumer = format!("{host}-{}-{}", std::process::id(), nonce());
         tracing::info!(queue = %target, %consumer, "shared job queue ready");
         let (done, _) = broadcast::channel(256);
         let inner = Arc::new(Inner {
@@ -378,7 +399,7 @@ impl Inner {
         self.running.lock().unwrap_or_else(|p| p.into_inner())
     }
 
-    fn lock_prepared(&self) -> std::sync::MutexGuard<'_, VecDeque<(String, Arc<Prepared>)>> {
+    fn lock_prepared(&self) -> std::sync::MutexGuard<'_, VecDeque<(String, Work)>> {
         self.prepared.lock().unwrap_or_else(|p| p.into_inner())
     }
 
@@ -430,32 +451,17 @@ impl Inner {
         }
     }
 
-    /// The prepared voxelization of a run: kept from its submit here, else prepared again
-    /// from the stored upload.
-    async fn prepare(&self, run: &Run) -> Result<Arc<Prepared>> {
-        {
-            let mut kept = self.lock_prepared();
-            if let Some(i) = kept.iter().position(|(j, _)| *j == run.id) {
-                return Ok(kept.remove(i).expect("present").1);
-            }
+    /// A run's work: the prepared voxelization kept from its submit here, else its stored
+    /// request, which the worker prepares (the mesh is parsed once per run, by whoever runs it).
+    fn work(&self, run: &Run) -> Work {
+        let mut kept = self.lock_prepared();
+        if let Some(i) = kept.iter().position(|(j, _)| *j == run.id) {
+            return kept.remove(i).expect("present").1;
         }
-        let spec: JobSpec = serde_json::from_str(&run.spec)
-            .map_err(|e| Error::internal(format!("the job's stored request is unreadable: {e}")))?;
-        let upload = self
-            .store
-            .get_upload(&run.id)
-            .await
-            .map_err(|e| Error::from(e).context("cannot read the job's upload"))?
-            .ok_or_else(|| {
-                Error::internal(format!(
-                    "the job's upload is missing from the store ({})",
-                    self.store.describe()
-                ))
-            })?;
-        let req = spec.request(upload, &self.opts.limits)?;
-        Ok(Arc::new(
-            app::ops::blocking(move || app::prepare(&req)).await?,
-        ))
+        Work::Stored {
+            spec: run.spec.clone(),
+            limits: self.opts.limits,
+        }
     }
 
     /// Takes the next job, if any: expired leases first, then new jobs; clears what it meets.
@@ -497,8 +503,8 @@ impl Inner {
         Ok(None)
     }
 
-    /// Starts a run: its lease renewal at once, then its preparation. `None` when it cannot be
-    /// prepared (its end is recorded, failed).
+    /// Starts a run: its lease renewal, its deadline, and its claim (the worker prepares its
+    /// work when it was not submitted here).
     async fn start(&self, run: Run) -> Option<Claim> {
         let control = Control::new();
         let every = (self.opts.lease / 3).min(Duration::from_secs(1));
@@ -518,14 +524,7 @@ impl Inner {
                 renewal,
             },
         );
-        let work = match self.prepare(&run).await {
-            Ok(w) => w,
-            Err(e) => {
-                tracing::warn!(job = %run.id, "cannot prepare the job again: {}", e.detail);
-                self.finish(&run.id, Err(e)).await;
-                return None;
-            }
-        };
+        let work = self.work(&run);
         if let Some(at) = self
             .opts
             .job_timeout
@@ -658,7 +657,7 @@ fn full(waiting: usize) -> Error {
 #[async_trait]
 impl JobQueue for RedisQueue {
     /// The shared capacity only (one round trip); the owner's limit is the submit script's.
-    async fn admission(&self, _owner: Option<&crate::queue::Owner>) -> Result<()> {
+    async fn admission(&self, _owner: Option<&Owner>) -> Result<()> {
         let q = &*self.inner;
         q.open_for_jobs()?;
         let waiting = q.redis.waiting().await.map_err(|e| q.unavailable(&e))?;
@@ -678,27 +677,29 @@ impl JobQueue for RedisQueue {
             .put_upload(&job.id, job.upload.clone())
             .await
             .map_err(|e| Error::from(e).context("cannot store the upload"))?;
-        let cost = job.work.cost();
-        let (class, method) = (class_of(cost), job.work.method.name());
+        let cost = job.cost();
+        let (class, method) = (class_of(cost), job.method());
+        let spec = serde_json::to_string(&job.spec).expect("a spec serialises");
+        let (id, owner) = (job.id.clone(), job.owner.clone());
         {
             // Kept before the job is visible, for when a worker here takes it at once.
             let mut kept = q.lock_prepared();
             if kept.len() >= PREPARED_KEPT {
                 kept.pop_front();
             }
-            kept.push_back((job.id.clone(), Arc::new(job.work)));
+            kept.push_back((id.clone(), job.into_work()));
         }
         let submitted = q
             .redis
             .submit(
-                &job.id,
+                &id,
                 q.opts.capacity,
                 class,
                 cost,
                 method,
                 &serde_json::to_string(&record).expect("a record serialises"),
-                &serde_json::to_string(&job.spec).expect("a spec serialises"),
-                job.owner.as_ref(),
+                &spec,
+                owner.as_ref(),
             )
             .await;
         let position = match submitted {
@@ -706,16 +707,16 @@ impl JobQueue for RedisQueue {
             other => {
                 // Not queued (or not known to be: then a replica that runs it finds no upload
                 // and fails it, saying so).
-                q.forget_prepared(&job.id);
-                let _ = q.store.delete_upload(&job.id).await;
+                q.forget_prepared(&id);
+                let _ = q.store.delete_upload(&id).await;
                 return Err(match other {
                     Ok(Submitted::Full(n)) => full(n),
-                    Ok(Submitted::OwnerBusy(n)) => job.owner.as_ref().map_or_else(
+                    Ok(Submitted::OwnerBusy(n)) => owner.as_ref().map_or_else(
                         || Error::internal("an owner limit without an owner"),
                         |o| o.too_many(n),
                     ),
                     Err(e) => q.unavailable(&e),
-                    _ => Error::internal(format!("job id {} is taken", job.id)),
+                    _ => Error::internal(format!("job id {id} is taken")),
                 });
             }
         };
