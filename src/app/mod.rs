@@ -1,8 +1,9 @@
 //! The application layer: everything between a front's input and its output, written once.
 //!
 //! A front (the command line, the HTTP service, a queue consumer, a batch runner) translates its
-//! input into a typed request ([`request`]), calls the pipeline ([`voxelize`]), a volume
-//! operation ([`ops`]) or the job runner ([`jobs`]), and translates the result (or the
+//! input into a typed request ([`request`]), calls the pipeline ([`voxelize`], with [`files`]
+//! for engines and volume files), a volume operation ([`ops`]) or the jobs' submission path and
+//! worker ([`jobs`]), and translates the result (or the
 //! [`Error`], classified once in [`error`]) into its output. Nothing here knows HTTP or clap;
 //! volumes are kept through the [`store::VolumeStore`] trait and jobs go through the
 //! [`queue::JobQueue`] trait, both declared here and implemented by the adapters below
@@ -10,6 +11,7 @@
 //! [`crate::limits`].
 
 pub mod error;
+pub mod files;
 pub mod jobs;
 pub mod metadata;
 pub mod ops;

@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use voxd::app::ops;
-use voxd::codec::{VolumeFormat, vxl};
+use voxd::codec::VolumeFormat;
 use voxd::engine::fill::FillReport;
 use voxd::mesh::MeshDiagnostics;
 use voxd::volume::Volume;
@@ -74,17 +74,7 @@ pub fn write_volume(
     if let Some(w) = ops::conversion_warning(v.grid(), f) {
         eprintln!("{}: {w}", path.display());
     }
-    // Encoded before the file is created, so a volume the format cannot hold leaves no file.
-    let bytes = match f {
-        VolumeFormat::Npy => None,
-        VolumeFormat::Vxl => Some(vxl::encode(v, meta).map_err(|e| err(&e))?),
-        other => Some(other.encode(v).map_err(|e| err(&e))?),
-    };
-    voxd::store::atomic::write_with(path, |w| match &bytes {
-        Some(b) => std::io::Write::write_all(w, b),
-        None => voxd::codec::npy::write(v, w),
-    })
-    .map_err(|e| err(&e))
+    voxd::app::files::write_volume(path, f, v, meta).map_err(|e| err(&e))
 }
 
 pub fn read_volume(p: &Path) -> Result<Volume, String> {

@@ -9,7 +9,6 @@
 //! nothing of meshes, engines or the application's workings: it keeps what it is given and
 //! checks its quota. Not here: the trait and its records (the application layer's).
 
-pub mod atomic;
 pub mod fault;
 pub mod fs;
 pub mod s3;
@@ -22,6 +21,8 @@ use bytes::Bytes;
 use futures_util::Stream;
 use sha2::Digest;
 
+// Atomic file writes, which every store uses, where older callers look for them.
+pub use crate::atomic;
 // The contract's names where the adapters and older callers look for them.
 use crate::app::store::hex;
 pub use crate::app::store::{
