@@ -5,11 +5,11 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::store::StoreError;
 use crate::engine::EngineError;
 use crate::engine::density::DensityError;
 use crate::grid::GridError;
 use crate::mesh::MeshError;
-use crate::store::StoreError;
 use crate::volume::csg::CsgError;
 
 /// Kinds of failure. Their names (`code`) are stable: they are the last part of the problem

@@ -13,12 +13,12 @@ use serde_json::{Value, json};
 use super::error::{Error, ErrorKind, Result};
 use super::metadata::{self, Origin};
 use super::request::{CsgExpr, MorphologyRequest, PreviewRequest, PreviewView, QueryRequest};
+use super::store::{ByteStream, StoreError, VolumeMeta, VolumeStore};
 use crate::cancel::Control;
 use crate::codec::{VolumeFormat, vxl};
 use crate::grid::Grid;
 use crate::limits::Limits;
 use crate::names::Named;
-use crate::store::{ByteStream, StoreError, VolumeMeta, VolumeStore};
 use crate::volume::morph::{self, MorphOp};
 use crate::volume::{BitVolume, Volume, csg};
 

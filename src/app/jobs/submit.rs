@@ -56,11 +56,11 @@ impl Submission {
 #[derive(Debug)]
 pub enum Submitted {
     /// It succeeded within the wait: its volume.
-    Done(VolumeMeta),
+    Done(Box<VolumeMeta>),
     /// It failed within the wait: job `id`, and why.
     Failed { id: String, error: Error },
     /// Queued or running (its record is durable).
-    Pending(JobRecord),
+    Pending(Box<JobRecord>),
 }
 
 /// Where a job goes: the queue, the store its volumes go to, and the pool that parses meshes
@@ -109,13 +109,13 @@ pub async fn submit<G: Send>(
     // by then).
     drop(guard);
     if !wait {
-        return Ok(Submitted::Pending(record));
+        return Ok(Submitted::Pending(Box::new(record)));
     }
     let r = jobs.queue.wait(&id, sub.wait).await?.unwrap_or(record);
     match (r.state, &r.volume_id, &r.error) {
         (State::Succeeded, Some(v), _) => {
             if let Some(meta) = jobs.store.get(v).await? {
-                return Ok(Submitted::Done(meta));
+                return Ok(Submitted::Done(Box::new(meta)));
             }
         }
         (State::Failed, _, Some(e)) => {
@@ -128,5 +128,5 @@ pub async fn submit<G: Send>(
     }
     // Answered with the job's id before it is final: its record must survive a crash.
     jobs.queue.persist(&id).await?;
-    Ok(Submitted::Pending(r))
+    Ok(Submitted::Pending(Box::new(r)))
 }

@@ -162,7 +162,7 @@ pub async fn submit(
             p.instance = Some(format!("/v1/jobs/{id}"));
             return Err(p);
         }
-        Submitted::Pending(record) => record,
+        Submitted::Pending(record) => *record,
     };
     let location = format!("/v1/jobs/{}", record.id);
     let mut r = (StatusCode::ACCEPTED, axum::Json(super::jobs::view(record))).into_response();

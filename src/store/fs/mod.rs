@@ -1,8 +1,8 @@
 //! The directory store: `volumes/{id}.vxl` (the native format) and `volumes/{id}.json`
-//! (metadata), `jobs/records.log` (job records, an append-only log: [`super::joblog`]). Every
-//! volume file is written atomically ([`super::atomic`]); the metadata is written last and is the commit point, so a process
-//! killed mid-write leaves either a whole volume or nothing that is listed (leftovers are removed
-//! at open).
+//! (metadata), small volumes in packs (`packs.rs`), `jobs/records.log` (job records, an
+//! append-only log: `joblog.rs`). Every volume file is written atomically ([`crate::atomic`]);
+//! the metadata is written last and is the commit point, so a process killed mid-write leaves
+//! either a whole volume or nothing that is listed (leftovers are removed at open).
 //!
 //! Every read checks the bytes against the metadata's length and sha256 (a mismatch, a torn or a
 //! missing file is [`StoreError::Corrupt`], never silently served), and a put refuses metadata
@@ -10,8 +10,7 @@
 //!
 //! Volumes are written by a group commit: puts that arrive while a group is being written wait
 //! for the next one, which syncs all their files side by side and the directory once, instead of
-//! four sequential syncs per volume ([`commit_group`]). A put returns once its volume is
-//! durable, as before.
+//! four sequential syncs per volume (`commit.rs`). A put returns once its volume is durable.
 //!
 //! The catalogue is held in memory (read once at open; a volume asked for by id that another
 //! process sharing the directory stored since is read from disk and catalogued then); every
@@ -20,6 +19,9 @@
 //!
 //! With the `fault-injection` feature (tests only), `VOXD_FAULT` makes the process abort at a
 //! chosen point inside a write (see [`super::fault`]), so crash tests can stop it there.
+//!
+//! Here: opening the directory and the catalogue; the trait's methods are in `volumes.rs`, the
+//! writer in `commit.rs`, the tests in `tests.rs`.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
