@@ -35,6 +35,8 @@
 //!
 //! Every state change is one Lua script (scripts.rs), atomic in Redis; times are Redis's clock.
 
+mod events;
+mod lease;
 mod scripts;
 
 use std::collections::{HashMap, VecDeque};
@@ -42,18 +44,19 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use async_trait::async_trait;
-use futures_util::StreamExt;
 use redis::aio::{ConnectionManager, ConnectionManagerConfig};
 use tokio::sync::{Notify, broadcast, watch};
 
 use crate::app::queue::{
-    AGE_CREDIT_PER_SEC, Claim, CommitGuard, Error, ErrorKind, JobQueue, JobRecord, NewJob, Owner,
-    QueueStats, Result, State, Timings, Work,
+    AGE_CREDIT_PER_SEC, Claim, Error, ErrorKind, JobQueue, JobRecord, NewJob, Owner, QueueStats,
+    Result, State, Timings, Work,
 };
 use crate::app::store::{VolumeStore, sha256_hex};
 use crate::cancel::Control;
 use crate::limits::Limits;
-use scripts::{Cancel, Claimed, Finished, Lease, Redis, Run, Submitted};
+use events::listen;
+use lease::{Guard, renew};
+use scripts::{Cancel, Claimed, Finished, Redis, Run, Submitted};
 
 /// The size classes, each a stream, in the order their names sort jobs (small first).
 pub const CLASSES: [&str; 3] = ["small", "medium", "large"];
@@ -274,123 +277,6 @@ impl RedisQueue {
     /// This process's consumer name (in logs and in the problem of a job whose runs all died).
     pub fn consumer(&self) -> &str {
         &self.inner.consumer
-    }
-}
-
-/// Listens to the queue's events (pub/sub, its own connection), reconnecting with backoff:
-/// `new` wakes idle workers, `done <id>` wakes waiters. After every (re)subscription everyone
-/// looks again, for what happened while nobody listened.
-async fn listen(client: redis::Client, inner: std::sync::Weak<Inner>) {
-    let mut backoff = Duration::from_millis(100);
-    loop {
-        let Some(channel) = inner.upgrade().map(|i| i.redis.events_channel()) else {
-            return;
-        };
-        match client.get_async_pubsub().await {
-            Ok(mut pubsub) => {
-                if pubsub.subscribe(&channel).await.is_ok() {
-                    backoff = Duration::from_millis(100);
-                    if let Some(i) = inner.upgrade() {
-                        i.ready.notify_waiters();
-                        let _ = i.done.send(String::new());
-                    }
-                    let mut messages = pubsub.on_message();
-                    while let Some(m) = messages.next().await {
-                        let Some(i) = inner.upgrade() else { return };
-                        let text: String = m.get_payload().unwrap_or_default();
-                        if text == "new" {
-                            i.ready.notify_waiters();
-                        } else if let Some(id) = text.strip_prefix("done ") {
-                            i.forget_prepared(id);
-                            let _ = i.done.send(id.to_string());
-                        }
-                    }
-                }
-            }
-            Err(e) => tracing::debug!("queue events: {e}"),
-        }
-        tokio::time::sleep(backoff).await;
-        backoff = (backoff * 2).min(Duration::from_secs(5));
-    }
-}
-
-/// Renews a run's lease until it ends; a cancel or a lost lease stops the run (its control).
-async fn renew(
-    redis: Redis,
-    consumer: String,
-    id: String,
-    token: String,
-    control: Control,
-    every: Duration,
-) {
-    let mut failing = false;
-    loop {
-        tokio::time::sleep(every).await;
-        match redis
-            .renew(&id, &token, &consumer, control.progress())
-            .await
-        {
-            Ok(Lease::Held) => failing = false,
-            Ok(Lease::Canceled) => {
-                tracing::info!(job = %id, "canceled from another replica; stopping");
-                control.cancel();
-                return;
-            }
-            Ok(Lease::Lost) => {
-                tracing::warn!(job = %id, "lease lost (another replica took the job over); stopping");
-                control.cancel();
-                return;
-            }
-            Err(e) => {
-                if !failing {
-                    tracing::warn!(job = %id, "cannot renew the job's lease: {e}");
-                }
-                failing = true;
-            }
-        }
-    }
-}
-
-/// A run's check before it stores its volume.
-struct Guard {
-    redis: Redis,
-    consumer: String,
-    id: String,
-    token: String,
-    control: Control,
-}
-
-#[async_trait]
-impl CommitGuard for Guard {
-    async fn confirm(&self) -> Result<()> {
-        match self
-            .redis
-            .renew(
-                &self.id,
-                &self.token,
-                &self.consumer,
-                self.control.progress(),
-            )
-            .await
-        {
-            Ok(Lease::Held) => Ok(()),
-            Ok(Lease::Canceled) => {
-                self.control.cancel();
-                Err(Error::new(ErrorKind::NotCancelable, "canceled"))
-            }
-            Ok(Lease::Lost) => {
-                self.control.cancel();
-                Err(Error::internal(
-                    "another replica took this job over (this one did not renew its lease in time); this run's result is discarded",
-                ))
-            }
-            // The volume's id is the job's own, so storing it cannot make a second one: the
-            // finish (retried until Redis answers) decides whether it stays.
-            Err(e) => {
-                tracing::warn!(job = %self.id, "cannot confirm the lease before storing: {e}");
-                Ok(())
-            }
-        }
     }
 }
 
@@ -878,27 +764,4 @@ impl JobQueue for RedisQueue {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn classes_ids_urls_and_versions() {
-        assert_eq!(class_of(64.0 * 64.0 * 64.0), "small");
-        assert_eq!(class_of(256f64.powi(3)), "small");
-        assert_eq!(class_of(300f64.powi(3)), "medium");
-        assert_eq!(class_of(1024f64.powi(3)), "large");
-        let v = volume_id_for("abc");
-        assert_eq!((v.len(), v.clone()), (16, volume_id_for("abc")));
-        assert_ne!(v, volume_id_for("abd"));
-        assert!(v.bytes().all(|b| b.is_ascii_hexdigit()));
-        assert_eq!(redact("redis://:s3cret@h:6379/2"), "redis://***@h:6379/2");
-        assert_eq!(redact("redis://u:p@h"), "redis://***@h");
-        assert_eq!(redact("redis://h:6379"), "redis://h:6379");
-        assert_eq!(
-            redis_version("# Server\r\nredis_version:7.0.15\r\n"),
-            Some((7, 0))
-        );
-        assert_eq!(redis_version("redis_version:6.2.1"), Some((6, 2)));
-        assert_eq!(redis_version("nothing"), None);
-    }
-}
+mod tests;
