@@ -2,7 +2,7 @@
 //! preparation, the record, queued or waited for) is the one submission path, and the worker
 //! ([`work`], [`run`]) is what any process does with a job it took from a [`JobQueue`]: it
 //! prepares a job submitted elsewhere (once), runs it on the engine and stores its volume. Not
-//! here: how a front reads its input (it hands a [`VoxelizeRequest`]) or how a queue keeps jobs.
+//! here: how a front reads its input (it hands a [`Submission`]) or how a queue keeps jobs.
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};

@@ -1,7 +1,7 @@
 //! The application layer: everything between a front's input and its output, written once.
 //!
 //! A front (the command line, the HTTP service, a queue consumer, a batch runner) translates its
-//! input into a typed request ([`request`]), calls the pipeline ([`voxelize`], with [`files`]
+//! input into a typed request ([`request`]), calls the pipeline ([`mod@voxelize`], with [`files`]
 //! for engines and volume files), a volume operation ([`ops`]) or the jobs' submission path and
 //! worker ([`jobs`]), and translates the result (or the
 //! [`Error`], classified once in [`error`]) into its output. Nothing here knows HTTP or clap;

@@ -284,3 +284,40 @@ pub trait JobQueue: Send + Sync {
     async fn close(&self, why: Error) -> usize;
     async fn stats(&self) -> QueueStats;
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The states' names are the ones records, the API and metrics have always used, both ways.
+    #[test]
+    fn states_are_named_once_and_read_back() {
+        let names: Vec<&str> = State::ALL.iter().map(|s| s.name()).collect();
+        assert_eq!(
+            names,
+            ["queued", "running", "succeeded", "failed", "canceled"]
+        );
+        for &s in State::ALL {
+            let json = serde_json::to_string(&s).unwrap();
+            assert_eq!(json, format!("\"{}\"", s.name()));
+            assert_eq!(serde_json::from_str::<State>(&json).unwrap(), s);
+            assert_eq!(s.to_string().parse::<State>(), Ok(s));
+        }
+        assert!(serde_json::from_str::<State>("\"paused\"").is_err());
+        assert_eq!(
+            State::ALL.iter().filter(|s| s.is_final()).count(),
+            3,
+            "succeeded, failed and canceled are final"
+        );
+    }
+
+    /// A large job that has waited long enough goes before a new small one, and not before.
+    #[test]
+    fn the_age_credit_lets_a_waiting_large_job_overtake() {
+        let (small, large) = (64f64.powi(3), 512f64.powi(3));
+        assert!(priority(small, 0.0) < priority(large, 0.0));
+        // 512³ = 8 × 256³: after 8 s of waiting it scores as a fresh job of cost 0.
+        assert!(priority(large, 8.0) < priority(small, 0.0));
+        assert!(priority(large, 7.0) > priority(small, 0.0));
+    }
+}

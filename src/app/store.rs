@@ -95,7 +95,7 @@ pub trait VolumeStore: Send + Sync {
         limit: usize,
     ) -> Result<(Vec<VolumeMeta>, bool), StoreError>;
     /// The stored `.vxl` bytes as a stream of chunks, for downloads that need not hold a whole
-    /// volume: checked while they stream ([`verified`]), so damaged data ends the stream with
+    /// volume: checked while they stream (the store adapters check them with `crate::store::verified`), so damaged data ends the stream with
     /// `Corrupt` before its last byte (a client sees a broken transfer, never a whole one).
     async fn read_stream(&self, id: &str) -> Result<Option<ByteStream>, StoreError>;
     /// Removes a volume; false when there was none.

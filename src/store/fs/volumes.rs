@@ -207,7 +207,7 @@ impl VolumeStore for FsStore {
     }
 
     /// A group commit: every change of the batch appended to the job record log in one write
-    /// and one `fdatasync` ([`super::joblog`]).
+    /// and one `fdatasync` (`joblog.rs`).
     async fn put_job_records(
         &self,
         batch: Vec<(String, Option<Bytes>)>,
