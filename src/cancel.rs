@@ -300,19 +300,6 @@ impl Drop for CancelOnDrop {
     }
 }
 
-impl From<Canceled> for crate::engine::EngineError {
-    fn from(c: Canceled) -> Self {
-        crate::engine::EngineError::Canceled(c)
-    }
-}
-
-/// Classified like the engine error it is (`crate::app::error` maps `EngineError`).
-impl From<Canceled> for crate::app::Error {
-    fn from(c: Canceled) -> Self {
-        crate::engine::EngineError::from(c).into()
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -6,8 +6,9 @@
 //!
 //! Above them, [`app`] is the application layer every front shares (typed requests, the
 //! voxelize pipeline, volume operations, metadata, errors), with volumes kept through
-//! [`store::VolumeStore`] and jobs through [`queue::JobQueue`]; [`limits`] holds every default
-//! and cap. [`service`] is the HTTP front; the command line is the `voxd` binary.
+//! [`app::store::VolumeStore`] and jobs through [`app::queue::JobQueue`], traits the
+//! application declares and the adapters in [`store`] and [`queue`] implement (they never call
+//! back into the application); [`limits`] holds every default and cap. [`service`] is the HTTP front; the command line is the `voxd` binary.
 
 #[cfg(not(target_endian = "little"))]
 compile_error!(
@@ -15,6 +16,7 @@ compile_error!(
 );
 
 pub mod app;
+pub mod atomic;
 pub mod cancel;
 pub mod codec;
 pub mod engine;

@@ -23,14 +23,14 @@ use serde_json::Value;
 use crate::common::redis_server::RedisServer;
 use crate::common::{Resp, spawn_serve};
 use crate::common::{data, decode_bits, tmpdir};
+use voxd::app::queue::{JobQueue, NewJob, State};
+use voxd::app::store::VolumeStore;
 use voxd::app::{ErrorKind, GridOptions, JobSpec, MeshSource, MethodSpec, VoxelizeRequest};
 use voxd::cancel::Control;
 use voxd::engine::cpu::CpuEngine;
 use voxd::engine::fill::Fill;
 use voxd::engine::{Engine, EngineError, GridMesh, Method};
 use voxd::queue::redis::{RedisOptions, RedisQueue, volume_id_for};
-use voxd::queue::{JobQueue, NewJob, State};
-use voxd::store::VolumeStore;
 use voxd::store::fs::FsStore;
 use voxd::volume::BitVolume;
 
@@ -220,7 +220,7 @@ async fn a_keys_job_limit_spans_replicas() {
     let a = queue(&redis, &store, "o", |_| {}).await;
     let b = queue(&redis, &store, "o", |_| {}).await;
     let owned = |id: &str, name: &str, max_jobs: usize| NewJob {
-        owner: Some(voxd::queue::Owner {
+        owner: Some(voxd::app::queue::Owner {
             name: name.into(),
             max_jobs,
         }),

@@ -7,11 +7,11 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::store::StoreError;
 use crate::engine::EngineError;
 use crate::engine::density::DensityError;
 use crate::grid::GridError;
 use crate::mesh::MeshError;
-use crate::store::StoreError;
 use crate::volume::csg::CsgError;
 
 /// Declares [`ErrorKind`] from one table, in the manner of Meilisearch's `make_error_codes!`:
@@ -191,6 +191,13 @@ impl From<EngineError> for Error {
             _ => ErrorKind::EngineFailure,
         };
         Error::new(kind, e.to_string())
+    }
+}
+
+/// Classified like the engine error it is (the map above).
+impl From<crate::cancel::Canceled> for Error {
+    fn from(c: crate::cancel::Canceled) -> Self {
+        EngineError::from(c).into()
     }
 }
 

@@ -1,19 +1,26 @@
-//! Running queued jobs: what any worker does with a job it took from a [`JobQueue`], whichever
-//! front queued it and whichever process runs it.
+//! Jobs, from submission to their end, for every front and every queue: [`submit`] (admission,
+//! preparation, the record, queued or waited for) is the one submission path, and the worker
+//! ([`work`], [`run`]) is what any process does with a job it took from a [`JobQueue`]: it
+//! prepares a job submitted elsewhere (once), runs it on the engine and stores its volume. Not
+//! here: how a front reads its input (it hands a [`Submission`]) or how a queue keeps jobs.
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use bytes::Bytes;
 use tracing::Instrument;
 
 use super::error::{Error, ErrorKind, Result};
 use super::metadata::{self, Origin};
 use super::ops::blocking;
+use super::queue::{Claim, CommitGuard, JobQueue, Work};
+use super::request::JobSpec;
+use super::store::{VolumeMeta, VolumeStore};
+use super::voxelize::Prepared;
 use crate::cancel::Canceled;
 use crate::engine::Engine;
-use crate::queue::{Claim, CommitGuard, JobQueue};
-use crate::store::{VolumeMeta, VolumeStore};
+
+mod submit;
+pub use submit::{Jobs, Submission, Submitted, submit};
 
 /// Runs a claimed job on `engine` under its control and stores its volume (under the claim's
 /// volume id when it has one, once its guard agrees). A job canceled meanwhile stops at the
@@ -24,7 +31,8 @@ pub async fn run(
     store: &dyn VolumeStore,
     claim: &Claim,
 ) -> Result<VolumeMeta> {
-    let built = build(engine, claim).await?;
+    let work = prepared(store, &claim.id, claim.work.clone()).await?;
+    let built = build(engine, work, claim).await?;
     keep(
         store,
         claim.volume_id.as_deref(),
@@ -34,9 +42,38 @@ pub async fn run(
     .await
 }
 
+/// A job's work, prepared: as the queue handed it, or prepared here, once, from the job's stored
+/// request and upload (a job submitted to another process). Job `id`'s upload is in `store`.
+pub async fn prepared(store: &dyn VolumeStore, id: &str, work: Work) -> Result<Arc<Prepared>> {
+    let (spec, limits) = match work {
+        Work::Prepared(p) => return Ok(p),
+        Work::Stored { spec, limits } => (spec, limits),
+    };
+    let spec: JobSpec = serde_json::from_str(&spec)
+        .map_err(|e| Error::internal(format!("the job's stored request is unreadable: {e}")))?;
+    let upload = store
+        .get_upload(id)
+        .await
+        .map_err(|e| Error::from(e).context("cannot read the job's upload"))?
+        .ok_or_else(|| {
+            Error::internal(format!(
+                "the job's upload is missing from the store ({})",
+                store.describe()
+            ))
+        })?;
+    let req = spec.request(upload, &limits)?;
+    let p = blocking(move || super::prepare(&req))
+        .await
+        .inspect_err(|e| tracing::warn!(job = %id, "cannot prepare the job again: {}", e.detail))?;
+    Ok(Arc::new(p))
+}
+
 /// The engine's part of [`run`]: the volume and its metadata, not yet stored.
-async fn build(engine: Arc<dyn Engine>, claim: &Claim) -> Result<metadata::Built> {
-    let work = claim.work.clone();
+async fn build(
+    engine: Arc<dyn Engine>,
+    work: Arc<Prepared>,
+    claim: &Claim,
+) -> Result<metadata::Built> {
     let (id, name) = (claim.id.clone(), claim.name.clone());
     let ctl = claim.control.clone();
     let gpu = engine.name() == "gpu";
@@ -88,9 +125,7 @@ async fn keep(
     if let Some(guard) = guard {
         guard.confirm().await?;
     }
-    store
-        .put(built.meta.clone(), Bytes::from(built.vxl))
-        .await?;
+    store.put(built.meta.clone(), built.vxl).await?;
     Ok(built.meta)
 }
 
@@ -175,10 +210,28 @@ async fn work_with(
         let Some(claim) = queue.next().await else {
             break;
         };
-        let span = tracing::info_span!("job", id = %claim.id, method = claim.work.method.name(), dims = ?claim.work.grid.dims);
-        span.in_scope(|| tracing::info!("job started"));
+        let span = tracing::info_span!(
+            "job",
+            id = %claim.id,
+            method = tracing::field::Empty,
+            dims = tracing::field::Empty
+        );
         let t = Instant::now();
-        let built = build(engine.clone(), &claim).instrument(span.clone()).await;
+        // Prepared here (once) when it was submitted elsewhere; a job that cannot be fails.
+        let work = prepared(&*store, &claim.id, claim.work.clone())
+            .instrument(span.clone())
+            .await;
+        let built = match work {
+            Ok(work) => {
+                span.record("method", work.method.name());
+                span.record("dims", tracing::field::debug(work.grid.dims));
+                span.in_scope(|| tracing::info!("job started"));
+                build(engine.clone(), work, &claim)
+                    .instrument(span.clone())
+                    .await
+            }
+            Err(e) => Err(e),
+        };
         // Only what storing needs from here on: the mesh (the claim's `work`, which the queue
         // no longer holds either) is freed now, before the wait for the byte budget below, not
         // when the store is done with the volume.
@@ -224,12 +277,15 @@ async fn work_with(
 mod tests {
     use std::time::Duration;
 
+    use bytes::Bytes;
+
     use super::*;
+    use crate::app::queue::{NewJob, State};
+    use crate::app::store::Vxl;
     use crate::cancel::Control;
     use crate::engine::cpu::CpuEngine;
     use crate::engine::{EngineError, GridMesh, Method};
     use crate::queue::local::LocalQueue;
-    use crate::queue::{NewJob, State};
     use crate::store::fs::FsStore;
     use crate::volume::BitVolume;
 
@@ -366,7 +422,7 @@ mod tests {
 
     #[async_trait::async_trait]
     impl VolumeStore for Gated {
-        async fn put(&self, meta: VolumeMeta, vxl: Bytes) -> StoreResult<()> {
+        async fn put(&self, meta: VolumeMeta, vxl: Vxl) -> StoreResult<()> {
             use std::sync::atomic::Ordering::SeqCst;
             let n = self.now.fetch_add(1, SeqCst) + 1;
             self.most.fetch_max(n, SeqCst);
@@ -387,13 +443,16 @@ mod tests {
         ) -> StoreResult<(Vec<VolumeMeta>, bool)> {
             self.inner.list(after, limit).await
         }
-        async fn read_stream(&self, id: &str) -> StoreResult<Option<crate::store::ByteStream>> {
+        async fn read_stream(
+            &self,
+            id: &str,
+        ) -> StoreResult<Option<crate::app::store::ByteStream>> {
             self.inner.read_stream(id).await
         }
         async fn delete(&self, id: &str) -> StoreResult<bool> {
             self.inner.delete(id).await
         }
-        async fn usage(&self) -> StoreResult<crate::store::Usage> {
+        async fn usage(&self) -> StoreResult<crate::app::store::Usage> {
             self.inner.usage().await
         }
         async fn health(&self) -> StoreResult<()> {
@@ -429,7 +488,7 @@ mod tests {
         }
     }
 
-    type StoreResult<T> = std::result::Result<T, crate::store::StoreError>;
+    type StoreResult<T> = std::result::Result<T, crate::app::store::StoreError>;
 
     struct Quiet;
     impl JobObserver for Quiet {

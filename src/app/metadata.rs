@@ -4,10 +4,10 @@
 use serde_json::{Map, Value};
 
 use super::error::Result;
+use super::store::{SourceInfo, VolumeMeta, Vxl};
 use super::voxelize::Prepared;
 use crate::codec::vxl;
 use crate::engine::fill::FillReport;
-use crate::store::{SourceInfo, VolumeMeta};
 use crate::volume::Volume;
 
 /// How a volume came to be.
@@ -77,10 +77,10 @@ pub fn counts(v: &Volume) -> (u64, f64) {
     }
 }
 
-/// A volume ready for a store: its metadata and its `.vxl` bytes.
+/// A volume ready for a store: its metadata and its `.vxl` bytes (hashed once, for both).
 pub struct Built {
     pub meta: VolumeMeta,
-    pub vxl: Vec<u8>,
+    pub vxl: Vxl,
 }
 
 /// Encodes `volume` as `.vxl` and describes it, under a new id.
@@ -90,8 +90,10 @@ pub fn build(
     name: Option<String>,
     engine: &str,
 ) -> Result<Built> {
-    let vxl = vxl::encode(volume, &vxl_header(origin))
-        .map_err(|e| super::Error::internal(e.to_string()))?;
+    let vxl = Vxl::new(
+        vxl::encode(volume, &vxl_header(origin))
+            .map_err(|e| super::Error::internal(e.to_string()))?,
+    );
     let g = *volume.grid();
     let (solid, occupied) = counts(volume);
     let (source, diagnostics, fill) = match origin {
@@ -130,7 +132,8 @@ pub fn build(
         engine: engine.into(),
         created: super::rfc3339(std::time::SystemTime::now()),
         bytes: vxl.len() as u64,
-        sha256: super::sha256_hex(&vxl),
+        // The bytes' one hash: the store checks against it rather than hashing them again.
+        sha256: vxl.sha256().to_string(),
         provenance: match origin {
             Origin::Derived { provenance, .. } => Some((*provenance).clone()),
             Origin::Mesh { .. } => None,

@@ -1,17 +1,23 @@
 //! The application layer: everything between a front's input and its output, written once.
 //!
 //! A front (the command line, the HTTP service, a queue consumer, a batch runner) translates its
-//! input into a typed request ([`request`]), calls the pipeline ([`voxelize`]), a volume
-//! operation ([`ops`]) or the job runner ([`jobs`]), and translates the result (or the
+//! input into a typed request ([`request`]), calls the pipeline ([`mod@voxelize`], with [`files`]
+//! for engines and volume files), a volume operation ([`ops`]) or the jobs' submission path and
+//! worker ([`jobs`]), and translates the result (or the
 //! [`Error`], classified once in [`error`]) into its output. Nothing here knows HTTP or clap;
-//! volumes are kept through the [`crate::store::VolumeStore`] trait and jobs go through the
-//! [`crate::queue::JobQueue`] trait. Limits are in [`crate::limits`].
+//! volumes are kept through the [`store::VolumeStore`] trait and jobs go through the
+//! [`queue::JobQueue`] trait, both declared here and implemented by the adapters below
+//! (`crate::store`, `crate::queue`), which never call back into the application. Limits are in
+//! [`crate::limits`].
 
 pub mod error;
+pub mod files;
 pub mod jobs;
 pub mod metadata;
 pub mod ops;
+pub mod queue;
 pub mod request;
+pub mod store;
 pub mod voxelize;
 
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -25,8 +31,8 @@ pub use request::{
 };
 pub use voxelize::{Loaded, Prepared, Voxelized, prepare, voxelize};
 
-/// sha256 of `b` in lowercase hex (the store's, which checks volumes with it).
-pub use crate::store::sha256_hex;
+/// sha256 of `b` in lowercase hex (the store contract's, which checks volumes with it).
+pub use store::sha256_hex;
 
 /// A fresh id (jobs, volumes, requests): 16 hex digits, unique in this process and unlikely to
 /// repeat across processes (a hash of the process id, a counter and the time).
@@ -102,8 +108,8 @@ mod tests {
 pub(crate) mod testing {
     use bytes::Bytes;
 
+    use super::queue::NewJob;
     use super::{GridOptions, MeshSource, MethodSpec, VoxelizeRequest};
-    use crate::queue::NewJob;
 
     /// A closed, outward-facing tetrahedron as OBJ.
     pub const TETRA_OBJ: &[u8] =

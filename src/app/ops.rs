@@ -13,12 +13,12 @@ use serde_json::{Value, json};
 use super::error::{Error, ErrorKind, Result};
 use super::metadata::{self, Origin};
 use super::request::{CsgExpr, MorphologyRequest, PreviewRequest, PreviewView, QueryRequest};
+use super::store::{ByteStream, StoreError, VolumeMeta, VolumeStore};
 use crate::cancel::Control;
 use crate::codec::{VolumeFormat, vxl};
 use crate::grid::Grid;
 use crate::limits::Limits;
 use crate::names::Named;
-use crate::store::{ByteStream, StoreError, VolumeMeta, VolumeStore};
 use crate::volume::morph::{self, MorphOp};
 use crate::volume::{BitVolume, Volume, VolumeKind, VoxelValue, WrongKind, csg};
 
@@ -435,9 +435,7 @@ pub async fn store_derived(
         )
     })
     .await?;
-    store
-        .put(built.meta.clone(), Bytes::from(built.vxl))
-        .await?;
+    store.put(built.meta.clone(), built.vxl).await?;
     Ok(built.meta)
 }
 

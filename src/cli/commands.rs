@@ -7,10 +7,8 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use voxd::app::metadata::{self, Origin};
-use voxd::app::{self, CsgExpr, MorphologyRequest, ops};
+use voxd::app::{self, CsgExpr, MorphologyRequest, files, ops};
 use voxd::codec::VolumeFormat;
-use voxd::engine::EngineChoice;
-use voxd::engine::gpu::GpuOptions;
 use voxd::limits::Limits;
 use voxd::mesh::{self, Format};
 use voxd::volume::Volume;
@@ -29,7 +27,7 @@ pub fn voxelize(a: &VoxelizeArgs) -> Result<(), String> {
     let loaded = app::voxelize::load(&req).map_err(named)?;
     eprintln!("{}", describe_mesh(&name, &loaded.diagnostics));
     let prepared = loaded.fit(&req).map_err(named)?;
-    let engine = open_engine(a.engine, a.adapter.clone()).map_err(|e| format!("{name}: {e}"))?;
+    let engine = files::open_engine(a.engine, a.adapter.clone()).map_err(named)?;
     let v = super::progress::with_bar(&name, |ctl| app::voxelize::run(&prepared, &*engine, ctl))
         .map_err(named)?;
     let t_write = Instant::now();
@@ -60,19 +58,6 @@ pub fn voxelize(a: &VoxelizeArgs) -> Result<(), String> {
         write_s,
     );
     Ok(())
-}
-
-fn open_engine(
-    choice: EngineChoice,
-    adapter: Option<String>,
-) -> Result<Box<dyn voxd::engine::Engine>, voxd::engine::EngineError> {
-    voxd::engine::open(
-        choice,
-        GpuOptions {
-            adapter,
-            ..Default::default()
-        },
-    )
 }
 
 pub fn volume_format_of(p: &Path) -> Result<VolumeFormat, String> {
@@ -242,10 +227,8 @@ pub fn normals(input: &Path, output: &Path) -> Result<(), String> {
         return Err(format!("{}: normals are written as .npy", output.display()));
     }
     let v = read_volume(input)?;
-    let n = voxd::volume::normals::boundary_normals(&v);
-    let count = n.iter().filter(|c| **c != [0; 3]).count();
-    let bytes = voxd::codec::npy::encode_normals(v.grid().dims, &n);
-    voxd::store::atomic::write(output, &bytes).map_err(|e| format!("{}: {e}", output.display()))?;
+    let count =
+        files::write_normals(&v, output).map_err(|e| format!("{}: {e}", output.display()))?;
     println!(
         "{} -> {}: {count} boundary voxels with a normal",
         input.display(),

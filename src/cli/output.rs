@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use voxd::app::ops;
-use voxd::codec::{VolumeFormat, vxl};
+use voxd::codec::VolumeFormat;
 use voxd::engine::fill::FillReport;
 use voxd::mesh::MeshDiagnostics;
 use voxd::volume::Volume;
@@ -74,19 +74,7 @@ pub fn write_volume(
     if let Some(w) = ops::conversion_warning(v.grid(), f) {
         eprintln!("{}: {w}", path.display());
     }
-    f.check(v).map_err(|e| err(&e))?;
-    // A format that streams (its row of the table) is written a piece at a time into the
-    // temporary file; the others are encoded first (`.vxl` with `meta` in its header).
-    let bytes = match f {
-        _ if f.spec().streams => None,
-        VolumeFormat::Vxl => Some(vxl::encode(v, meta).map_err(|e| err(&e))?),
-        other => Some(other.encode(v).map_err(|e| err(&e))?),
-    };
-    voxd::store::atomic::write_with(path, |w| match &bytes {
-        Some(b) => std::io::Write::write_all(w, b),
-        None => f.write(v, w),
-    })
-    .map_err(|e| err(&e))
+    voxd::app::files::write_volume(path, f, v, meta).map_err(|e| err(&e))
 }
 
 pub fn read_volume(p: &Path) -> Result<Volume, String> {

@@ -43,6 +43,12 @@ pub enum EngineError {
     Canceled(Canceled),
 }
 
+impl From<Canceled> for EngineError {
+    fn from(c: Canceled) -> Self {
+        EngineError::Canceled(c)
+    }
+}
+
 /// A voxelization engine.
 pub trait Engine: Send + Sync {
     /// Short name for logs and summaries (`cpu`, `gpu`).

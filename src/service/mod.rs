@@ -15,15 +15,15 @@ use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::Arc;
 
+use crate::app::queue::JobQueue;
+use crate::app::store::VolumeStore;
 use crate::app::{self, Error, ErrorKind, Limits};
-use crate::engine::gpu::GpuOptions;
 use crate::engine::{Engine, EngineChoice};
-use crate::queue::JobQueue;
 use crate::queue::local::LocalQueue;
 use crate::queue::redis::{RedisOptions, RedisQueue};
+use crate::store::StoreSpec;
 use crate::store::fs::FsStore;
 use crate::store::s3::S3Store;
-use crate::store::{StoreSpec, VolumeStore};
 
 pub use routes::{ROUTES, admin_router, router};
 
@@ -156,7 +156,7 @@ impl App {
 }
 
 impl app::jobs::JobObserver for App {
-    fn job_done(&self, secs: f64, result: &app::Result<crate::store::VolumeMeta>) {
+    fn job_done(&self, secs: f64, result: &app::Result<crate::app::store::VolumeMeta>) {
         self.metrics
             .job_done(secs, result.as_ref().ok().map(|m| m.grid.voxel_count()));
     }
@@ -185,19 +185,12 @@ pub async fn open(config: &Config) -> Result<Arc<App>, String> {
         }
     };
     let (choice, adapter) = (config.engine, config.adapter.clone());
-    let engine: Arc<dyn Engine> = tokio::task::spawn_blocking(move || {
-        crate::engine::open(
-            choice,
-            GpuOptions {
-                adapter,
-                ..Default::default()
-            },
-        )
-    })
-    .await
-    .map_err(|e| e.to_string())?
-    .map_err(|e| e.to_string())?
-    .into();
+    let engine: Arc<dyn Engine> =
+        tokio::task::spawn_blocking(move || app::files::open_engine(choice, adapter))
+            .await
+            .map_err(|e| e.to_string())?
+            .map_err(|e| e.to_string())?
+            .into();
     tracing::info!(engine = %engine.describe(), "engine ready");
     let store = open_store(config).await?;
     if config.queue.is_none() && matches!(config.store, Some(StoreSpec::S3(_))) {
@@ -248,7 +241,7 @@ pub async fn open_store(config: &Config) -> Result<Arc<dyn VolumeStore>, String>
         Some(StoreSpec::S3(loc)) => {
             let store = S3Store::open(loc, quota).await.map_err(|e| match e {
                 // The error names the bucket, the endpoint and what failed.
-                crate::store::StoreError::Io(e) => e.to_string(),
+                crate::app::store::StoreError::Io(e) => e.to_string(),
                 e => format!("{loc}: {e}"),
             })?;
             return Ok(Arc::new(store));

@@ -1,155 +1,33 @@
-//! Where volumes and job records are kept: the [`VolumeStore`] trait and its two
-//! implementations, a directory ([`fs::FsStore`], the default: no extra service on one machine)
-//! and an S3 bucket ([`s3::S3Store`], shared by replicas). [`StoreSpec`] is what `--store` names.
+//! The store adapters: a directory ([`fs::FsStore`], the default: no extra service on one
+//! machine) and an S3 bucket ([`s3::S3Store`], shared by replicas), each implementing the
+//! application's [`VolumeStore`] trait (declared in [`crate::app::store`] with the records it
+//! keeps). [`StoreSpec`] is what `--store` names.
 //!
 //! A store holds, per volume, its `.vxl` bytes and its [`VolumeMeta`]; the metadata is the commit
 //! point (written last), so an interrupted put leaves nothing listed. It also keeps job records
 //! as opaque JSON documents, so that the queue's state lives where the volumes do. A store knows
-//! nothing of meshes or engines: it keeps what it is given and checks its quota.
+//! nothing of meshes, engines or the application's workings: it keeps what it is given and
+//! checks its quota. Not here: the trait and its records (the application layer's).
 
-pub mod atomic;
+pub mod fault;
 pub mod fs;
-mod joblog;
-mod packs;
 pub mod s3;
 
 use std::path::PathBuf;
 use std::pin::Pin;
 use std::task::{Context, Poll};
 
-use async_trait::async_trait;
 use bytes::Bytes;
 use futures_util::Stream;
-use serde::{Deserialize, Serialize};
 use sha2::Digest;
 
-use crate::engine::fill::FillReport;
-use crate::grid::Grid;
-use crate::mesh::MeshDiagnostics;
-
-/// What the API says about a stored volume (the store's catalogue entry).
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-pub struct VolumeMeta {
-    pub id: String,
-    pub name: Option<String>,
-    pub kind: String,
-    pub method: String,
-    pub grid: Grid,
-    /// Set voxels.
-    pub solid_voxels: u64,
-    /// `solid_voxels · voxel_size³` (density: occupied voxels), in mesh units cubed.
-    pub volume: f64,
-    pub source: SourceInfo,
-    pub diagnostics: Option<MeshDiagnostics>,
-    /// How the solid was filled: the fill asked for and used, odd-parity columns, a warning
-    /// for parity on a mesh that is not watertight (absent for derived volumes).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub fill: Option<FillReport>,
-    pub engine: String,
-    /// RFC 3339, UTC.
-    pub created: String,
-    /// Size of the stored `.vxl`.
-    pub bytes: u64,
-    /// sha256 of the stored `.vxl`, the basis of download ETags.
-    pub sha256: String,
-    /// For volumes computed from others: how (the CSG expression, the morphology).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub provenance: Option<serde_json::Value>,
-}
-
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-pub struct SourceInfo {
-    pub format: String,
-    pub sha256: String,
-    pub triangles: usize,
-}
-
-#[derive(Debug, thiserror::Error)]
-pub enum StoreError {
-    #[error(
-        "storing this volume ({need} bytes, data and metadata) would exceed the store's limit of {limit} bytes ({used} used); delete volumes first"
-    )]
-    Full { need: u64, used: u64, limit: u64 },
-    #[error("storage I/O: {0}")]
-    Io(#[from] std::io::Error),
-    #[error("stored data is unreadable: {0}")]
-    Corrupt(String),
-}
-
-/// Bytes and volumes stored, against the quota.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-pub struct Usage {
-    /// Everything stored for the volumes: data and metadata (what the quota counts).
-    pub bytes: u64,
-    pub volumes: u64,
-    pub limit: u64,
-}
-
-/// A place for volumes and job records. Every method may do I/O and is async; none blocks the
-/// caller's thread.
-#[async_trait]
-pub trait VolumeStore: Send + Sync {
-    /// Stores a volume: the quota check and the put are one step (two puts cannot both pass a
-    /// check that only one fits), and the quota counts the metadata as well as the data. The
-    /// metadata is written last and is the commit point. `meta.bytes` and `meta.sha256` must
-    /// describe `vxl` (`Corrupt` otherwise, and nothing is stored).
-    async fn put(&self, meta: VolumeMeta, vxl: Bytes) -> Result<(), StoreError>;
-    async fn get(&self, id: &str) -> Result<Option<VolumeMeta>, StoreError>;
-    /// The stored `.vxl` bytes, verified against the metadata's length and sha256: damaged,
-    /// torn or missing data is `Corrupt`, never returned.
-    async fn read(&self, id: &str) -> Result<Option<Bytes>, StoreError>;
-    /// Up to `limit` volumes with ids after `after`, in id order, and whether more follow.
-    async fn list(
-        &self,
-        after: Option<&str>,
-        limit: usize,
-    ) -> Result<(Vec<VolumeMeta>, bool), StoreError>;
-    /// The stored `.vxl` bytes as a stream of chunks, for downloads that need not hold a whole
-    /// volume: checked while they stream ([`verified`]), so damaged data ends the stream with
-    /// `Corrupt` before its last byte (a client sees a broken transfer, never a whole one).
-    async fn read_stream(&self, id: &str) -> Result<Option<ByteStream>, StoreError>;
-    /// Removes a volume; false when there was none.
-    async fn delete(&self, id: &str) -> Result<bool, StoreError>;
-    async fn usage(&self) -> Result<Usage, StoreError>;
-    /// Can the store take writes? Cheap enough for every readiness probe.
-    async fn health(&self) -> Result<(), StoreError>;
-    /// Writes (replaces) the record of job `id`, durably.
-    async fn put_job_record(&self, id: &str, record: Bytes) -> Result<(), StoreError>;
-    /// Removes job `id`'s record (none is not an error): old finished jobs are forgotten.
-    async fn delete_job_record(&self, id: &str) -> Result<(), StoreError>;
-    /// Writes (`Some`) or removes (`None`) several job records (distinct ids), all durable when
-    /// this returns: a group commit. A store may do better than one after the other (the
-    /// directory store appends them to its log in one write). The result per record.
-    ///
-    /// Not `durable`: nobody waits for these records to survive a power loss (only a crash of
-    /// this process), so a store may leave them to the next durable batch (the directory
-    /// store's log writes them without a sync); by default they are made durable all the same.
-    async fn put_job_records(
-        &self,
-        batch: Vec<(String, Option<Bytes>)>,
-        _durable: bool,
-    ) -> Vec<Result<(), StoreError>> {
-        let mut out = Vec::with_capacity(batch.len());
-        for (id, bytes) in batch {
-            out.push(match bytes {
-                Some(b) => self.put_job_record(&id, b).await,
-                None => self.delete_job_record(&id).await,
-            });
-        }
-        out
-    }
-    /// Every job record, in no particular order.
-    async fn job_records(&self) -> Result<Vec<Bytes>, StoreError>;
-    /// Keeps the uploaded mesh of a queued job (`id` is the job's), so that whichever process
-    /// runs the job can read it. Not counted against the volume quota: the queue's capacity and
-    /// the body limit bound it.
-    async fn put_upload(&self, id: &str, bytes: Bytes) -> Result<(), StoreError>;
-    async fn get_upload(&self, id: &str) -> Result<Option<Bytes>, StoreError>;
-    /// Removes a job's upload (none is not an error).
-    async fn delete_upload(&self, id: &str) -> Result<(), StoreError>;
-    /// Where the store is, for logs.
-    fn describe(&self) -> String;
-}
+// Atomic file writes, which every store uses, where older callers look for them.
+pub use crate::atomic;
+// The contract's names where the adapters and older callers look for them.
+use crate::app::store::hex;
+pub use crate::app::store::{
+    ByteStream, SourceInfo, StoreError, Usage, VolumeMeta, VolumeStore, Vxl, sha256_hex,
+};
 
 /// Where the volumes live, as `--store` (or `VOXD_STORE`) names it: `s3://BUCKET/PREFIX`, or a
 /// directory (`file:///path` or a plain path).
@@ -199,7 +77,28 @@ pub(crate) fn safe_id(id: &str) -> bool {
     !id.is_empty() && id.len() <= 128 && id.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'-')
 }
 
-/// Do `bytes` match what `meta` says of them (length, sha256)?
+/// Does `vxl` match what `meta` says of it (length, sha256)? The hash is the one `vxl` carries:
+/// a put does not hash the bytes again.
+pub(crate) fn check_put(meta: &VolumeMeta, vxl: &Vxl) -> Result<(), StoreError> {
+    let id = &meta.id;
+    if vxl.len() as u64 != meta.bytes {
+        return Err(StoreError::Corrupt(format!(
+            "volume {id}: the data is {} bytes but its metadata says {} (a torn or damaged file)",
+            vxl.len(),
+            meta.bytes
+        )));
+    }
+    if vxl.sha256() != meta.sha256 {
+        return Err(StoreError::Corrupt(format!(
+            "volume {id}: the data's sha256 is {} but its metadata says {:?} (damaged)",
+            vxl.sha256(),
+            meta.sha256
+        )));
+    }
+    Ok(())
+}
+
+/// Do `bytes` (as read back) match what `meta` says of them (length, sha256)?
 pub(crate) fn check(id: &str, bytes: &[u8], meta: &VolumeMeta) -> Result<(), StoreError> {
     if bytes.len() as u64 != meta.bytes {
         return Err(StoreError::Corrupt(format!(
@@ -217,24 +116,6 @@ pub(crate) fn check(id: &str, bytes: &[u8], meta: &VolumeMeta) -> Result<(), Sto
     }
     Ok(())
 }
-
-/// sha256 of `b` in lowercase hex (volumes' checksums, upload hashes, ids derived from names).
-pub fn sha256_hex(b: &[u8]) -> String {
-    hex(&sha2::Sha256::digest(b))
-}
-
-/// Lowercase hex of `bytes`.
-fn hex(bytes: &[u8]) -> String {
-    use std::fmt::Write;
-    let mut s = String::with_capacity(2 * bytes.len());
-    for x in bytes {
-        let _ = write!(s, "{x:02x}");
-    }
-    s
-}
-
-/// Chunks of a stored volume's bytes.
-pub type ByteStream = Pin<Box<dyn Stream<Item = Result<Bytes, StoreError>> + Send>>;
 
 /// Wraps the raw chunks of volume `id` so that they are checked against `meta`'s length and
 /// sha256 as they pass: a chunk that would go past the length, a stream that ends short, or a

@@ -56,8 +56,11 @@ mod quota;
 pub use connect::{Location, retry_config};
 use connect::{builder, endpoint_of, instance_name};
 
-use super::fs::fault;
-use super::{ByteStream, StoreError, Usage, VolumeMeta, VolumeStore, check, safe_id, verified};
+use super::fault;
+use super::{
+    ByteStream, StoreError, Usage, VolumeMeta, VolumeStore, Vxl, check, check_put, safe_id,
+    verified,
+};
 
 /// How long a successful write vouches for the store's health (as the directory store's).
 const HEALTH_TTL: Duration = Duration::from_secs(30);
@@ -430,19 +433,14 @@ fn bad_id(what: &str, id: &str) -> StoreError {
 
 #[async_trait]
 impl VolumeStore for S3Store {
-    async fn put(&self, meta: VolumeMeta, vxl: Bytes) -> Result<(), StoreError> {
+    async fn put(&self, meta: VolumeMeta, vxl: Vxl) -> Result<(), StoreError> {
         let s = &self.shared;
         if !safe_id(&meta.id) {
             return Err(bad_id("volume", &meta.id));
         }
-        let (m, data) = (meta.clone(), vxl.clone());
-        let json = blocking(move || {
-            check(&m.id, &data, &m)?;
-            Ok(Bytes::from(
-                serde_json::to_vec_pretty(&m).expect("metadata serialises"),
-            ))
-        })
-        .await?;
+        check_put(&meta, &vxl)?;
+        let vxl = vxl.into_bytes();
+        let json = Bytes::from(serde_json::to_vec_pretty(&meta).expect("metadata serialises"));
         let need = (vxl.len() + json.len()) as u64;
         s.reserve(need).await?;
         let r = s.put_reserved(&meta, vxl, json).await;

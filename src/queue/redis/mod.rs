@@ -3,16 +3,16 @@
 //! the next one; the job's record lives in Redis, so every replica answers for every job.
 //!
 //! - **Submit**: the upload's bytes go to the store first ([`VolumeStore::put_upload`]), then
-//!   the job (its request as data, [`JobSpec`]) enters the stream of its size class, in one
+//!   the job (its request as data, a `JobSpec`) enters the stream of its size class, in one
 //!   script that also checks the shared capacity (`429` when full). The request was prepared
 //!   (validated) before, so a bad mesh is refused at once.
 //! - **Classes**: one stream per size class by estimated cost (small ≤ a 256³ job, medium ≤
 //!   512³, large beyond). A worker takes, of the classes' next jobs, the one with the lowest
 //!   `cost − 256³ × seconds waited`, the in-process queue's rule: small jobs overtake large
 //!   ones, and a large one that has waited long enough is not overtaken again.
-//! - **Running**: the worker that took a job (XREADGROUP) prepares it again from the stored
-//!   upload (on the blocking pool; a job submitted to this very replica reuses its prepared
-//!   mesh), and renews its lease every `min(lease/3, 1 s)` while it runs: the renewal resets the
+//! - **Running**: the worker that took a job (XREADGROUP) is handed its stored request
+//!   ([`Work::Stored`]), which the application's worker prepares from the stored upload (a job
+//!   submitted to this very replica is handed its prepared mesh instead), and renews its lease every `min(lease/3, 1 s)` while it runs: the renewal resets the
 //!   entry's idle time (XCLAIM by its own consumer), reports progress and hears a cancel.
 //! - **Dead workers**: an entry idle for a lease (`--lease-seconds`) belongs to a worker that
 //!   stopped: the next replica looking for work takes it over (XAUTOCLAIM) and runs it again, at
@@ -35,6 +35,8 @@
 //!
 //! Every state change is one Lua script (scripts.rs), atomic in Redis; times are Redis's clock.
 
+mod events;
+mod lease;
 mod scripts;
 
 use std::collections::{HashMap, VecDeque};
@@ -42,24 +44,32 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use async_trait::async_trait;
-use futures_util::StreamExt;
 use redis::aio::{ConnectionManager, ConnectionManagerConfig};
 use tokio::sync::{Notify, broadcast, watch};
 
-use super::{Claim, CommitGuard, JobQueue, JobRecord, NewJob, QueueStats, State, Timings};
-use crate::app::{self, Error, ErrorKind, JobSpec, Limits, Prepared, Result};
+use crate::app::queue::{
+    AGE_CREDIT_PER_SEC, Claim, Error, ErrorKind, JobQueue, JobRecord, NewJob, Owner, QueueStats,
+    Result, State, Timings, Work,
+};
+use crate::app::store::{VolumeStore, sha256_hex};
 use crate::cancel::Control;
-use crate::store::VolumeStore;
-use scripts::{Cancel, Claimed, Finished, Lease, Redis, Run, Submitted};
+use crate::limits::Limits;
+use events::listen;
+use lease::{Guard, renew};
+use scripts::{Cancel, Claimed, Finished, Redis, Run, Submitted};
 
 /// The size classes, each a stream, in the order their names sort jobs (small first).
 pub const CLASSES: [&str; 3] = ["small", "medium", "large"];
 
-/// Cost credit per second of waiting (a 256³ job), as in the in-process queue.
-const AGE_CREDIT_PER_SEC: f64 = 256.0 * 256.0 * 256.0;
-
 /// How often an idle worker looks for work (and expired leases) without being woken.
 const IDLE_POLL: Duration = Duration::from_millis(500);
+
+/// Lease of a running job (`--lease-seconds`): a default `voxd serve` and [`RedisOptions::new`]
+/// share.
+pub const DEFAULT_LEASE_S: f64 = 30.0;
+
+/// Starts of one job at most (`--max-attempts`).
+pub const DEFAULT_MAX_ATTEMPTS: u32 = 3;
 
 /// Prepared meshes of jobs submitted here, kept for when this replica runs them.
 const PREPARED_KEPT: usize = 8;
@@ -67,7 +77,7 @@ const PREPARED_KEPT: usize = 8;
 /// How long a worker keeps trying to record a job's end while Redis is unreachable.
 const FINISH_RETRY: Duration = Duration::from_secs(120);
 
-/// The size class of a job of estimated `cost` ([`Prepared::cost`]).
+/// The size class of a job of estimated `cost` ([`NewJob::cost`]).
 pub fn class_of(cost: f64) -> &'static str {
     if cost <= 256f64.powi(3) {
         "small"
@@ -81,7 +91,7 @@ pub fn class_of(cost: f64) -> &'static str {
 /// The id of job `job`'s volume: 16 hex digits of sha256("voxd-volume:" + job), the same on
 /// every replica and every attempt.
 pub fn volume_id_for(job: &str) -> String {
-    app::sha256_hex(format!("voxd-volume:{job}").as_bytes())[..16].to_string()
+    sha256_hex(format!("voxd-volume:{job}").as_bytes())[..16].to_string()
 }
 
 /// How a [`RedisQueue`] behaves.
@@ -100,7 +110,7 @@ pub struct RedisOptions {
     pub prefix: String,
     /// How long the records of finished jobs are kept.
     pub record_ttl: Duration,
-    /// This process's limits: a job prepared again here is held to them too.
+    /// This process's limits: a job its worker prepares again here is held to them too.
     pub limits: Limits,
 }
 
@@ -108,8 +118,8 @@ impl RedisOptions {
     pub fn new(capacity: usize) -> RedisOptions {
         RedisOptions {
             capacity,
-            lease: Duration::from_secs(30),
-            max_attempts: 3,
+            lease: Duration::from_secs_f64(DEFAULT_LEASE_S),
+            max_attempts: DEFAULT_MAX_ATTEMPTS,
             job_timeout: None,
             prefix: "voxd".into(),
             record_ttl: Duration::from_secs(7 * 24 * 3600),
@@ -143,7 +153,7 @@ struct Inner {
     done: broadcast::Sender<String>,
     closed: watch::Sender<bool>,
     running: Mutex<HashMap<String, Running>>,
-    prepared: Mutex<VecDeque<(String, Arc<Prepared>)>>,
+    prepared: Mutex<VecDeque<(String, Work)>>,
 }
 
 pub struct RedisQueue {
@@ -158,6 +168,20 @@ impl Drop for RedisQueue {
             r.renewal.abort();
         }
     }
+}
+
+/// Six hex digits that differ between processes (and between queues of one process): a
+/// consumer name's tail.
+fn nonce() -> String {
+    use std::hash::{BuildHasher, Hasher};
+    let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+    h.write_u128(
+        std::time::SystemTime::now()
+            .duration_since(std::time::SystemTime::UNIX_EPOCH)
+            .unwrap_or_default()
+            .as_nanos(),
+    );
+    format!("{:06x}", h.finish() & 0xff_ffff)
 }
 
 /// `url` without its password.
@@ -231,7 +255,7 @@ impl RedisQueue {
             .map(|h| h.trim().to_string())
             .filter(|h| !h.is_empty())
             .unwrap_or_else(|| "voxd".into());
-        let consumer = format!("{host}-{}-{}", std::process::id(), &app::new_id()[..6]);
+        let consumer = format!("{host}-{}-{}", std::process::id(), nonce());
         tracing::info!(queue = %target, %consumer, "shared job queue ready");
         let (done, _) = broadcast::channel(256);
         let inner = Arc::new(Inner {
@@ -256,129 +280,12 @@ impl RedisQueue {
     }
 }
 
-/// Listens to the queue's events (pub/sub, its own connection), reconnecting with backoff:
-/// `new` wakes idle workers, `done <id>` wakes waiters. After every (re)subscription everyone
-/// looks again, for what happened while nobody listened.
-async fn listen(client: redis::Client, inner: std::sync::Weak<Inner>) {
-    let mut backoff = Duration::from_millis(100);
-    loop {
-        let Some(channel) = inner.upgrade().map(|i| i.redis.events_channel()) else {
-            return;
-        };
-        match client.get_async_pubsub().await {
-            Ok(mut pubsub) => {
-                if pubsub.subscribe(&channel).await.is_ok() {
-                    backoff = Duration::from_millis(100);
-                    if let Some(i) = inner.upgrade() {
-                        i.ready.notify_waiters();
-                        let _ = i.done.send(String::new());
-                    }
-                    let mut messages = pubsub.on_message();
-                    while let Some(m) = messages.next().await {
-                        let Some(i) = inner.upgrade() else { return };
-                        let text: String = m.get_payload().unwrap_or_default();
-                        if text == "new" {
-                            i.ready.notify_waiters();
-                        } else if let Some(id) = text.strip_prefix("done ") {
-                            i.forget_prepared(id);
-                            let _ = i.done.send(id.to_string());
-                        }
-                    }
-                }
-            }
-            Err(e) => tracing::debug!("queue events: {e}"),
-        }
-        tokio::time::sleep(backoff).await;
-        backoff = (backoff * 2).min(Duration::from_secs(5));
-    }
-}
-
-/// Renews a run's lease until it ends; a cancel or a lost lease stops the run (its control).
-async fn renew(
-    redis: Redis,
-    consumer: String,
-    id: String,
-    token: String,
-    control: Control,
-    every: Duration,
-) {
-    let mut failing = false;
-    loop {
-        tokio::time::sleep(every).await;
-        match redis
-            .renew(&id, &token, &consumer, control.progress())
-            .await
-        {
-            Ok(Lease::Held) => failing = false,
-            Ok(Lease::Canceled) => {
-                tracing::info!(job = %id, "canceled from another replica; stopping");
-                control.cancel();
-                return;
-            }
-            Ok(Lease::Lost) => {
-                tracing::warn!(job = %id, "lease lost (another replica took the job over); stopping");
-                control.cancel();
-                return;
-            }
-            Err(e) => {
-                if !failing {
-                    tracing::warn!(job = %id, "cannot renew the job's lease: {e}");
-                }
-                failing = true;
-            }
-        }
-    }
-}
-
-/// A run's check before it stores its volume.
-struct Guard {
-    redis: Redis,
-    consumer: String,
-    id: String,
-    token: String,
-    control: Control,
-}
-
-#[async_trait]
-impl CommitGuard for Guard {
-    async fn confirm(&self) -> Result<()> {
-        match self
-            .redis
-            .renew(
-                &self.id,
-                &self.token,
-                &self.consumer,
-                self.control.progress(),
-            )
-            .await
-        {
-            Ok(Lease::Held) => Ok(()),
-            Ok(Lease::Canceled) => {
-                self.control.cancel();
-                Err(Error::new(ErrorKind::NotCancelable, "canceled"))
-            }
-            Ok(Lease::Lost) => {
-                self.control.cancel();
-                Err(Error::internal(
-                    "another replica took this job over (this one did not renew its lease in time); this run's result is discarded",
-                ))
-            }
-            // The volume's id is the job's own, so storing it cannot make a second one: the
-            // finish (retried until Redis answers) decides whether it stays.
-            Err(e) => {
-                tracing::warn!(job = %self.id, "cannot confirm the lease before storing: {e}");
-                Ok(())
-            }
-        }
-    }
-}
-
 impl Inner {
     fn lock_running(&self) -> std::sync::MutexGuard<'_, HashMap<String, Running>> {
         self.running.lock().unwrap_or_else(|p| p.into_inner())
     }
 
-    fn lock_prepared(&self) -> std::sync::MutexGuard<'_, VecDeque<(String, Arc<Prepared>)>> {
+    fn lock_prepared(&self) -> std::sync::MutexGuard<'_, VecDeque<(String, Work)>> {
         self.prepared.lock().unwrap_or_else(|p| p.into_inner())
     }
 
@@ -430,32 +337,17 @@ impl Inner {
         }
     }
 
-    /// The prepared voxelization of a run: kept from its submit here, else prepared again
-    /// from the stored upload.
-    async fn prepare(&self, run: &Run) -> Result<Arc<Prepared>> {
-        {
-            let mut kept = self.lock_prepared();
-            if let Some(i) = kept.iter().position(|(j, _)| *j == run.id) {
-                return Ok(kept.remove(i).expect("present").1);
-            }
+    /// A run's work: the prepared voxelization kept from its submit here, else its stored
+    /// request, which the worker prepares (the mesh is parsed once per run, by whoever runs it).
+    fn work(&self, run: &Run) -> Work {
+        let mut kept = self.lock_prepared();
+        if let Some(i) = kept.iter().position(|(j, _)| *j == run.id) {
+            return kept.remove(i).expect("present").1;
         }
-        let spec: JobSpec = serde_json::from_str(&run.spec)
-            .map_err(|e| Error::internal(format!("the job's stored request is unreadable: {e}")))?;
-        let upload = self
-            .store
-            .get_upload(&run.id)
-            .await
-            .map_err(|e| Error::from(e).context("cannot read the job's upload"))?
-            .ok_or_else(|| {
-                Error::internal(format!(
-                    "the job's upload is missing from the store ({})",
-                    self.store.describe()
-                ))
-            })?;
-        let req = spec.request(upload, &self.opts.limits)?;
-        Ok(Arc::new(
-            app::ops::blocking(move || app::prepare(&req)).await?,
-        ))
+        Work::Stored {
+            spec: run.spec.clone(),
+            limits: self.opts.limits,
+        }
     }
 
     /// Takes the next job, if any: expired leases first, then new jobs; clears what it meets.
@@ -497,8 +389,8 @@ impl Inner {
         Ok(None)
     }
 
-    /// Starts a run: its lease renewal at once, then its preparation. `None` when it cannot be
-    /// prepared (its end is recorded, failed).
+    /// Starts a run: its lease renewal, its deadline, and its claim (the worker prepares its
+    /// work when it was not submitted here).
     async fn start(&self, run: Run) -> Option<Claim> {
         let control = Control::new();
         let every = (self.opts.lease / 3).min(Duration::from_secs(1));
@@ -518,14 +410,7 @@ impl Inner {
                 renewal,
             },
         );
-        let work = match self.prepare(&run).await {
-            Ok(w) => w,
-            Err(e) => {
-                tracing::warn!(job = %run.id, "cannot prepare the job again: {}", e.detail);
-                self.finish(&run.id, Err(e)).await;
-                return None;
-            }
-        };
+        let work = self.work(&run);
         if let Some(at) = self
             .opts
             .job_timeout
@@ -658,7 +543,7 @@ fn full(waiting: usize) -> Error {
 #[async_trait]
 impl JobQueue for RedisQueue {
     /// The shared capacity only (one round trip); the owner's limit is the submit script's.
-    async fn admission(&self, _owner: Option<&crate::queue::Owner>) -> Result<()> {
+    async fn admission(&self, _owner: Option<&Owner>) -> Result<()> {
         let q = &*self.inner;
         q.open_for_jobs()?;
         let waiting = q.redis.waiting().await.map_err(|e| q.unavailable(&e))?;
@@ -678,27 +563,29 @@ impl JobQueue for RedisQueue {
             .put_upload(&job.id, job.upload.clone())
             .await
             .map_err(|e| Error::from(e).context("cannot store the upload"))?;
-        let cost = job.work.cost();
-        let (class, method) = (class_of(cost), job.work.method.name());
+        let cost = job.cost();
+        let (class, method) = (class_of(cost), job.method());
+        let spec = serde_json::to_string(&job.spec).expect("a spec serialises");
+        let (id, owner) = (job.id.clone(), job.owner.clone());
         {
             // Kept before the job is visible, for when a worker here takes it at once.
             let mut kept = q.lock_prepared();
             if kept.len() >= PREPARED_KEPT {
                 kept.pop_front();
             }
-            kept.push_back((job.id.clone(), Arc::new(job.work)));
+            kept.push_back((id.clone(), job.into_work()));
         }
         let submitted = q
             .redis
             .submit(
-                &job.id,
+                &id,
                 q.opts.capacity,
                 class,
                 cost,
                 method,
                 &serde_json::to_string(&record).expect("a record serialises"),
-                &serde_json::to_string(&job.spec).expect("a spec serialises"),
-                job.owner.as_ref(),
+                &spec,
+                owner.as_ref(),
             )
             .await;
         let position = match submitted {
@@ -706,16 +593,16 @@ impl JobQueue for RedisQueue {
             other => {
                 // Not queued (or not known to be: then a replica that runs it finds no upload
                 // and fails it, saying so).
-                q.forget_prepared(&job.id);
-                let _ = q.store.delete_upload(&job.id).await;
+                q.forget_prepared(&id);
+                let _ = q.store.delete_upload(&id).await;
                 return Err(match other {
                     Ok(Submitted::Full(n)) => full(n),
-                    Ok(Submitted::OwnerBusy(n)) => job.owner.as_ref().map_or_else(
+                    Ok(Submitted::OwnerBusy(n)) => owner.as_ref().map_or_else(
                         || Error::internal("an owner limit without an owner"),
                         |o| o.too_many(n),
                     ),
                     Err(e) => q.unavailable(&e),
-                    _ => Error::internal(format!("job id {} is taken", job.id)),
+                    _ => Error::internal(format!("job id {id} is taken")),
                 });
             }
         };
@@ -877,27 +764,4 @@ impl JobQueue for RedisQueue {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn classes_ids_urls_and_versions() {
-        assert_eq!(class_of(64.0 * 64.0 * 64.0), "small");
-        assert_eq!(class_of(256f64.powi(3)), "small");
-        assert_eq!(class_of(300f64.powi(3)), "medium");
-        assert_eq!(class_of(1024f64.powi(3)), "large");
-        let v = volume_id_for("abc");
-        assert_eq!((v.len(), v.clone()), (16, volume_id_for("abc")));
-        assert_ne!(v, volume_id_for("abd"));
-        assert!(v.bytes().all(|b| b.is_ascii_hexdigit()));
-        assert_eq!(redact("redis://:s3cret@h:6379/2"), "redis://***@h:6379/2");
-        assert_eq!(redact("redis://u:p@h"), "redis://***@h");
-        assert_eq!(redact("redis://h:6379"), "redis://h:6379");
-        assert_eq!(
-            redis_version("# Server\r\nredis_version:7.0.15\r\n"),
-            Some((7, 0))
-        );
-        assert_eq!(redis_version("redis_version:6.2.1"), Some((6, 2)));
-        assert_eq!(redis_version("nothing"), None);
-    }
-}
+mod tests;

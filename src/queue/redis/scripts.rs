@@ -190,7 +190,7 @@ impl Redis {
         method: &str,
         record: &str,
         spec: &str,
-        owner: Option<&crate::queue::Owner>,
+        owner: Option<&crate::app::queue::Owner>,
     ) -> RedisResult<Submitted> {
         let (what, n): (String, usize) = self
             .scripts

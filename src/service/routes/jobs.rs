@@ -7,7 +7,7 @@ use serde_json::Value;
 use super::super::problem::Problem;
 use super::AppState;
 use crate::app::Error;
-use crate::queue::JobRecord;
+use crate::app::queue::JobRecord;
 
 /// A job as the API shows it: its record, with the error as a problem document.
 pub fn view(mut r: JobRecord) -> Value {

@@ -1,6 +1,6 @@
-//! `POST /v1/voxelize`: the query and body become a [`VoxelizeRequest`], prepared (loaded,
-//! diagnosed, fitted: refused here when it cannot run) and queued; with `wait`, the response
-//! waits for the job.
+//! `POST /v1/voxelize`: the query and headers become a [`Submission`] and the body its upload,
+//! handed to the application's one submission path ([`jobs::submit`]: admission, preparation,
+//! the record, queued or waited for), whose outcome becomes the response. Translation only.
 
 use std::time::Duration;
 
@@ -12,13 +12,12 @@ use serde::Deserialize;
 use super::super::extract::{Query, check_content_encoding, read_body, triple};
 use super::super::problem::Problem;
 use super::{AppState, check_name, created, set_location};
+use crate::app::jobs::{self, Jobs, Submission, Submitted};
+use crate::app::queue::Owner;
 use crate::app::request::MethodName;
-use crate::app::{
-    self, Error, ErrorKind, GridOptions, JobSpec, MeshSource, MethodSpec, VoxelizeRequest, ops,
-};
+use crate::app::{self, Error, ErrorKind, GridOptions, MethodSpec};
 use crate::engine::fill::Fill;
 use crate::mesh::Format;
-use crate::queue::{NewJob, State};
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -93,7 +92,7 @@ fn format_of(q: &VoxelizeQuery, headers: &HeaderMap) -> app::Result<Option<Forma
 pub async fn submit(
     axum::extract::State(app): AppState,
     Query(q): Query<VoxelizeQuery>,
-    owner: Option<axum::Extension<crate::queue::Owner>>,
+    owner: Option<axum::Extension<Owner>>,
     headers: HeaderMap,
     body: Body,
 ) -> Result<Response, Problem> {
@@ -126,78 +125,47 @@ pub async fn submit(
     }
     let format = format_of(&q, &headers)?;
     let gzip = check_content_encoding(&headers, true)?;
-    // Refused before the upload is read and parsed when the queue would refuse it anyway: an
-    // overloaded server spends nothing on meshes it cannot take.
-    app.queue.admission(owner.as_ref()).await?;
-    let body = read_body(&app, &headers, body, limits.max_body_bytes).await?;
-    // The body's content is at fault, not the request's form: like a gzip stream that breaks
-    // off, an invalid mesh (422).
-    if gzip && !body.bytes.starts_with(&[0x1f, 0x8b]) {
-        return Err(Problem::new(
-            ErrorKind::InvalidMesh,
-            "Content-Encoding says gzip, but the body is not gzip data",
-        ));
-    }
-    let req = VoxelizeRequest {
-        source: MeshSource::Bytes {
-            bytes: body.bytes.clone(),
-            format,
-        },
+    let sub = Submission {
+        format,
         grid,
         padding: q.padding,
         method,
         fill: q.fill.unwrap_or(Fill::Parity),
         limits,
-    };
-    let spec = JobSpec::of(&req);
-    let ingest = app.ingest.clone();
-    let work = ops::on_pool(Some(&ingest), move || app::prepare(&req)).await?;
-    let id = app::new_id();
-    let job = NewJob {
-        id: id.clone(),
-        work,
-        spec,
-        upload: body.bytes.clone(),
         name: q.name,
         owner,
-        created: app::rfc3339(std::time::SystemTime::now()),
+        wait: Duration::from_secs_f64(q.wait),
     };
-    // With `wait`, the answer comes once the job is final (its final record durable), or else
-    // after `persist` below: the queued record need not be synced first.
-    let record = if q.wait > 0.0 {
-        app.queue.submit_deferred(job).await?
-    } else {
-        app.queue.submit(job).await?
-    };
-    // The upload's bytes leave the in-flight budget once queued (a shared queue has stored
-    // them by then).
-    drop(body);
-    let record = if q.wait > 0.0 {
-        let r = app
-            .queue
-            .wait(&id, Duration::from_secs_f64(q.wait))
-            .await?
-            .unwrap_or(record);
-        match (r.state, &r.volume_id, &r.error) {
-            (State::Succeeded, Some(v), _) => {
-                if let Some(meta) = app.store.get(v).await.map_err(Error::from)? {
-                    return Ok(created(&meta));
-                }
-            }
-            (State::Failed, _, Some(e)) => {
-                let mut p = Problem::from(e.clone());
-                p.instance = Some(format!("/v1/jobs/{id}"));
-                return Err(p);
-            }
-            _ => {}
+    // Read once the queue has said it would take the job; held in the in-flight budget until
+    // queued.
+    let upload = async {
+        let body = read_body(&app, &headers, body, limits.max_body_bytes).await?;
+        // The body's content is at fault, not the request's form: like a gzip stream that
+        // breaks off, an invalid mesh (422).
+        if gzip && !body.bytes.starts_with(&[0x1f, 0x8b]) {
+            return Err(Error::new(
+                ErrorKind::InvalidMesh,
+                "Content-Encoding says gzip, but the body is not gzip data",
+            ));
         }
-        // Answered with the job's id before it is final: its record must survive a crash.
-        app.queue.persist(&id).await?;
-        r
-    } else {
-        record
+        Ok((body.bytes.clone(), body))
     };
+    let jobs = Jobs {
+        queue: &*app.queue,
+        store: &*app.store,
+        pool: Some(&app.ingest),
+    };
+    let record = match jobs::submit(jobs, sub, upload).await? {
+        Submitted::Done(meta) => return Ok(created(&meta)),
+        Submitted::Failed { id, error } => {
+            let mut p = Problem::from(error);
+            p.instance = Some(format!("/v1/jobs/{id}"));
+            return Err(p);
+        }
+        Submitted::Pending(record) => *record,
+    };
+    let location = format!("/v1/jobs/{}", record.id);
     let mut r = (StatusCode::ACCEPTED, axum::Json(super::jobs::view(record))).into_response();
-    set_location(&mut r, &format!("/v1/jobs/{id}"));
+    set_location(&mut r, &location);
     Ok(r)
 }

@@ -1,5 +1,7 @@
 //! Durable, atomic file writes: the one implementation behind the store and every file the
 //! command line writes. A reader sees either the old file or the whole new one, never a part.
+//! Below every other module (it knows files only), so that the application and the store
+//! adapters can both use it. Not here: what the files hold.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};

@@ -32,8 +32,8 @@ use std::fs::{File, OpenOptions};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use super::fs::fault;
-use super::{StoreError, atomic, safe_id, sha256_hex};
+use crate::store::fault;
+use crate::store::{StoreError, atomic, safe_id, sha256_hex};
 use bytes::Bytes;
 
 /// Hex digits of a line's hash: the first 8 bytes of the sha256.

@@ -1,0 +1,212 @@
+//! The store's side of the application layer: the [`VolumeStore`] trait that every store
+//! adapter (`crate::store::fs`, `crate::store::s3`) implements, and the records it keeps
+//! ([`VolumeMeta`], [`SourceInfo`]) and its errors ([`StoreError`]). The application owns the
+//! contract (as in axum's dependency-injection example); the adapters import it from here and
+//! nothing else of the application. Not here: where or how a store keeps its bytes.
+
+use std::pin::Pin;
+
+use async_trait::async_trait;
+use bytes::Bytes;
+use futures_util::Stream;
+use serde::{Deserialize, Serialize};
+use sha2::Digest;
+
+use crate::engine::fill::FillReport;
+use crate::grid::Grid;
+use crate::mesh::MeshDiagnostics;
+
+/// What the API says about a stored volume (the store's catalogue entry).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct VolumeMeta {
+    pub id: String,
+    pub name: Option<String>,
+    pub kind: String,
+    pub method: String,
+    pub grid: Grid,
+    /// Set voxels.
+    pub solid_voxels: u64,
+    /// `solid_voxels · voxel_size³` (density: occupied voxels), in mesh units cubed.
+    pub volume: f64,
+    pub source: SourceInfo,
+    pub diagnostics: Option<MeshDiagnostics>,
+    /// How the solid was filled: the fill asked for and used, odd-parity columns, a warning
+    /// for parity on a mesh that is not watertight (absent for derived volumes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fill: Option<FillReport>,
+    pub engine: String,
+    /// RFC 3339, UTC.
+    pub created: String,
+    /// Size of the stored `.vxl`.
+    pub bytes: u64,
+    /// sha256 of the stored `.vxl`, the basis of download ETags.
+    pub sha256: String,
+    /// For volumes computed from others: how (the CSG expression, the morphology).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub provenance: Option<serde_json::Value>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct SourceInfo {
+    pub format: String,
+    pub sha256: String,
+    pub triangles: usize,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum StoreError {
+    #[error(
+        "storing this volume ({need} bytes, data and metadata) would exceed the store's limit of {limit} bytes ({used} used); delete volumes first"
+    )]
+    Full { need: u64, used: u64, limit: u64 },
+    #[error("storage I/O: {0}")]
+    Io(#[from] std::io::Error),
+    #[error("stored data is unreadable: {0}")]
+    Corrupt(String),
+}
+
+/// Bytes and volumes stored, against the quota.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct Usage {
+    /// Everything stored for the volumes: data and metadata (what the quota counts).
+    pub bytes: u64,
+    pub volumes: u64,
+    pub limit: u64,
+}
+
+/// A place for volumes and job records. Every method may do I/O and is async; none blocks the
+/// caller's thread.
+#[async_trait]
+pub trait VolumeStore: Send + Sync {
+    /// Stores a volume: the quota check and the put are one step (two puts cannot both pass a
+    /// check that only one fits), and the quota counts the metadata as well as the data. The
+    /// metadata is written last and is the commit point. `meta.bytes` and `meta.sha256` must
+    /// describe `vxl` (`Corrupt` otherwise, and nothing is stored): checked against the hash
+    /// `vxl` carries, not by hashing again.
+    async fn put(&self, meta: VolumeMeta, vxl: Vxl) -> Result<(), StoreError>;
+    async fn get(&self, id: &str) -> Result<Option<VolumeMeta>, StoreError>;
+    /// The stored `.vxl` bytes, verified against the metadata's length and sha256: damaged,
+    /// torn or missing data is `Corrupt`, never returned.
+    async fn read(&self, id: &str) -> Result<Option<Bytes>, StoreError>;
+    /// Up to `limit` volumes with ids after `after`, in id order, and whether more follow.
+    async fn list(
+        &self,
+        after: Option<&str>,
+        limit: usize,
+    ) -> Result<(Vec<VolumeMeta>, bool), StoreError>;
+    /// The stored `.vxl` bytes as a stream of chunks, for downloads that need not hold a whole
+    /// volume: checked while they stream (the store adapters check them with `crate::store::verified`), so damaged data ends the stream with
+    /// `Corrupt` before its last byte (a client sees a broken transfer, never a whole one).
+    async fn read_stream(&self, id: &str) -> Result<Option<ByteStream>, StoreError>;
+    /// Removes a volume; false when there was none.
+    async fn delete(&self, id: &str) -> Result<bool, StoreError>;
+    async fn usage(&self) -> Result<Usage, StoreError>;
+    /// Can the store take writes? Cheap enough for every readiness probe.
+    async fn health(&self) -> Result<(), StoreError>;
+    /// Writes (replaces) the record of job `id`, durably.
+    async fn put_job_record(&self, id: &str, record: Bytes) -> Result<(), StoreError>;
+    /// Removes job `id`'s record (none is not an error): old finished jobs are forgotten.
+    async fn delete_job_record(&self, id: &str) -> Result<(), StoreError>;
+    /// Writes (`Some`) or removes (`None`) several job records (distinct ids), all durable when
+    /// this returns: a group commit. A store may do better than one after the other (the
+    /// directory store appends them to its log in one write). The result per record.
+    ///
+    /// Not `durable`: nobody waits for these records to survive a power loss (only a crash of
+    /// this process), so a store may leave them to the next durable batch (the directory
+    /// store's log writes them without a sync); by default they are made durable all the same.
+    async fn put_job_records(
+        &self,
+        batch: Vec<(String, Option<Bytes>)>,
+        _durable: bool,
+    ) -> Vec<Result<(), StoreError>> {
+        let mut out = Vec::with_capacity(batch.len());
+        for (id, bytes) in batch {
+            out.push(match bytes {
+                Some(b) => self.put_job_record(&id, b).await,
+                None => self.delete_job_record(&id).await,
+            });
+        }
+        out
+    }
+    /// Every job record, in no particular order.
+    async fn job_records(&self) -> Result<Vec<Bytes>, StoreError>;
+    /// Keeps the uploaded mesh of a queued job (`id` is the job's), so that whichever process
+    /// runs the job can read it. Not counted against the volume quota: the queue's capacity and
+    /// the body limit bound it.
+    async fn put_upload(&self, id: &str, bytes: Bytes) -> Result<(), StoreError>;
+    async fn get_upload(&self, id: &str) -> Result<Option<Bytes>, StoreError>;
+    /// Removes a job's upload (none is not an error).
+    async fn delete_upload(&self, id: &str) -> Result<(), StoreError>;
+    /// Where the store is, for logs.
+    fn describe(&self) -> String;
+}
+
+/// A volume's `.vxl` bytes with their sha256, hashed once when made ([`Vxl::new`]): what a
+/// store puts. The store checks the metadata against the hash carried here instead of hashing
+/// the bytes a second time (the metadata's `sha256` is taken from the same value).
+#[derive(Clone, Debug)]
+pub struct Vxl {
+    bytes: Bytes,
+    sha256: String,
+}
+
+impl Vxl {
+    /// Hashes `bytes` (the only way to make a [`Vxl`], so its hash is always its bytes').
+    pub fn new(bytes: impl Into<Bytes>) -> Vxl {
+        let bytes = bytes.into();
+        let sha256 = sha256_hex(&bytes);
+        Vxl { bytes, sha256 }
+    }
+    pub fn bytes(&self) -> &Bytes {
+        &self.bytes
+    }
+    pub fn into_bytes(self) -> Bytes {
+        self.bytes
+    }
+    /// sha256 of the bytes, lowercase hex.
+    pub fn sha256(&self) -> &str {
+        &self.sha256
+    }
+    pub fn len(&self) -> usize {
+        self.bytes.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.bytes.is_empty()
+    }
+}
+
+impl From<Bytes> for Vxl {
+    fn from(b: Bytes) -> Vxl {
+        Vxl::new(b)
+    }
+}
+
+impl From<Vec<u8>> for Vxl {
+    fn from(b: Vec<u8>) -> Vxl {
+        Vxl::new(b)
+    }
+}
+
+impl From<&'static [u8]> for Vxl {
+    fn from(b: &'static [u8]) -> Vxl {
+        Vxl::new(Bytes::from_static(b))
+    }
+}
+
+/// Chunks of a stored volume's bytes.
+pub type ByteStream = Pin<Box<dyn Stream<Item = Result<Bytes, StoreError>> + Send>>;
+
+/// sha256 of `b` in lowercase hex (volumes' checksums, upload hashes, ids derived from names).
+pub fn sha256_hex(b: &[u8]) -> String {
+    hex(&sha2::Sha256::digest(b))
+}
+
+/// Lowercase hex of `bytes`.
+pub fn hex(bytes: &[u8]) -> String {
+    use std::fmt::Write;
+    let mut s = String::with_capacity(2 * bytes.len());
+    for x in bytes {
+        let _ = write!(s, "{x:02x}");
+    }
+    s
+}
