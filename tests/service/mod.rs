@@ -60,6 +60,13 @@ impl Server {
         request(&self.addr, method, path, headers, body)
     }
 
+    /// POSTs `body` to `path`, which must answer 201 Created: the created resource's JSON.
+    fn created(&self, path: &str, headers: &[(&str, &str)], body: &[u8]) -> Value {
+        let r = self.req("POST", path, headers, body);
+        assert_eq!(r.status, 201, "{}", String::from_utf8_lossy(&r.body));
+        r.json()
+    }
+
     /// SIGTERM, then the exit status.
     fn stop(mut self) -> std::process::ExitStatus {
         Command::new("kill")

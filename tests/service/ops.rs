@@ -9,14 +9,11 @@ use super::*;
 fn density_over_http() {
     let srv = Server::start(&tmpdir("density"), &[]);
     let spot = std::fs::read(data("spot.obj")).unwrap();
-    let r = srv.req(
-        "POST",
+    let meta = srv.created(
         "/v1/voxelize?resolution=30&method=density&wait=60",
         &[("Content-Type", "model/obj")],
         &spot,
     );
-    assert_eq!(r.status, 201, "{}", String::from_utf8_lossy(&r.body));
-    let meta = r.json();
     assert_eq!(meta["kind"], "density");
     let id = meta["id"].as_str().unwrap();
     let (mesh, g) = mesh_and_grid(
@@ -110,14 +107,11 @@ fn fills_over_http() {
         ("flood", "solid", "flood"),
         ("parity", "solid", "parity"),
     ] {
-        let r = srv.req(
-            "POST",
+        let meta = srv.created(
             &format!("/v1/voxelize?resolution=24&wait=60&fill={fill}&method={method}"),
             &[("Content-Type", "model/obj")],
             &bowl,
         );
-        assert_eq!(r.status, 201, "{}", String::from_utf8_lossy(&r.body));
-        let meta = r.json();
         assert_eq!(meta["fill"]["requested"], fill);
         assert_eq!(meta["fill"]["used"], used);
         assert!(meta["fill"]["odd_parity_columns"].as_u64().unwrap() > 0);
@@ -134,14 +128,11 @@ fn fills_over_http() {
         assert_eq!(meta["fill"], serde_json::to_value(&report).unwrap());
     }
     // Density under the winding fill.
-    let r = srv.req(
-        "POST",
+    let meta = srv.created(
         "/v1/voxelize?resolution=12&wait=60&fill=winding&method=density",
         &[("Content-Type", "model/obj")],
         &bowl,
     );
-    assert_eq!(r.status, 201, "{}", String::from_utf8_lossy(&r.body));
-    let meta = r.json();
     assert_eq!(meta["fill"]["used"], "winding");
     let id = meta["id"].as_str().unwrap();
     let Volume::Density(got) = VolumeFormat::Vxl
@@ -183,26 +174,23 @@ fn csg_and_intersect_over_http() {
     let obj = [("Content-Type", "model/obj")];
     let grid = "origin=0,0,0&voxel_size=0.5&dims=30,28,26";
     let up = |lo, hi| {
-        let r = srv.req(
-            "POST",
+        srv.created(
             &format!("/v1/voxelize?{grid}&wait=60"),
             &obj,
             &box_obj(lo, hi),
-        );
-        assert_eq!(r.status, 201, "{}", String::from_utf8_lossy(&r.body));
-        r.json()["id"].as_str().unwrap().to_string()
+        )["id"]
+            .as_str()
+            .unwrap()
+            .to_string()
     };
     let a = up([1.2, 1.1, 1.3], [9.3, 8.7, 9.1]);
     let b = up([5.4, 0.3, 0.2], [14.1, 13.2, 12.4]);
     let expr = serde_json::json!({"op": "difference", "operands": [a, {"op": "union", "operands": [b, b]}]});
-    let r = srv.req(
-        "POST",
+    let meta = srv.created(
         "/v1/volumes/csg?name=a-minus-b",
         &[("Content-Type", "application/json")],
         expr.to_string().as_bytes(),
     );
-    assert_eq!(r.status, 201, "{}", String::from_utf8_lossy(&r.body));
-    let meta = r.json();
     assert_eq!(meta["provenance"], expr);
     assert_eq!(meta["grid"]["dims"], serde_json::json!([30, 28, 26]));
     let id = meta["id"].as_str().unwrap();
@@ -337,14 +325,11 @@ fn morphology_over_http() {
             .body,
     );
     let body = serde_json::json!({"op": "dilate", "radius": 2, "kernel": "sphere", "grow": true});
-    let r = srv.req(
-        "POST",
+    let meta = srv.created(
         &format!("/v1/volumes/{id}/morphology?name=fat"),
         &[],
         body.to_string().as_bytes(),
     );
-    assert_eq!(r.status, 201, "{}", String::from_utf8_lossy(&r.body));
-    let meta = r.json();
     assert_eq!(meta["grid"]["dims"], serde_json::json!([24, 24, 24]));
     assert_eq!(meta["provenance"]["morphology"]["of"], id.as_str());
     let got = decode_bits(

@@ -33,24 +33,20 @@ async fn harness(name: &str) -> Harness {
 }
 
 async fn harness_with(name: &str, tune: impl FnOnce(Limits) -> Limits) -> Harness {
-    let dir = Scratch::new(&format!("router-{name}"));
-    let store: Arc<dyn VolumeStore> = Arc::new(FsStore::open(&dir, 1 << 30).unwrap());
-    let queue: Arc<dyn JobQueue> = Arc::new(LocalQueue::open(4, store.clone()).await.unwrap());
-    let engine: Arc<dyn Engine> = Arc::new(crate::engine::cpu::CpuEngine);
     let limits = Limits {
         max_voxels: 1 << 20,
         ..Limits::SERVICE
     }
     .with_body_bytes(1 << 16);
-    let limits = tune(limits);
-    let app = App::with_keys(engine, store, queue, limits, Default::default(), None);
+    let h = built(name, 4, tune(limits), None).await;
+    let app = &h.app;
     tokio::spawn(crate::app::jobs::work(
         app.queue.clone(),
         app.store.clone(),
         app.engine.clone(),
         app.clone(),
     ));
-    Harness { app, dir }
+    h
 }
 
 struct Reply {
@@ -155,21 +151,26 @@ fn damage(dir: &std::path::Path, data: &[u8], at: usize) {
 /// A router with API keys (`keys`: the keys file's text) and no workers, so that submitted jobs
 /// stay queued.
 async fn keyed(name: &str, keys: &str, protect_metrics: bool) -> Harness {
-    let dir = Scratch::new(&format!("router-{name}"));
-    let store: Arc<dyn VolumeStore> = Arc::new(FsStore::open(&dir, 1 << 30).unwrap());
-    let queue: Arc<dyn JobQueue> = Arc::new(LocalQueue::open(16, store.clone()).await.unwrap());
-    let engine: Arc<dyn Engine> = Arc::new(crate::engine::cpu::CpuEngine);
     let mut k =
         crate::service::auth::ApiKeys::parse(keys, crate::service::auth::KeyLimits::DEFAULT)
             .unwrap();
     k.protect_metrics = protect_metrics;
-    let app = App::with_keys(
-        engine,
-        store,
-        queue,
-        Limits::SERVICE,
-        Default::default(),
-        Some(Arc::new(k)),
-    );
+    built(name, 16, Limits::SERVICE, Some(Arc::new(k))).await
+}
+
+/// A router over a directory store in a fresh scratch directory, a local queue of `capacity`
+/// and the CPU engine, with no workers: what both kinds of harness start from.
+async fn built(
+    name: &str,
+    capacity: usize,
+    limits: Limits,
+    keys: Option<Arc<crate::service::auth::ApiKeys>>,
+) -> Harness {
+    let dir = Scratch::new(&format!("router-{name}"));
+    let store: Arc<dyn VolumeStore> = Arc::new(FsStore::open(&dir, 1 << 30).unwrap());
+    let queue: Arc<dyn JobQueue> =
+        Arc::new(LocalQueue::open(capacity, store.clone()).await.unwrap());
+    let engine: Arc<dyn Engine> = Arc::new(crate::engine::cpu::CpuEngine);
+    let app = App::with_keys(engine, store, queue, limits, Default::default(), keys);
     Harness { app, dir }
 }
