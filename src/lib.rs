@@ -27,6 +27,8 @@ pub mod names;
 pub mod queue;
 pub mod service;
 pub mod store;
+#[cfg(test)]
+pub(crate) mod testkit;
 pub mod volume;
 
 /// The fewest items (positions, triangles) one parallel task takes in the passes over a mesh:

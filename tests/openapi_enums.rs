@@ -4,7 +4,7 @@
 //! with its status, in the order of the one table of kinds (`app/error.rs`). A set that grows in
 //! the code but not in the contract (or the reverse) fails here.
 //!
-//! Not here: whether real responses match the schemas (`tests/service.rs`), the route table.
+//! Not here: whether real responses match the schemas (`tests/service/contract.rs`), the route table.
 
 use std::collections::BTreeMap;
 use std::path::Path;

@@ -28,18 +28,58 @@ mod service;
 mod stats;
 
 /// With `autotests = false` (Cargo.toml) a file of tests/ that is not declared a module here
-/// would never be compiled nor run: every one is.
+/// would never be compiled nor run: every one is, and so is every file of a folder module
+/// (`service/`, `common/`) in its `mod.rs` (or `<folder>.rs`). Folders of neither kind are data.
 #[test]
 fn every_file_of_tests_is_a_module() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests");
-    let this = std::fs::read_to_string(dir.join("tests.rs")).unwrap();
-    for entry in std::fs::read_dir(&dir).unwrap() {
-        let name = entry.unwrap().file_name().into_string().unwrap();
-        if let Some(module) = name.strip_suffix(".rs").filter(|m| *m != "tests") {
-            assert!(
-                this.contains(&format!("\nmod {module};\n")),
-                "tests/{name} is not declared in tests/tests.rs, so it never runs"
-            );
+    let checked = declared_below(&dir, &dir.join("tests.rs"));
+    assert!(checked > 20, "only {checked} modules found");
+}
+
+/// Checks that `parent` (the file that declares the modules of `dir`) declares every `.rs` file
+/// and module folder of `dir`, recursively; the number of modules checked.
+fn declared_below(dir: &std::path::Path, parent: &std::path::Path) -> usize {
+    let text = std::fs::read_to_string(parent).unwrap();
+    let declares = |module: &str| {
+        text.lines().any(|l| {
+            let l = l
+                .trim_start_matches("pub(crate) ")
+                .trim_start_matches("pub ");
+            l == format!("mod {module};")
+        })
+    };
+    let mut checked = 0;
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap().to_str().unwrap().to_string();
+        let (module, declaring) = if path.is_dir() {
+            let (inner, beside) = (path.join("mod.rs"), dir.join(format!("{name}.rs")));
+            match (inner.is_file(), beside.is_file()) {
+                (true, _) => (name.clone(), inner),
+                // Declared as the file beside the folder; that file is checked on its own.
+                (false, true) => {
+                    checked += declared_below(&path, &beside);
+                    continue;
+                }
+                (false, false) => continue,
+            }
+        } else {
+            match name.strip_suffix(".rs") {
+                Some(m) if path != parent && m != "mod" => (m.to_string(), path.clone()),
+                _ => continue,
+            }
+        };
+        assert!(
+            declares(&module),
+            "{} is not declared in {}, so it never runs",
+            path.display(),
+            parent.display()
+        );
+        checked += 1;
+        if path.is_dir() {
+            checked += declared_below(&path, &declaring);
         }
     }
+    checked
 }

@@ -9,6 +9,7 @@ use super::lexer::*;
 use super::parser::*;
 use super::*;
 use crate::mesh::{MeshError, bad_position, fan, malformed};
+use crate::testkit::Rng;
 
 /// The chunk reader before its hand-written scanner and number parsers (tokens by
 /// `split`, numbers by `str::parse`): what the new one must give, error for error.
@@ -82,24 +83,6 @@ fn parse_chunk_std(
         forward,
         bad,
     })
-}
-
-/// A small deterministic generator (xorshift64*), so failures reproduce.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
-    }
-    fn pick<'a>(&mut self, of: &[&'a str]) -> &'a str {
-        of[self.below(of.len())]
-    }
 }
 
 fn std_f64(t: &[u8]) -> Option<f64> {
@@ -201,7 +184,7 @@ fn number_token(r: &mut Rng) -> String {
             ])
             .to_string(),
         1 => {
-            let v = f64::from_bits(r.next());
+            let v = f64::from_bits(r.next_u64());
             match r.below(4) {
                 0 => format!("{v}"),
                 1 => format!("{v:e}"),
@@ -211,7 +194,7 @@ fn number_token(r: &mut Rng) -> String {
         }
         2 => {
             // Subnormals and values near the ends of the range.
-            let v = f64::from_bits(r.next() % (1 << 53));
+            let v = f64::from_bits(r.next_u64() % (1 << 53));
             let w = f64::MAX / (1 + r.below(1000)) as f64;
             format!("{}", if r.below(2) == 0 { v } else { w })
         }
@@ -270,7 +253,7 @@ fn floats_read_as_std_reads_them() {
         let (a, b) = (read_float(t.as_bytes()), std_f64(t.as_bytes()));
         assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits), "{t:?}");
     }
-    let mut r = Rng(0x9e37_79b9_7f4a_7c15);
+    let mut r = Rng::new(0x9e37_79b9_7f4a_7c15);
     let mut fast = 0;
     for _ in 0..300_000 {
         let t = number_token(&mut r);
@@ -292,7 +275,7 @@ fn floats_read_as_std_reads_them() {
 #[test]
 fn indices_read_as_std_reads_them() {
     let std_i64 = |t: &[u8]| -> Option<i64> { std::str::from_utf8(t).ok()?.parse().ok() };
-    let mut r = Rng(7);
+    let mut r = Rng::new(7);
     let fixed = [
         "",
         "+",
@@ -348,7 +331,7 @@ fn obj_text(r: &mut Rng) -> Vec<u8> {
                     s += &if r.below(30) == 0 {
                         number_token(r)
                     } else {
-                        let v = (r.next() % 2_000_001) as f64 / 1e6 - 1.0;
+                        let v = (r.next_u64() % 2_000_001) as f64 / 1e6 - 1.0;
                         format!("{v}")
                     };
                 }
@@ -444,7 +427,7 @@ fn run(f: Reader, text: &[u8], vbase: usize, total: Option<usize>, max_triangles
 
 #[test]
 fn chunks_read_as_before() {
-    let mut r = Rng(0x5eed);
+    let mut r = Rng::new(0x5eed);
     let (mut ok, mut errors) = (0, 0);
     for case in 0..20_000 {
         let text = obj_text(&mut r);
@@ -467,7 +450,7 @@ fn chunks_read_as_before() {
 
 #[test]
 fn line_counts_as_before() {
-    let mut r = Rng(99);
+    let mut r = Rng::new(99);
     for _ in 0..5000 {
         let text = obj_text(&mut r);
         let old = (

@@ -12,25 +12,16 @@ use crate::engine::geom::{
     cross, dist2_to_segment, dist2_to_triangle, dot, norm, solid_angle, sub,
 };
 use crate::engine::winding::lanes::*;
-
-/// xorshift, so that the cases are the same every run.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn point(&mut self, scale: f64) -> [f64; 3] {
-        [0, 1, 2].map(|_| (self.next() * 2.0 - 1.0) * scale)
-    }
-}
+use crate::testkit::Rng;
 
 /// Random triangles, with degenerate ones among them: collinear, a repeated vertex, a
 /// point, slivers, and ones far larger or smaller than their distance to the query.
 fn triangle(rng: &mut Rng, i: usize) -> [[f64; 3]; 3] {
-    let [a, b, c] = [rng.point(1.0), rng.point(1.0), rng.point(1.0)];
+    let [a, b, c] = [
+        rng.point(-1.0, 1.0),
+        rng.point(-1.0, 1.0),
+        rng.point(-1.0, 1.0),
+    ];
     match i % 7 {
         0 => [a, b, [0, 1, 2].map(|k| a[k] + 0.37 * (b[k] - a[k]))],
         1 => [a, a, c],
@@ -48,7 +39,7 @@ fn triangle(rng: &mut Rng, i: usize) -> [[f64; 3]; 3] {
 
 #[test]
 fn atan2_matches_the_c_library() {
-    let mut rng = Rng(7);
+    let mut rng = Rng::plain(7);
     let mut worst: f64 = 0.0;
     let specials = [
         0.0,
@@ -75,8 +66,8 @@ fn atan2_matches_the_c_library() {
         }
     }
     for _ in 0..200_000 {
-        let (y, x) = (rng.next() * 2.0 - 1.0, rng.next() * 2.0 - 1.0);
-        let scale = 10f64.powi((rng.next() * 12.0) as i32 - 6);
+        let (y, x) = (rng.unit() * 2.0 - 1.0, rng.unit() * 2.0 - 1.0);
+        let scale = 10f64.powi((rng.unit() * 12.0) as i32 - 6);
         let (ours, libm) = (atan2(y * scale, x), (y * scale).atan2(x));
         worst = worst.max((ours - libm).abs() / libm.abs().max(1e-300));
     }
@@ -85,16 +76,17 @@ fn atan2_matches_the_c_library() {
 
 #[test]
 fn leaves_match_the_scalar_solid_angle_and_distance() {
-    let mut rng = Rng(11);
+    let mut rng = Rng::plain(11);
     let mut checked = 0;
     for case in 0..4000 {
         let count = 1 + case % LANES;
         let tris: Vec<_> = (0..count).map(|i| triangle(&mut rng, case + i)).collect();
-        let areas: Vec<f64> = (0..count).map(|_| rng.next()).collect();
+        let areas: Vec<f64> = (0..count).map(|_| rng.unit()).collect();
         let leaf_ = Leaf::new(&tris, &areas);
-        let q = rng.point(if case % 3 == 0 { 0.3 } else { 3.0 });
+        let s = if case % 3 == 0 { 0.3 } else { 3.0 };
+        let q = rng.point(-s, s);
         let (angles, dist2) = leaf(&leaf_, q);
-        let rq = rng.next() * 0.5;
+        let rq = rng.unit() * 0.5;
         let (sp, ta) = (leaf_spread(&leaf_, q, rq), leaf_taylor(&leaf_, q, rq));
         for (j, t) in tris.iter().enumerate() {
             // The bounds, from the distance and each triangle's own area, as `spread` and
@@ -141,18 +133,18 @@ fn leaves_match_the_scalar_solid_angle_and_distance() {
 
 #[test]
 fn nodes_match_the_scalar_bounds() {
-    let mut rng = Rng(19);
+    let mut rng = Rng::plain(19);
     for case in 0..500 {
         let far = Far {
-            n1: rng.point(1.0),
-            tr: rng.next(),
-            m: std::array::from_fn(|_| rng.next() - 0.5),
-            w: rng.point(1.0),
-            c: std::array::from_fn(|_| std::array::from_fn(|_| rng.next() - 0.5)),
+            n1: rng.point(-1.0, 1.0),
+            tr: rng.unit(),
+            m: std::array::from_fn(|_| rng.unit() - 0.5),
+            w: rng.point(-1.0, 1.0),
+            c: std::array::from_fn(|_| std::array::from_fn(|_| rng.unit() - 0.5)),
         };
-        let centre = rng.point(1.0);
-        let (radius, area, rq) = (rng.next() * 0.5, rng.next(), rng.next() * 0.2);
-        let qs = [0, 1, 2].map(|_| std::array::from_fn(|_| rng.next() * 6.0 - 3.0));
+        let centre = rng.point(-1.0, 1.0);
+        let (radius, area, rq) = (rng.unit() * 0.5, rng.unit(), rng.unit() * 0.2);
+        let qs = [0, 1, 2].map(|_| std::array::from_fn(|_| rng.unit() * 6.0 - 3.0));
         // The expansion is computed where some point lies beyond `reach2` (and 0 elsewhere):
         // from some cases' points, from all, from none.
         let reach2 = [0.0, 4.0, 9.0, 1e9][case % 4];
@@ -193,7 +185,7 @@ fn nodes_match_the_scalar_bounds() {
 
 #[test]
 fn point_sums_match_the_scalar_sum() {
-    let mut rng = Rng(13);
+    let mut rng = Rng::plain(13);
     let tris: Vec<_> = (0..40).map(|i| triangle(&mut rng, i)).collect();
     let twice_area = |t: &[[f64; 3]; 3]| norm(cross(sub(t[1], t[0]), sub(t[2], t[0])));
     let near: Vec<(u32, f64)> = (0..tris.len() as u32)
@@ -202,7 +194,7 @@ fn point_sums_match_the_scalar_sum() {
         .collect();
     let mut saw_close = false;
     for case in 0..500 {
-        let points: [[f64; 3]; LANES] = std::array::from_fn(|_| rng.point(2.0));
+        let points: [[f64; 3]; LANES] = std::array::from_fn(|_| rng.point(-2.0, 2.0));
         // Some queries on a triangle's plane.
         let mut points = points;
         if case % 5 == 0 {
@@ -293,25 +285,33 @@ dispatch! {
 
 #[test]
 fn every_instruction_set_gives_the_same_bits() {
-    let mut rng = Rng(17);
+    let mut rng = Rng::plain(17);
     let tris: Vec<_> = (0..LANES).map(|i| triangle(&mut rng, i)).collect();
-    let areas: Vec<f64> = (0..LANES).map(|_| rng.next()).collect();
+    let areas: Vec<f64> = (0..LANES).map(|_| rng.unit()).collect();
     let leaf_ = Leaf::new(&tris, &areas);
     let near: Vec<(u32, f64)> = (0..LANES as u32).map(|i| (i, 1.0)).collect();
     let far = Far {
-        n1: rng.point(1.0),
-        tr: rng.next(),
-        m: std::array::from_fn(|_| rng.next() - 0.5),
-        w: rng.point(1.0),
-        c: std::array::from_fn(|_| std::array::from_fn(|_| rng.next() - 0.5)),
+        n1: rng.point(-1.0, 1.0),
+        tr: rng.unit(),
+        m: std::array::from_fn(|_| rng.unit() - 0.5),
+        w: rng.point(-1.0, 1.0),
+        c: std::array::from_fn(|_| std::array::from_fn(|_| rng.unit() - 0.5)),
     };
-    let moment = [rng.point(1.0), rng.point(1.0), rng.point(1.0)];
-    let (net, anti, centre) = (rng.point(1.0), rng.point(1.0), rng.point(3.0));
+    let moment = [
+        rng.point(-1.0, 1.0),
+        rng.point(-1.0, 1.0),
+        rng.point(-1.0, 1.0),
+    ];
+    let (net, anti, centre) = (
+        rng.point(-1.0, 1.0),
+        rng.point(-1.0, 1.0),
+        rng.point(-3.0, 3.0),
+    );
     let (radius, area, rq) = (0.3, 0.7, 0.05);
     let segs: Vec<[[f64; 3]; 2]> = (0..LANES)
-        .map(|_| [rng.point(1.0), rng.point(1.0)])
+        .map(|_| [rng.point(-1.0, 1.0), rng.point(-1.0, 1.0)])
         .collect();
-    let acc = [0, 1, 2].map(|_| std::array::from_fn(|_| rng.next()));
+    let acc = [0, 1, 2].map(|_| std::array::from_fn(|_| rng.unit()));
     // Every kernel's outputs by one instruction set (0 the baseline, 1 AVX2, 2 AVX-512), as
     // bits.
     let outputs = |path: u32, q: [f64; 3], qs: &[[f64; LANES]; 3]| -> Vec<u64> {
@@ -378,8 +378,8 @@ fn every_instruction_set_gives_the_same_bits() {
         eprintln!("NOTICE: no AVX2 or AVX-512 here; only the baseline path ran");
     }
     for _ in 0..200 {
-        let q = rng.point(2.0);
-        let qs = [0, 1, 2].map(|_| std::array::from_fn(|_| rng.next() * 2.0 - 1.0));
+        let q = rng.point(-2.0, 2.0);
+        let qs = [0, 1, 2].map(|_| std::array::from_fn(|_| rng.unit() * 2.0 - 1.0));
         let plain = outputs(0, q, &qs);
         for &(path, name) in &paths {
             assert_eq!(plain, outputs(path, q, &qs), "{name}");

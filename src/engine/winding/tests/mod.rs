@@ -26,6 +26,7 @@ use super::*;
 use crate::engine::geom::bvh::build;
 use crate::engine::geom::{add3, area_normal, cross, dist2_to_triangle, dot, norm, sub};
 use crate::engine::snap::snapped_world;
+use crate::testkit::Rng;
 
 fn octahedron() -> Mesh {
     let p = vec![
@@ -71,33 +72,6 @@ fn sheet(n: u32) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
 
 /// Positions and triangles.
 type Soup = (Vec<[f64; 3]>, Vec<[u32; 3]>);
-
-/// xorshift64*: reproducible test inputs.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.next()
-    }
-    fn point(&mut self, lo: f64, hi: f64) -> [f64; 3] {
-        [0, 1, 2].map(|_| self.range(lo, hi))
-    }
-    /// A uniformly random unit vector.
-    fn direction(&mut self) -> [f64; 3] {
-        loop {
-            let v = self.point(-1.0, 1.0);
-            let l = norm(v);
-            if l > 0.1 && l <= 1.0 {
-                return v.map(|c| c / l);
-            }
-        }
-    }
-}
 
 fn add(a: [f64; 3], b: [f64; 3], t: f64) -> [f64; 3] {
     [0, 1, 2].map(|k| a[k] + t * b[k])
@@ -204,11 +178,11 @@ fn uv_sphere(c: [f64; 3], r: f64, n: u32) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
 /// patch left of a sphere (where the caps' winding number is near ±1), two overlapping
 /// spheres (w = 2) with holes, and a bumpy sheet.
 fn holey_meshes() -> Vec<Mesh> {
-    let mut rng = Rng(777);
+    let mut rng = Rng::new(777);
     let mut out = Vec::new();
     let (p, mut t) = uv_sphere([15.7, 16.2, 16.1], 11.3, 14);
     for _ in 0..6 {
-        t.remove((rng.next() * t.len() as f64) as usize);
+        t.remove((rng.unit() * t.len() as f64) as usize);
     }
     out.push(Mesh::new(p, t).unwrap());
     let (p, mut t) = uv_sphere([16.2, 15.9, 15.4], 12.1, 16);
@@ -223,7 +197,7 @@ fn holey_meshes() -> Vec<Mesh> {
     p.extend(p2);
     t.extend(t2.iter().map(|tri| tri.map(|v| v + off)));
     for _ in 0..8 {
-        t.remove((rng.next() * t.len() as f64) as usize);
+        t.remove((rng.unit() * t.len() as f64) as usize);
     }
     out.push(Mesh::new(p, t).unwrap());
     let (p, t) = sheet(24);

@@ -17,7 +17,7 @@ fn lane_traversals_give_the_same_bits_on_every_instruction_set() {
     // inlined, bookkeeping and all: every path must give the baseline's bits, and
     // `winding_numbers` the one-point traversal's values.
     let (tree, edges, _) = sheet_trees();
-    let mut rng = Rng(2718);
+    let mut rng = Rng::new(2718);
     let small = SMALL * 4.0 * PI;
     let (mut compared, mut open) = (0, 0);
     for case in 0..60 {
@@ -103,7 +103,7 @@ fn lane_traversals_bound_as_one_ball_at_a_time_does() {
     // (`taylor_lanes`, `field_lanes`) the exact sum at each point, as the one-ball versions.
     let (tree, edges, tris) = sheet_trees();
     let exact = |q: [f64; 3]| tris.iter().map(|t| solid_angle(t, q)).sum::<f64>();
-    let mut rng = Rng(31415);
+    let mut rng = Rng::new(31415);
     let (mut intervals, mut models, mut near_lanes) = (0u32, 0u32, 0u32);
     for case in 0..120 {
         let (qs, rq) = eight_balls(&mut rng);
@@ -125,7 +125,7 @@ fn lane_traversals_bound_as_one_ball_at_a_time_does() {
         let fields = field_lanes(&edges, &qs, lanes);
         for (i, &c) in qs.iter().enumerate() {
             let points: Vec<[f64; 3]> = (0..6)
-                .map(|_| add(c, rng.direction(), rq * rng.next().sqrt()))
+                .map(|_| add(c, rng.direction(), rq * rng.unit().sqrt()))
                 .collect();
             if let Some(sp) = spreads[i] {
                 intervals += 1;
