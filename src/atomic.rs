@@ -95,8 +95,7 @@ pub fn sync_dir(dir: &Path) -> std::io::Result<()> {
 mod tests {
     #[test]
     fn replaces_whole_files_and_leaves_no_temporaries() {
-        let dir = std::env::temp_dir().join(format!("voxd-atomic-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::testkit::Scratch::new("atomic");
         let p = dir.join("a.bin");
         super::write(&p, b"one").unwrap();
         super::write(&p, b"two!").unwrap();
@@ -112,6 +111,5 @@ mod tests {
             .map(|e| e.unwrap().file_name())
             .collect();
         assert_eq!(names, vec![std::ffi::OsString::from("a.bin")]);
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

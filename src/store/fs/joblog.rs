@@ -314,18 +314,10 @@ impl JobLog {
 mod tests {
     use super::*;
 
-    struct Dir(PathBuf);
-    impl Drop for Dir {
-        fn drop(&mut self) {
-            let _ = std::fs::remove_dir_all(&self.0);
-        }
-    }
+    use crate::testkit::Scratch;
 
-    fn dir(name: &str) -> Dir {
-        let d = std::env::temp_dir().join(format!("voxd-joblog-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        Dir(d)
+    fn dir(name: &str) -> Scratch {
+        Scratch::new(&format!("joblog-{name}"))
     }
 
     fn rec(id: &str, v: u32) -> (String, Option<Bytes>) {
@@ -348,7 +340,7 @@ mod tests {
     #[test]
     fn the_newest_change_of_each_job_survives_a_reopen() {
         let d = dir("reopen");
-        let mut log = JobLog::open(&d.0).unwrap();
+        let mut log = JobLog::open(d.path()).unwrap();
         assert!(log.records().is_empty());
         let r = log.append(&[rec("a1", 1), rec("b2", 1), rec("a1", 2)], true);
         assert!(r.iter().all(Result::is_ok));
@@ -363,11 +355,11 @@ mod tests {
         ];
         assert_eq!(sorted(&log), want);
         drop(log);
-        let log = JobLog::open(&d.0).unwrap();
+        let log = JobLog::open(d.path()).unwrap();
         assert_eq!(sorted(&log), want);
         assert_eq!(log.count(), 2);
         // One file, no temporaries.
-        let names: Vec<_> = std::fs::read_dir(&d.0)
+        let names: Vec<_> = std::fs::read_dir(d.path())
             .unwrap()
             .map(|e| e.unwrap().file_name().into_string().unwrap())
             .collect();
@@ -379,7 +371,7 @@ mod tests {
     #[test]
     fn batches_nobody_waits_on_are_written_without_a_sync() {
         let d = dir("lazy");
-        let mut log = JobLog::open(&d.0).unwrap();
+        let mut log = JobLog::open(d.path()).unwrap();
         let before = log.syncs;
         assert!(log.append(&[rec("a1", 1)], false).iter().all(Result::is_ok));
         assert!(
@@ -392,7 +384,7 @@ mod tests {
         assert_eq!(log.syncs, before + 1);
         drop(log);
         assert_eq!(
-            sorted(&JobLog::open(&d.0).unwrap()),
+            sorted(&JobLog::open(d.path()).unwrap()),
             vec![
                 "{\"id\":\"b2\",\"v\":1}".to_string(),
                 "{\"id\":\"c3\",\"v\":1}".to_string()
@@ -403,7 +395,7 @@ mod tests {
     #[test]
     fn bad_ids_and_line_breaks_fail_alone() {
         let d = dir("bad");
-        let mut log = JobLog::open(&d.0).unwrap();
+        let mut log = JobLog::open(d.path()).unwrap();
         let r = log.append(
             &[
                 ("../x".into(), Some(Bytes::from_static(b"{}"))),
@@ -418,7 +410,7 @@ mod tests {
         assert!(r[2].is_ok() && r[3].is_ok());
         drop(log);
         assert_eq!(
-            sorted(&JobLog::open(&d.0).unwrap()),
+            sorted(&JobLog::open(d.path()).unwrap()),
             vec!["{\"id\":\"b2\",\"v\":7}".to_string()]
         );
     }
@@ -428,14 +420,14 @@ mod tests {
     #[test]
     fn torn_and_damaged_lines_are_skipped_and_the_log_rewritten() {
         let d = dir("torn");
-        let mut log = JobLog::open(&d.0).unwrap();
+        let mut log = JobLog::open(d.path()).unwrap();
         assert!(
             log.append(&[rec("a1", 1), rec("b2", 1)], true)
                 .iter()
                 .all(Result::is_ok)
         );
         drop(log);
-        let p = d.0.join(LOG);
+        let p = d.join(LOG);
         let mut bytes = std::fs::read(&p).unwrap();
         // Damage b2's line (one byte of its payload) and tear a third one off.
         let b2 = bytes.windows(6).rposition(|w| w == b"\"v\":1}").unwrap();
@@ -443,14 +435,14 @@ mod tests {
         let third = line("c3", Some(b"{\"id\":\"c3\"}"));
         bytes.extend_from_slice(&third[..third.len() / 2]);
         std::fs::write(&p, &bytes).unwrap();
-        let mut log = JobLog::open(&d.0).unwrap();
+        let mut log = JobLog::open(d.path()).unwrap();
         assert_eq!(sorted(&log), vec!["{\"id\":\"a1\",\"v\":1}".to_string()]);
         let after_open = std::fs::read(&p).unwrap();
         assert_eq!(after_open.last(), Some(&b'\n'));
         assert!(log.append(&[rec("d4", 1)], true).iter().all(Result::is_ok));
         drop(log);
         assert_eq!(
-            sorted(&JobLog::open(&d.0).unwrap()),
+            sorted(&JobLog::open(d.path()).unwrap()),
             vec![
                 "{\"id\":\"a1\",\"v\":1}".to_string(),
                 "{\"id\":\"d4\",\"v\":1}".to_string()
@@ -462,10 +454,10 @@ mod tests {
     #[test]
     fn per_file_records_of_earlier_versions_move_into_the_log() {
         let d = dir("legacy");
-        std::fs::write(d.0.join("a1.json"), b"{\"id\":\"a1\",\"old\":true}").unwrap();
-        std::fs::write(d.0.join("b2.json"), b"{\"id\":\"b2\",\"old\":true}").unwrap();
-        std::fs::write(d.0.join("notes.txt"), b"kept").unwrap();
-        let log = JobLog::open(&d.0).unwrap();
+        std::fs::write(d.join("a1.json"), b"{\"id\":\"a1\",\"old\":true}").unwrap();
+        std::fs::write(d.join("b2.json"), b"{\"id\":\"b2\",\"old\":true}").unwrap();
+        std::fs::write(d.join("notes.txt"), b"kept").unwrap();
+        let log = JobLog::open(d.path()).unwrap();
         assert_eq!(
             sorted(&log),
             vec![
@@ -473,21 +465,21 @@ mod tests {
                 "{\"id\":\"b2\",\"old\":true}".to_string()
             ]
         );
-        let mut names: Vec<_> = std::fs::read_dir(&d.0)
+        let mut names: Vec<_> = std::fs::read_dir(d.path())
             .unwrap()
             .map(|e| e.unwrap().file_name().into_string().unwrap())
             .collect();
         names.sort();
         assert_eq!(names, vec!["notes.txt".to_string(), LOG.to_string()]);
         drop(log);
-        assert_eq!(JobLog::open(&d.0).unwrap().count(), 2);
+        assert_eq!(JobLog::open(d.path()).unwrap().count(), 2);
     }
 
     /// The log stays within a bounded multiple of its live lines however many changes it takes.
     #[test]
     fn rewrites_keep_the_log_near_its_live_size() {
         let d = dir("compact");
-        let mut log = JobLog::open(&d.0).unwrap();
+        let mut log = JobLog::open(d.path()).unwrap();
         let pad = "x".repeat(200);
         let mut max_len = 0;
         for round in 0..400u32 {
@@ -499,7 +491,7 @@ mod tests {
                 })
                 .collect();
             assert!(log.append(&batch, true).iter().all(Result::is_ok));
-            max_len = max_len.max(std::fs::metadata(d.0.join(LOG)).unwrap().len());
+            max_len = max_len.max(std::fs::metadata(d.join(LOG)).unwrap().len());
         }
         assert_eq!(log.count(), 300);
         let live = log.live_bytes;
@@ -509,7 +501,7 @@ mod tests {
             "{max_len} {live}"
         );
         drop(log);
-        let log = JobLog::open(&d.0).unwrap();
+        let log = JobLog::open(d.path()).unwrap();
         assert_eq!(log.count(), 300);
         assert!(sorted(&log).iter().all(|r| r.contains("\"round\":")));
         // Every job's newest: j000..j299 last written in rounds 394..399.

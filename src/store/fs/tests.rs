@@ -4,6 +4,7 @@
 use super::commit::commit_group;
 use super::*;
 use crate::store::{ByteStream, SourceInfo, VolumeStore, Vxl, sha256_hex};
+use crate::testkit::Scratch;
 
 /// Metadata that describes `data` truthfully.
 pub(crate) fn meta(id: &str, data: &[u8]) -> VolumeMeta {
@@ -34,10 +35,9 @@ pub(crate) fn meta(id: &str, data: &[u8]) -> VolumeMeta {
     }
 }
 
-pub(crate) fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("voxd-fsstore-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    dir
+/// An empty scratch directory for a store, removed when the test ends.
+pub(crate) fn scratch(name: &str) -> Scratch {
+    Scratch::new(&format!("fsstore-{name}"))
 }
 
 /// Bytes of every file in `dir/volumes`.
@@ -85,7 +85,6 @@ async fn quota_is_checked_and_reserved_in_one_step() {
     assert!(store.delete(&listed[0].id).await.unwrap());
     assert_eq!(store.usage().await.unwrap().bytes, 2 * per);
     assert_eq!(bytes_on_disk(&dir), 2 * per);
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -122,7 +121,6 @@ async fn metadata_counts_against_the_quota() {
     assert_eq!(bytes_on_disk(&dir), 1000 + plain_json);
     let again = FsStore::open_files(&dir, limit).unwrap();
     assert_eq!(again.usage().await.unwrap().bytes, 1000 + plain_json);
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -192,7 +190,6 @@ async fn streamed_reads_are_checked_before_their_last_byte() {
             .is_none()
     );
     assert!(store.put_upload("../x", Bytes::new()).await.is_err());
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -253,7 +250,6 @@ async fn reads_verify_length_and_checksum() {
     );
     assert!(store.get("e").await.unwrap().is_none() && store.get("f").await.unwrap().is_none());
     assert!(!dir.join("volumes/e.vxl").exists() && !dir.join("volumes/f.vxl").exists());
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// Two stores on one directory (two replicas in the tests): a volume one of them stored is
@@ -279,7 +275,6 @@ async fn a_volume_another_process_stored_is_found_on_disk() {
         a.read("v1").await.is_err(),
         "gone on disk, still in a's catalogue"
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// A group of volumes (as many as the committer takes at once) written by one group commit:
@@ -350,7 +345,6 @@ fn a_group_commit_writes_every_volume_and_fails_only_the_one_that_fails() {
             );
         }
     });
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// What an interrupted group commit can leave, either half of a volume, is removed at open;
@@ -388,7 +382,6 @@ fn open_removes_either_half_of_an_interrupted_volume() {
     let listed = rt.block_on(store.list(None, 10)).unwrap().0;
     assert_eq!(listed.len(), 1);
     assert_eq!(listed[0].id, "whole");
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// Concurrent puts through the committer: each caller hears its own outcome, the failed
@@ -424,7 +417,6 @@ async fn concurrent_puts_each_hear_their_own_outcome() {
             vec![n; 50]
         );
     }
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// What the directory `name` in `dir/volumes` adds to [`bytes_on_disk`].

@@ -129,7 +129,6 @@ async fn small_volumes_share_a_pack_and_survive_reopening() {
         })
         .sum();
     assert_eq!(usage.bytes, expect);
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// What a crash leaves at a pack's end (half a record, a record whose length is there but
@@ -170,7 +169,6 @@ async fn a_torn_tail_is_cut_off_at_open() {
         assert_eq!(std::fs::metadata(&path).unwrap().len(), whole);
         holds(&store, &want).await;
     }
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// A volume damaged after it was stored (its data no longer matches its metadata) and
@@ -202,7 +200,6 @@ async fn damage_inside_a_pack_cuts_nothing_off() {
         );
     }
     assert_eq!(store.list(None, 10).await.unwrap().0.len(), 4);
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// Removing most volumes of a sealed pack compacts it: the live ones move to the newest
@@ -249,7 +246,6 @@ async fn compaction_moves_live_volumes_and_bounds_the_garbage() {
     let again = FsStore::open(&dir, 1 << 32).unwrap();
     holds(&again, &want).await;
     assert_eq!(again.usage().await.unwrap().bytes, live);
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// Reads running while deletes compact the pack under them each get their whole, right
@@ -300,7 +296,6 @@ async fn reads_during_compaction_get_whole_volumes() {
         assert!(r.await.unwrap() > 0);
     }
     assert!(!pack_files(&dir).contains_key(&first), "no compaction ran");
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// A second process on the directory (here a second store in this one: the lock is per
@@ -335,5 +330,4 @@ async fn a_second_process_reads_the_packs_and_writes_files() {
     assert_eq!(&b.read("va").await.unwrap().unwrap()[..], &da[..]);
     assert!(a.delete("va").await.unwrap());
     assert!(b.get("nope").await.unwrap().is_none());
-    std::fs::remove_dir_all(&dir).unwrap();
 }
