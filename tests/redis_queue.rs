@@ -63,7 +63,6 @@ fn job(id: &str, resolution: u32, cubic: bool) -> NewJob {
         id: id.into(),
         work: voxd::app::prepare(&req).unwrap(),
         spec: JobSpec::of(&req),
-        upload: Bytes::from_static(TETRA),
         name: Some(format!("job {id}")),
         owner: None,
         created: "2026-01-01T00:00:00Z".into(),
@@ -139,7 +138,9 @@ async fn submit_get_wait_cancel_capacity_and_stats_follow_the_contract() {
     let e = q.submit(job("c", 8, false)).await.unwrap_err();
     assert_eq!((e.kind, e.retry_after), (ErrorKind::QueueFull, Some(5)));
     assert!(store.get_upload("c").await.unwrap().is_none());
-    assert_eq!(&store.get_upload("a").await.unwrap().unwrap()[..], TETRA);
+    // What is stored is the prepared job, not the uploaded file.
+    let stored = store.get_upload("a").await.unwrap().unwrap();
+    assert!(voxd::app::jobs::stored::is_prepared(&stored));
     // Another replica sees the same records.
     let other = queue(&redis, &store, "c", |o| o.capacity = 2).await;
     let a = other.get("a").await.unwrap().unwrap();
@@ -275,6 +276,59 @@ async fn a_keys_job_limit_spans_replicas() {
         a.submit(owned("k8", "team", 2)).await.unwrap_err().kind,
         ErrorKind::TooManyJobs
     );
+}
+
+/// A job run by another replica than the one it was submitted to is decoded there, not
+/// parsed: its stored upload is no mesh file (the loader refuses it), yet it runs to the volume
+/// the submitting replica would have made, with the upload's sha256 as its source. A job whose
+/// upload an older replica stored as the raw mesh file still runs, to the same volume.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_job_run_elsewhere_is_decoded_not_parsed_and_an_older_upload_still_runs() {
+    let Some(redis) = RedisServer::start("decoded") else {
+        return;
+    };
+    let store = store("decoded");
+    let a = queue(&redis, &store, "p", |_| {}).await;
+    let b = queue(&redis, &store, "p", |_| {}).await;
+    a.submit(job("new", 8, false)).await.unwrap();
+    a.submit(job("old", 8, false)).await.unwrap();
+    let stored = store.get_upload("new").await.unwrap().unwrap();
+    let opts = voxd::mesh::LoadOptions::default();
+    assert!(voxd::mesh::load_bytes(&stored, None, &opts).is_err());
+    // As a replica of the previous release stored it.
+    store
+        .put_upload("old", Bytes::from_static(TETRA))
+        .await
+        .unwrap();
+    let voxd::volume::Volume::Bits(here) =
+        voxd::app::voxelize(&request(TETRA, 8, false, Fill::Parity), &CpuEngine)
+            .unwrap()
+            .1
+            .volume
+    else {
+        panic!("a solid voxelization is a bit volume")
+    };
+    let mut ran = vec![];
+    for _ in 0..2 {
+        let claim = b.next().await.unwrap();
+        assert!(matches!(claim.work, voxd::app::queue::Work::Stored { .. }));
+        let meta = voxd::app::jobs::run(Arc::new(CpuEngine), &*store, &claim)
+            .await
+            .unwrap();
+        b.finish(&claim.id, Ok(meta.id.clone())).await;
+        assert_eq!(
+            meta.source.sha256,
+            voxd::app::sha256_hex(TETRA),
+            "{}",
+            claim.id
+        );
+        assert_eq!(meta.source.format, "obj");
+        let vxl = store.read(&meta.id).await.unwrap().unwrap();
+        assert_eq!(decode_bits(&vxl), here, "{}", claim.id);
+        ran.push(claim.id);
+    }
+    ran.sort();
+    assert_eq!(ran, ["new", "old"]);
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -116,11 +116,10 @@ pub struct Timings {
 pub struct NewJob {
     pub id: String,
     pub work: Prepared,
-    /// The same request as data, and the uploaded bytes it was prepared from: what a queue
-    /// shared by replicas stores, so that any of them can prepare it again. The in-process
-    /// queue runs `work` and ignores both.
+    /// The same request as data: what a queue shared by replicas keeps with the job, beside
+    /// the bytes of [`NewJob::into_shared`], so that any of them can run it. The in-process
+    /// queue runs `work` and ignores it.
     pub spec: JobSpec,
-    pub upload: Bytes,
     pub name: Option<String>,
     /// The API key that submitted it, and how many jobs that key may have queued or running
     /// at once (`None`: the service needs no keys).
@@ -166,6 +165,18 @@ impl NewJob {
     /// The prepared work, for the queue to hand to the worker that takes the job.
     pub fn into_work(self) -> Work {
         Work::Prepared(Arc::new(self.work))
+    }
+
+    /// For a queue shared by replicas: the prepared work, for the queue to hand to a worker of
+    /// this process, and the bytes to store under the job's id
+    /// ([`VolumeStore::put_upload`](super::store::VolumeStore::put_upload)) for a worker of any
+    /// process, which turns them back into the same work without parsing the mesh again
+    /// ([`crate::app::jobs::stored`]). Encoding copies the mesh: done on a blocking thread.
+    pub async fn into_shared(self) -> Result<(Work, Bytes)> {
+        let work = Arc::new(self.work);
+        let p = work.clone();
+        let bytes = super::ops::blocking(move || Ok(super::jobs::stored::encode(&p))).await?;
+        Ok((Work::Prepared(work), Bytes::from(bytes)))
     }
 
     /// The record of this job as it enters a queue.
