@@ -3,8 +3,10 @@
 //! comes out ([`Claim`], with its [`Work`]), the [`JobRecord`] every state change writes, and
 //! the scheduling rule both queues follow ([`priority`]). The application owns the contract (as
 //! in axum's dependency-injection example); the adapters import it from here, and never run the
-//! application's pipeline themselves: a job's work is prepared by the front that submits it, or
-//! by the worker that runs it ([`crate::app::jobs`]). Not here: how a queue keeps its jobs.
+//! application's pipeline themselves: a job's work is prepared by the front that submits it
+//! (its mesh parsed there, once), and a shared queue stores it in the form the application
+//! hands it ([`NewJob::into_shared`]), which the worker of another process decodes
+//! ([`crate::app::jobs`]). Not here: how a queue keeps its jobs.
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -204,9 +206,10 @@ impl NewJob {
 pub enum Work {
     /// Prepared by the front that submitted the job, in this process: run as it is.
     Prepared(Arc<Prepared>),
-    /// Submitted elsewhere (another replica, or an earlier process): the worker prepares it, once,
-    /// from the job's stored request (`spec`, the [`JobSpec`] as JSON) and its upload (in the
-    /// store, under the job's id), held to this process's `limits`.
+    /// Submitted elsewhere (another replica, or an earlier process): the worker prepares it
+    /// from the job's stored request (`spec`, the [`JobSpec`] as JSON) and its stored upload
+    /// (in the store, under the job's id: the prepared job of [`NewJob::into_shared`], decoded
+    /// rather than parsed), held to this process's `limits`.
     Stored { spec: String, limits: Limits },
 }
 
