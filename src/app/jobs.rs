@@ -19,6 +19,7 @@ use super::voxelize::Prepared;
 use crate::cancel::Canceled;
 use crate::engine::Engine;
 
+pub mod stored;
 mod submit;
 pub use submit::{Jobs, Submission, Submitted, submit};
 
@@ -42,8 +43,11 @@ pub async fn run(
     .await
 }
 
-/// A job's work, prepared: as the queue handed it, or prepared here, once, from the job's stored
-/// request and upload (a job submitted to another process). Job `id`'s upload is in `store`.
+/// A job's work, prepared: as the queue handed it, or here from the job's stored request and
+/// upload (a job submitted to another process), job `id`'s in `store`. The upload is the job
+/// as the submitting process prepared it ([`stored`]): decoded, not parsed, so the mesh is
+/// parsed once per job; one stored as the raw mesh file (by an older process) is prepared from
+/// it, as it was then.
 pub async fn prepared(store: &dyn VolumeStore, id: &str, work: Work) -> Result<Arc<Prepared>> {
     let (spec, limits) = match work {
         Work::Prepared(p) => return Ok(p),
@@ -61,10 +65,16 @@ pub async fn prepared(store: &dyn VolumeStore, id: &str, work: Work) -> Result<A
                 store.describe()
             ))
         })?;
-    let req = spec.request(upload, &limits)?;
-    let p = blocking(move || super::prepare(&req))
-        .await
-        .inspect_err(|e| tracing::warn!(job = %id, "cannot prepare the job again: {}", e.detail))?;
+    let req = spec.request(upload.clone(), &limits)?;
+    let p = blocking(move || {
+        if stored::is_prepared(&upload) {
+            stored::decode(&upload, &req)
+        } else {
+            super::prepare(&req)
+        }
+    })
+    .await
+    .inspect_err(|e| tracing::warn!(job = %id, "cannot prepare the job again: {}", e.detail))?;
     Ok(Arc::new(p))
 }
 
@@ -585,5 +595,52 @@ mod tests {
         let claim = q.next().await.unwrap();
         assert!(claim.control.deadline().is_none());
         run(Arc::new(CpuEngine), &*store, &claim).await.unwrap();
+    }
+
+    /// A job submitted elsewhere is prepared from its stored form without parsing its mesh
+    /// (the stored bytes are no mesh file: the loader refuses them) into the work the
+    /// submitting process had; an upload an older process stored as the raw mesh file still
+    /// runs, prepared from it, with the same source and its sha256.
+    #[tokio::test]
+    async fn a_stored_job_is_decoded_not_parsed_and_a_raw_upload_still_runs() {
+        let (_dir, store) = open_store("stored");
+        let new = job("s1");
+        let spec = serde_json::to_string(&new.spec).unwrap();
+        let here = new.work.clone();
+        let (kept, bytes) = new.into_shared().await.unwrap();
+        assert!(matches!(kept, Work::Prepared(_)));
+        assert!(stored::is_prepared(&bytes));
+        let opts = crate::mesh::LoadOptions::default();
+        assert!(crate::mesh::load_bytes(&bytes, None, &opts).is_err());
+        store.put_upload("s1", bytes).await.unwrap();
+        let raw = Bytes::from_static(crate::app::testing::TETRA_OBJ);
+        store.put_upload("s2", raw).await.unwrap();
+        let work = || Work::Stored {
+            spec: spec.clone(),
+            limits: crate::limits::Limits::SERVICE,
+        };
+        for id in ["s1", "s2"] {
+            let p = prepared(&*store, id, work()).await.unwrap();
+            assert_eq!(p.mesh, here.mesh, "{id}");
+            assert_eq!(p.diagnostics, here.diagnostics, "{id}");
+            assert_eq!(p.source, here.source, "{id}");
+            assert_eq!(
+                (p.grid, p.method, p.fill),
+                (here.grid, here.method, here.fill)
+            );
+        }
+        // The decoded job keeps the submitting process's load times (nothing was loaded here).
+        let p = prepared(&*store, "s1", work()).await.unwrap();
+        assert_eq!((p.load_s, p.diagnose_s), (here.load_s, here.diagnose_s));
+        // Held to this process's limits, as parsing would be.
+        let few = Work::Stored {
+            spec: spec.clone(),
+            limits: crate::limits::Limits {
+                max_triangles: 3,
+                ..crate::limits::Limits::SERVICE
+            },
+        };
+        let e = prepared(&*store, "s1", few).await.unwrap_err();
+        assert_eq!(e.kind, ErrorKind::TooManyTriangles);
     }
 }

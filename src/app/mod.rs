@@ -132,7 +132,6 @@ pub(crate) mod testing {
             id: id.into(),
             work: super::prepare(&req).unwrap(),
             spec: super::JobSpec::of(&req),
-            upload: Bytes::from_static(TETRA_OBJ),
             name: None,
             owner: None,
             created: String::new(),

@@ -3,8 +3,10 @@
 //! comes out ([`Claim`], with its [`Work`]), the [`JobRecord`] every state change writes, and
 //! the scheduling rule both queues follow ([`priority`]). The application owns the contract (as
 //! in axum's dependency-injection example); the adapters import it from here, and never run the
-//! application's pipeline themselves: a job's work is prepared by the front that submits it, or
-//! by the worker that runs it ([`crate::app::jobs`]). Not here: how a queue keeps its jobs.
+//! application's pipeline themselves: a job's work is prepared by the front that submits it
+//! (its mesh parsed there, once), and a shared queue stores it in the form the application
+//! hands it ([`NewJob::into_shared`]), which the worker of another process decodes
+//! ([`crate::app::jobs`]). Not here: how a queue keeps its jobs.
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -116,11 +118,10 @@ pub struct Timings {
 pub struct NewJob {
     pub id: String,
     pub work: Prepared,
-    /// The same request as data, and the uploaded bytes it was prepared from: what a queue
-    /// shared by replicas stores, so that any of them can prepare it again. The in-process
-    /// queue runs `work` and ignores both.
+    /// The same request as data: what a queue shared by replicas keeps with the job, beside
+    /// the bytes of [`NewJob::into_shared`], so that any of them can run it. The in-process
+    /// queue runs `work` and ignores it.
     pub spec: JobSpec,
-    pub upload: Bytes,
     pub name: Option<String>,
     /// The API key that submitted it, and how many jobs that key may have queued or running
     /// at once (`None`: the service needs no keys).
@@ -168,6 +169,18 @@ impl NewJob {
         Work::Prepared(Arc::new(self.work))
     }
 
+    /// For a queue shared by replicas: the prepared work, for the queue to hand to a worker of
+    /// this process, and the bytes to store under the job's id
+    /// ([`VolumeStore::put_upload`](super::store::VolumeStore::put_upload)) for a worker of any
+    /// process, which turns them back into the same work without parsing the mesh again
+    /// ([`crate::app::jobs::stored`]). Encoding copies the mesh: done on a blocking thread.
+    pub async fn into_shared(self) -> Result<(Work, Bytes)> {
+        let work = Arc::new(self.work);
+        let p = work.clone();
+        let bytes = super::ops::blocking(move || Ok(super::jobs::stored::encode(&p))).await?;
+        Ok((Work::Prepared(work), Bytes::from(bytes)))
+    }
+
     /// The record of this job as it enters a queue.
     pub fn queued_record(&self) -> JobRecord {
         JobRecord {
@@ -193,9 +206,10 @@ impl NewJob {
 pub enum Work {
     /// Prepared by the front that submitted the job, in this process: run as it is.
     Prepared(Arc<Prepared>),
-    /// Submitted elsewhere (another replica, or an earlier process): the worker prepares it, once,
-    /// from the job's stored request (`spec`, the [`JobSpec`] as JSON) and its upload (in the
-    /// store, under the job's id), held to this process's `limits`.
+    /// Submitted elsewhere (another replica, or an earlier process): the worker prepares it
+    /// from the job's stored request (`spec`, the [`JobSpec`] as JSON) and its stored upload
+    /// (in the store, under the job's id: the prepared job of [`NewJob::into_shared`], decoded
+    /// rather than parsed), held to this process's `limits`.
     Stored { spec: String, limits: Limits },
 }
 

@@ -2,6 +2,7 @@
 //! diagnostics. A [`Mesh`] that exists is valid: at least one triangle, finite coordinates of
 //! sane size, every index in range. Nothing here knows about grids or voxels.
 
+pub mod binary;
 mod diagnostics;
 mod gltf;
 mod obj;

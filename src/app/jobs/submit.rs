@@ -84,7 +84,7 @@ pub async fn submit<G: Send>(
 ) -> Result<Submitted> {
     jobs.queue.admission(sub.owner.as_ref()).await?;
     let (bytes, guard) = upload.await?;
-    let req = sub.request(bytes.clone());
+    let req = sub.request(bytes);
     let spec = JobSpec::of(&req);
     let work = super::super::ops::on_pool(jobs.pool, move || super::super::prepare(&req)).await?;
     let id = super::super::new_id();
@@ -92,7 +92,6 @@ pub async fn submit<G: Send>(
         id: id.clone(),
         work,
         spec,
-        upload: bytes,
         name: sub.name,
         owner: sub.owner,
         created: super::super::rfc3339(std::time::SystemTime::now()),
@@ -105,8 +104,8 @@ pub async fn submit<G: Send>(
     } else {
         jobs.queue.submit(job).await?
     };
-    // The upload's bytes leave the front's budget once queued (a shared queue has stored them
-    // by then).
+    // The upload's budget is given back once the job is queued (a shared queue has stored
+    // the prepared job by then, which the budget stood for meanwhile).
     drop(guard);
     if !wait {
         return Ok(Submitted::Pending(Box::new(record)));

@@ -2,18 +2,20 @@
 //! redis://HOST:PORT[/DB]`). Any replica accepts a job, any replica with a free worker takes
 //! the next one; the job's record lives in Redis, so every replica answers for every job.
 //!
-//! - **Submit**: the upload's bytes go to the store first ([`VolumeStore::put_upload`]), then
-//!   the job (its request as data, a `JobSpec`) enters the stream of its size class, in one
-//!   script that also checks the shared capacity (`429` when full). The request was prepared
-//!   (validated) before, so a bad mesh is refused at once.
+//! - **Submit**: the prepared job (its mesh in binary form, [`NewJob::into_shared`]) goes to
+//!   the store first ([`VolumeStore::put_upload`]), then the job (its request as data, a
+//!   `JobSpec`) enters the stream of its size class, in one script that also checks the shared
+//!   capacity (`429` when full). The request was prepared (validated) before, so a bad mesh is
+//!   refused at once, and the mesh is parsed once per job, whichever replica runs it.
 //! - **Classes**: one stream per size class by estimated cost (small ≤ a 256³ job, medium ≤
 //!   512³, large beyond). A worker takes, of the classes' next jobs, the one with the lowest
 //!   `cost − 256³ × seconds waited`, the in-process queue's rule: small jobs overtake large
 //!   ones, and a large one that has waited long enough is not overtaken again.
 //! - **Running**: the worker that took a job (XREADGROUP) is handed its stored request
-//!   ([`Work::Stored`]), which the application's worker prepares from the stored upload (a job
-//!   submitted to this very replica is handed its prepared mesh instead), and renews its lease every `min(lease/3, 1 s)` while it runs: the renewal resets the
-//!   entry's idle time (XCLAIM by its own consumer), reports progress and hears a cancel.
+//!   ([`Work::Stored`]), which the application's worker decodes from the stored upload (a job
+//!   submitted to this very replica is handed its prepared mesh instead), and renews its lease
+//!   every `min(lease/3, 1 s)` while it runs: the renewal resets the entry's idle time (XCLAIM
+//!   by its own consumer), reports progress and hears a cancel.
 //! - **Dead workers**: an entry idle for a lease (`--lease-seconds`) belongs to a worker that
 //!   stopped: the next replica looking for work takes it over (XAUTOCLAIM) and runs it again, at
 //!   most `--max-attempts` starts in all; then the job fails with a problem saying why.
@@ -338,7 +340,8 @@ impl Inner {
     }
 
     /// A run's work: the prepared voxelization kept from its submit here, else its stored
-    /// request, which the worker prepares (the mesh is parsed once per run, by whoever runs it).
+    /// request, which the worker prepares from the stored prepared job (decoded: the mesh was
+    /// parsed once, by the replica it was submitted to).
     fn work(&self, run: &Run) -> Work {
         let mut kept = self.lock_prepared();
         if let Some(i) = kept.iter().position(|(j, _)| *j == run.id) {
@@ -559,21 +562,24 @@ impl JobQueue for RedisQueue {
         // route asks it); the submit script decides, atomically.
         q.open_for_jobs()?;
         let record = job.queued_record();
-        q.store
-            .put_upload(&job.id, job.upload.clone())
-            .await
-            .map_err(|e| Error::from(e).context("cannot store the upload"))?;
         let cost = job.cost();
         let (class, method) = (class_of(cost), job.method());
         let spec = serde_json::to_string(&job.spec).expect("a spec serialises");
         let (id, owner) = (job.id.clone(), job.owner.clone());
+        // The prepared job, not the uploaded file: whichever replica runs it decodes the mesh
+        // rather than parse it again.
+        let (work, stored) = job.into_shared().await?;
+        q.store
+            .put_upload(&id, stored)
+            .await
+            .map_err(|e| Error::from(e).context("cannot store the upload"))?;
         {
             // Kept before the job is visible, for when a worker here takes it at once.
             let mut kept = q.lock_prepared();
             if kept.len() >= PREPARED_KEPT {
                 kept.pop_front();
             }
-            kept.push_back((id.clone(), job.into_work()));
+            kept.push_back((id.clone(), work));
         }
         let submitted = q
             .redis
