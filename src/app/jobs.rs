@@ -328,25 +328,17 @@ mod tests {
         crate::app::testing::tiny_job(id, 16)
     }
 
-    struct Dir(std::path::PathBuf);
-    impl Drop for Dir {
-        fn drop(&mut self) {
-            let _ = std::fs::remove_dir_all(&self.0);
-        }
-    }
-
     /// A fresh directory store (removed when the guard drops).
-    fn open_store(name: &str) -> (Dir, Arc<dyn VolumeStore>) {
-        let dir = std::env::temp_dir().join(format!("voxd-jobs-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
+    fn open_store(name: &str) -> (crate::testkit::Scratch, Arc<dyn VolumeStore>) {
+        let dir = crate::testkit::Scratch::new(&format!("jobs-{name}"));
         let store: Arc<dyn VolumeStore> = Arc::new(FsStore::open(&dir, 1 << 24).unwrap());
-        (Dir(dir), store)
+        (dir, store)
     }
 
     async fn open(
         name: &str,
         timeout: Option<Duration>,
-    ) -> (Dir, Arc<dyn VolumeStore>, LocalQueue) {
+    ) -> (crate::testkit::Scratch, Arc<dyn VolumeStore>, LocalQueue) {
         let (dir, store) = open_store(name);
         let q = LocalQueue::open(4, store.clone())
             .await

@@ -3,12 +3,12 @@
 
 use super::*;
 use crate::app::store::Vxl;
+use crate::testkit::Scratch;
 
-/// A fresh directory store of 1 MiB under the temporary directory (removed first if a
-/// crashed run left it), and its path.
-fn scratch_store(name: &str) -> (std::path::PathBuf, Arc<dyn VolumeStore>) {
-    let dir = std::env::temp_dir().join(format!("voxd-localq-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+/// A fresh directory store of 1 MiB in a scratch directory (removed when the test ends), and
+/// the directory.
+fn scratch_store(name: &str) -> (Scratch, Arc<dyn VolumeStore>) {
+    let dir = Scratch::new(&format!("localq-{name}"));
     let store = Arc::new(crate::store::fs::FsStore::open(&dir, 1 << 20).unwrap());
     (dir, store)
 }
@@ -71,7 +71,6 @@ async fn records_are_group_committed_newest_per_job() {
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
     assert_eq!(left, vec!["records.log".to_string()]);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Finished jobs are remembered up to the limit (plus a tenth), then the oldest are
@@ -118,7 +117,6 @@ async fn old_finished_jobs_are_forgotten() {
     drop((q, store));
     let again = crate::store::fs::FsStore::open(&dir, 1 << 20).unwrap();
     assert_eq!(again.job_records().await.unwrap().len(), known.len());
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// The queue lets go of a job's mesh when a worker takes the job: the claim holds the only
@@ -126,7 +124,7 @@ async fn old_finished_jobs_are_forgotten() {
 /// after that, and their meshes must not).
 #[tokio::test]
 async fn a_claimed_jobs_mesh_is_held_by_the_claim_alone() {
-    let (dir, store) = scratch_store("claimed");
+    let (_dir, store) = scratch_store("claimed");
     let q = LocalQueue::open(2, store.clone()).await.unwrap();
     q.submit(tiny_job("m1")).await.unwrap();
     let claim = q.next().await.unwrap();
@@ -138,14 +136,13 @@ async fn a_claimed_jobs_mesh_is_held_by_the_claim_alone() {
     drop(claim);
     assert!(mesh.upgrade().is_none(), "the mesh outlived its claim");
     q.finish("m1", Ok("vol".into())).await;
-    let _ = std::fs::remove_dir_all(dir);
 }
 
 /// A job that finished before anyone waited is seen as finished at once (on a paused
 /// clock: had `wait` sat out its timeout, virtual time would have moved by an hour).
 #[tokio::test(start_paused = true)]
 async fn waiting_on_a_finished_job_returns_at_once_and_records_persist() {
-    let (dir, store) = scratch_store("wait");
+    let (_dir, store) = scratch_store("wait");
     let q = LocalQueue::open(2, store.clone()).await.unwrap();
     q.submit(tiny_job("a1")).await.unwrap();
     q.submit(tiny_job("b2")).await.unwrap();
@@ -180,7 +177,6 @@ async fn waiting_on_a_finished_job_returns_at_once_and_records_persist() {
         again.get(other).await.unwrap().unwrap().state,
         State::Canceled
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// A success written ahead of its volume (`storing`): after a crash (a new queue over the
@@ -235,7 +231,6 @@ async fn a_success_written_ahead_stands_only_with_its_volume() {
     assert!(!a1.last().unwrap().contains("unconfirmed_volume"), "{a1:?}");
     assert!(lines("b2").last().unwrap().contains("\"failed\""));
     drop((q, again, store));
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// `submit_deferred` writes nothing before the job runs: a job that finishes before the
@@ -269,7 +264,6 @@ async fn deferred_records_are_written_once_or_when_persisted() {
     assert_eq!(p1.len(), 1, "{p1:?}");
     assert!(p1[0].contains("\"queued\""), "{p1:?}");
     drop((q, store));
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// The indexes kept for pruning and for keys' limits (`finished`, `active`) against a walk
@@ -299,7 +293,7 @@ async fn the_indexes_agree_with_a_walk_of_every_job() {
         assert_eq!(inner.finished, finished);
         assert_eq!(inner.active, walked(&inner));
     }
-    let (dir, store) = scratch_store("indexes");
+    let (_dir, store) = scratch_store("indexes");
     let q = LocalQueue::open(8, store.clone())
         .await
         .unwrap()
@@ -375,5 +369,4 @@ async fn the_indexes_agree_with_a_walk_of_every_job() {
     }
     assert!(q.lock().active.is_empty());
     drop((q, store));
-    let _ = std::fs::remove_dir_all(&dir);
 }
