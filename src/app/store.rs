@@ -240,6 +240,9 @@ mod tests {
     fn an_unknown_kind_is_refused_by_name() {
         let odd = STORED.replace(r#""kind":"density""#, r#""kind":"voxels""#);
         let e = serde_json::from_str::<VolumeMeta>(&odd).unwrap_err();
-        assert!(e.to_string().contains("unknown volume kind \"voxels\""), "{e}");
+        assert!(
+            e.to_string().contains("unknown volume kind \"voxels\""),
+            "{e}"
+        );
     }
 }
