@@ -33,7 +33,7 @@ fn meta(id: &str, data: &[u8]) -> VolumeMeta {
     VolumeMeta {
         id: id.into(),
         name: None,
-        kind: "bits".into(),
+        kind: voxd::volume::VolumeKind::Bits,
         method: "solid".into(),
         grid: voxd::Grid {
             origin: [0.0; 3],

@@ -12,6 +12,7 @@ use crate::engine::EngineError;
 use crate::engine::density::DensityError;
 use crate::grid::GridError;
 use crate::mesh::MeshError;
+use crate::volume::WrongKind;
 use crate::volume::csg::CsgError;
 
 /// Declares [`ErrorKind`] from one table, in the manner of Meilisearch's `make_error_codes!`:
@@ -219,6 +220,13 @@ impl From<CsgError> for Error {
             CsgError::TooFarApart { .. } => ErrorKind::GridTooLarge,
         };
         Error::new(kind, e.to_string())
+    }
+}
+
+/// `wrong-volume-kind`, naming the kind given and the kinds the operation takes.
+impl From<WrongKind> for Error {
+    fn from(e: WrongKind) -> Error {
+        Error::new(ErrorKind::WrongVolumeKind, e.to_string())
     }
 }
 

@@ -121,7 +121,7 @@ pub fn build(
     let meta = VolumeMeta {
         id: super::new_id(),
         name,
-        kind: volume.kind().into(),
+        kind: volume.kind(),
         method: origin.method().into(),
         grid: g,
         solid_voxels: solid,

@@ -20,8 +20,7 @@ pub mod request;
 pub mod store;
 pub mod voxelize;
 
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::time::SystemTime;
+use std::time::{Duration, SystemTime};
 
 pub use crate::limits::Limits;
 pub use error::{Error, ErrorKind, Result};
@@ -34,52 +33,27 @@ pub use voxelize::{Loaded, Prepared, Voxelized, prepare, voxelize};
 /// sha256 of `b` in lowercase hex (the store contract's, which checks volumes with it).
 pub use store::sha256_hex;
 
-/// A fresh id (jobs, volumes, requests): 16 hex digits, unique in this process and unlikely to
-/// repeat across processes (a hash of the process id, a counter and the time).
+/// A fresh id (jobs, volumes, requests): 16 hex digits of 8 random bytes from the operating
+/// system (`getrandom`), so ids do not repeat across processes or restarts.
 pub fn new_id() -> String {
-    use std::hash::{BuildHasher, Hasher};
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-    let mut h = std::collections::hash_map::RandomState::new().build_hasher();
-    h.write_u64(u64::from(std::process::id()) << 32 ^ n);
-    h.write_u128(
-        SystemTime::now()
-            .duration_since(SystemTime::UNIX_EPOCH)
-            .unwrap_or_default()
-            .as_nanos(),
-    );
-    format!("{:016x}", h.finish())
+    let mut bytes = [0u8; 8];
+    // The system's random source does not fail once the process runs (std's own `HashMap`
+    // seeds panic in the same case); an id that might repeat would be worse than stopping.
+    getrandom::fill(&mut bytes).expect("random numbers from the operating system");
+    store::hex(&bytes)
 }
 
-/// RFC 3339 UTC time of `t` (seconds precision).
+/// RFC 3339 UTC time of `t` (seconds precision), by `humantime`. Times outside what RFC 3339
+/// writes (before 1970 or after 9999, a clock set very wrong) are clamped to its ends instead
+/// of failing.
 pub fn rfc3339(t: SystemTime) -> String {
-    let secs = t
-        .duration_since(SystemTime::UNIX_EPOCH)
-        .map(|d| d.as_secs())
-        .unwrap_or(0) as i64;
-    let (days, rem) = (secs.div_euclid(86400), secs.rem_euclid(86400));
-    // Civil from days (Howard Hinnant).
-    let z = days + 719468;
-    let era = z.div_euclid(146097);
-    let doe = z - era * 146097;
-    let yoe = (doe - doe / 1460 + doe / 36524 - doe / 146096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = doy - (153 * mp + 2) / 5 + 1;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 };
-    let y = yoe + era * 400 + i64::from(m <= 2);
-    format!(
-        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z",
-        rem / 3600,
-        rem % 3600 / 60,
-        rem % 60
-    )
+    let last = SystemTime::UNIX_EPOCH + Duration::from_secs(253_402_300_799); // 9999-12-31T23:59:59Z
+    humantime::format_rfc3339_seconds(t.clamp(SystemTime::UNIX_EPOCH, last)).to_string()
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::time::Duration;
 
     #[test]
     fn rfc3339_dates() {
@@ -92,6 +66,33 @@ mod tests {
             rfc3339(SystemTime::UNIX_EPOCH + Duration::from_secs(951_782_400)),
             "2000-02-29T00:00:00Z"
         );
+    }
+
+    /// Clocks set outside RFC 3339's years give its ends, not a panic.
+    #[test]
+    fn rfc3339_clamps_times_it_cannot_write() {
+        assert_eq!(
+            rfc3339(SystemTime::UNIX_EPOCH - Duration::from_secs(1)),
+            "1970-01-01T00:00:00Z"
+        );
+        assert_eq!(
+            rfc3339(SystemTime::UNIX_EPOCH + Duration::from_secs(300_000_000_000)),
+            "9999-12-31T23:59:59Z"
+        );
+    }
+
+    /// 16 lowercase hex digits, different each time.
+    #[test]
+    fn ids_are_16_hex_digits_and_differ() {
+        let ids: std::collections::HashSet<String> = (0..1000).map(|_| new_id()).collect();
+        assert_eq!(ids.len(), 1000);
+        for id in &ids {
+            assert_eq!(id.len(), 16, "{id}");
+            assert!(
+                id.bytes().all(|b| matches!(b, b'0'..=b'9' | b'a'..=b'f')),
+                "{id}"
+            );
+        }
     }
 
     #[test]

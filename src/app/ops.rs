@@ -20,7 +20,7 @@ use crate::grid::Grid;
 use crate::limits::Limits;
 use crate::names::Named;
 use crate::volume::morph::{self, MorphOp};
-use crate::volume::{BitVolume, Volume, VolumeKind, VoxelValue, WrongKind, csg};
+use crate::volume::{BitVolume, Volume, VolumeKind, VoxelValue, csg};
 
 /// The engine name derived volumes record.
 const DERIVED_ENGINE: &str = "cpu";
@@ -63,20 +63,15 @@ pub async fn on_pool<T: Send + 'static>(
     }
 }
 
-/// `wrong-volume-kind`, naming the kind given and the kinds taken.
-fn wrong_kind(e: WrongKind) -> Error {
-    Error::new(ErrorKind::WrongVolumeKind, e.to_string())
-}
-
 /// Refuses `v` unless `accepts` (an operation's `ACCEPTS`) holds its kind.
 pub fn require(v: &Volume, accepts: &'static [VolumeKind], what: &str) -> Result<()> {
-    v.kind().require(accepts, what).map_err(wrong_kind)
+    Ok(v.kind().require(accepts, what)?)
 }
 
 /// The bit volume, or why another kind cannot be used for `what` (`CSG`, `morphology`: the
 /// operations that take [`crate::volume::BITS_ONLY`]).
 pub fn require_bits(v: Volume, what: &str) -> Result<BitVolume> {
-    v.into_bits(what).map_err(wrong_kind)
+    Ok(v.into_bits(what)?)
 }
 
 /// Runs CPU work on the blocking pool under `ctl`; dropping the returned future (a client that
@@ -332,14 +327,6 @@ pub fn check_format(kind: VolumeKind, format: VolumeFormat) -> Result<()> {
     )))
 }
 
-/// The kind a catalogue entry names (its `kind` field); a name this build does not know is an
-/// internal error (the store holds only what this code wrote).
-pub fn kind_of(meta: &VolumeMeta) -> Result<VolumeKind> {
-    meta.kind
-        .parse()
-        .map_err(|e| Error::internal(format!("volume {}: {e}", meta.id)))
-}
-
 /// Refuses a conversion whose output would be larger than the voxel budget, before any of it
 /// is made: binvox pads the grid to a cube (a 4096×1×1 grid becomes 4096³ voxels).
 pub fn check_conversion(grid: &Grid, format: VolumeFormat, limits: &Limits) -> Result<()> {
@@ -459,9 +446,9 @@ pub async fn check_csg(store: &dyn VolumeStore, expr: &CsgExpr, limits: &Limits)
             .get(&id)
             .await?
             .ok_or_else(|| Error::not_found("volume", &id))?;
-        kind_of(&meta)?
+        meta.kind
             .require(csg::ACCEPTS, "CSG")
-            .map_err(|e| wrong_kind(e).context(format!("volume {id}")))?;
+            .map_err(|e| Error::from(e).context(format!("volume {id}")))?;
         grids.insert(id, meta.grid);
     }
     fn grid_of(

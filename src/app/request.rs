@@ -45,7 +45,7 @@ impl MethodSpec {
     pub fn name(self) -> &'static str {
         match self {
             MethodSpec::Bits(m) => m.name(),
-            MethodSpec::Density { .. } => "density",
+            MethodSpec::Density { .. } => MethodName::Density.name(),
         }
     }
 
@@ -58,22 +58,30 @@ impl MethodSpec {
     }
 }
 
-/// The names a user may give as a method: the bit methods and `density`.
+/// The names a user may give as a method: the bit methods ([`Method`]'s table) and `density`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MethodName {
     Bits(Method),
     Density,
 }
 
+impl MethodName {
+    /// The method when none is named (the command line's `--method` and the service's).
+    pub const DEFAULT: MethodName = MethodName::Bits(Method::Solid);
+}
+
 impl Named for MethodName {
     const WHAT: &'static str = "method";
-    const ALL: &'static [MethodName] = &[
-        MethodName::Bits(Method::Solid),
-        MethodName::Bits(Method::Surface),
-        MethodName::Bits(Method::Conservative),
-        MethodName::Bits(Method::Interior),
-        MethodName::Density,
-    ];
+    /// [`Method::ALL`], then `density`: a bit method added there is a name here.
+    const ALL: &'static [MethodName] = &{
+        let mut all = [MethodName::Density; Method::ALL.len() + 1];
+        let mut i = 0;
+        while i < Method::ALL.len() {
+            all[i] = MethodName::Bits(Method::ALL[i]);
+            i += 1;
+        }
+        all
+    };
     fn name(self) -> &'static str {
         match self {
             MethodName::Bits(m) => m.name(),
@@ -428,6 +436,27 @@ pub enum PreviewView {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The method names are the bit methods' then `density`, in the order (and with the
+    /// message) the hand-written list gave.
+    #[test]
+    fn method_names_are_the_bit_methods_and_density() {
+        let names: Vec<&str> = MethodName::ALL.iter().map(|m| m.name()).collect();
+        assert_eq!(
+            names,
+            ["solid", "surface", "conservative", "interior", "density"]
+        );
+        assert_eq!(
+            MethodSpec::new("voxel", None).unwrap_err().detail,
+            "unknown method \"voxel\"; expected solid, surface, conservative, interior or density"
+        );
+        assert_eq!(
+            MethodSpec::new("density", None).unwrap(),
+            MethodSpec::Density { factor: 2 }
+        );
+        assert_eq!(MethodSpec::Density { factor: 4 }.name(), "density");
+        assert_eq!(MethodName::DEFAULT.to_string(), "solid");
+    }
 
     /// A request kept as a job spec (JSON, as a shared queue stores it) comes back as the same
     /// request and prepares to the same grid; the running process's limits cap the spec's.

@@ -15,13 +15,16 @@ use sha2::Digest;
 use crate::engine::fill::FillReport;
 use crate::grid::Grid;
 use crate::mesh::MeshDiagnostics;
+use crate::volume::VolumeKind;
 
 /// What the API says about a stored volume (the store's catalogue entry).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct VolumeMeta {
     pub id: String,
     pub name: Option<String>,
-    pub kind: String,
+    /// What the volume holds; serialized by name (`"bits"`, `"density"`, ...), as the string
+    /// this field was before the volume model, so stored metadata reads either way.
+    pub kind: VolumeKind,
     pub method: String,
     pub grid: Grid,
     /// Set voxels.
@@ -209,4 +212,37 @@ pub fn hex(bytes: &[u8]) -> String {
         let _ = write!(s, "{x:02x}");
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Metadata as the code before the volume model wrote it (`kind` a plain string; a
+    /// density volume with its fill and diagnostics), byte for byte what a store holds today.
+    const STORED: &str = r#"{"id":"8cdf143699eff06e","name":"spot","kind":"density","method":"density","grid":{"origin":[-0.6,-0.8,-0.7],"voxel_size":0.02,"dims":[60,90,90]},"solid_voxels":51234,"volume":0.409872,"source":{"format":"obj","sha256":"ab12","triangles":5856},"diagnostics":{"triangles":5856,"vertices":2930,"degenerate_triangles":0,"boundary_edges":0,"non_manifold_edges":0,"watertight":true,"bbox_min":[-0.47,-0.73,-0.66],"bbox_max":[0.47,0.96,1.04]},"fill":{"requested":"parity","used":"parity","odd_parity_columns":0},"engine":"cpu","created":"2026-01-02T03:04:05Z","bytes":12345,"sha256":"cd34"}"#;
+
+    #[test]
+    fn metadata_written_before_the_volume_model_still_reads() {
+        let meta: VolumeMeta = serde_json::from_str(STORED).unwrap();
+        assert_eq!(meta.kind, VolumeKind::Density);
+        assert_eq!(meta.id, "8cdf143699eff06e");
+        assert_eq!(meta.created, "2026-01-02T03:04:05Z");
+        // And it writes back the same bytes: the kind is still its name.
+        assert_eq!(serde_json::to_string(&meta).unwrap(), STORED);
+        let bits = STORED.replace(r#""kind":"density""#, r#""kind":"bits""#);
+        let meta: VolumeMeta = serde_json::from_str(&bits).unwrap();
+        assert_eq!(meta.kind, VolumeKind::Bits);
+    }
+
+    /// A kind this build does not know is unreadable metadata, with the name in the message.
+    #[test]
+    fn an_unknown_kind_is_refused_by_name() {
+        let odd = STORED.replace(r#""kind":"density""#, r#""kind":"voxels""#);
+        let e = serde_json::from_str::<VolumeMeta>(&odd).unwrap_err();
+        assert!(
+            e.to_string().contains("unknown volume kind \"voxels\""),
+            "{e}"
+        );
+    }
 }

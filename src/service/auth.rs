@@ -24,8 +24,8 @@ use governor::clock::{Clock, DefaultClock};
 use governor::{DefaultDirectRateLimiter, Quota, RateLimiter};
 use sha2::{Digest, Sha256};
 
+use crate::app::queue::Owner;
 use crate::app::{Error, ErrorKind};
-use crate::queue::Owner;
 
 /// A key's limits. `rate` 0: no rate limit; `max_jobs` 0: no job limit.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -92,7 +92,7 @@ pub fn generate(name: &str) -> Result<(String, String), String> {
         "voxd_{}",
         base64::engine::general_purpose::URL_SAFE_NO_PAD.encode(bytes)
     );
-    let line = format!("{name}:{}", crate::store::sha256_hex(key.as_bytes()));
+    let line = format!("{name}:{}", crate::app::store::sha256_hex(key.as_bytes()));
     Ok((key, line))
 }
 

@@ -128,7 +128,7 @@ fn check_name(name: &str, limits: &crate::app::Limits) -> crate::app::Result<()>
 }
 
 /// `201 Created` with `Location` and the volume's metadata.
-fn created(meta: &crate::store::VolumeMeta) -> Response {
+fn created(meta: &crate::app::store::VolumeMeta) -> Response {
     let mut r = (StatusCode::CREATED, axum::Json(meta)).into_response();
     set_location(&mut r, &format!("/v1/volumes/{}", meta.id));
     r

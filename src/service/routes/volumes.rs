@@ -163,7 +163,7 @@ pub async fn data(
         .await
         .map_err(Error::from)?
         .ok_or_else(|| Error::not_found("volume", &id))?;
-    let kind = ops::kind_of(&meta)?;
+    let kind = meta.kind;
     ops::check_format(kind, format)?;
     ops::check_conversion(&meta.grid, format, &app.limits)?;
     // One ETag per representation: the identity body's, and (set on the way out, see

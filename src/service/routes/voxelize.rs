@@ -18,6 +18,7 @@ use crate::app::request::MethodName;
 use crate::app::{self, Error, ErrorKind, GridOptions, MethodSpec};
 use crate::engine::fill::Fill;
 use crate::mesh::Format;
+use crate::names::Named;
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -45,13 +46,44 @@ pub struct VoxelizeQuery {
     max_voxels: Option<u64>,
 }
 
+/// The mesh media types, one row per mesh format: the type a client should send first, then
+/// the others taken for it. Messages list the formats and their first types in this order.
+const MEDIA_TYPES: &[(Format, &[&str])] = &[
+    (Format::Obj, &["model/obj", "text/plain"]),
+    (Format::Glb, &["model/gltf-binary"]),
+    (Format::Gltf, &["model/gltf+json"]),
+    (
+        Format::Stl,
+        &[
+            "model/stl",
+            "model/x.stl-binary",
+            "model/x.stl-ascii",
+            "application/sla",
+        ],
+    ),
+    (
+        Format::Ply,
+        &["model/ply", "application/ply", "model/x-ply"],
+    ),
+];
+
+/// Content-Types that say nothing of the mesh: its format is sniffed. (curl --data-binary
+/// sends x-www-form-urlencoded unless told otherwise.)
+const SNIFFED: &[&str] = &[
+    "",
+    "application/octet-stream",
+    "application/gzip",
+    "application/x-www-form-urlencoded",
+];
+
 /// The mesh format from `?format=`, else the Content-Type; `None` to sniff.
 fn format_of(q: &VoxelizeQuery, headers: &HeaderMap) -> app::Result<Option<Format>> {
     if let Some(f) = &q.format {
         return Format::from_name(f).map(Some).ok_or_else(|| {
+            let names: Vec<&str> = MEDIA_TYPES.iter().map(|(f, _)| f.name()).collect();
             Error::new(
                 ErrorKind::UnsupportedMediaType,
-                format!("format={f:?} is not one of obj, glb, gltf, stl, ply"),
+                format!("format={f:?} is not one of {}", names.join(", ")),
             )
         });
     }
@@ -65,28 +97,25 @@ fn format_of(q: &VoxelizeQuery, headers: &HeaderMap) -> app::Result<Option<Forma
         .unwrap_or("")
         .trim()
         .to_ascii_lowercase();
-    Ok(match ct.as_str() {
-        "model/obj" | "text/plain" => Some(Format::Obj),
-        "model/gltf-binary" => Some(Format::Glb),
-        "model/gltf+json" => Some(Format::Gltf),
-        "model/stl" | "model/x.stl-binary" | "model/x.stl-ascii" | "application/sla" => {
-            Some(Format::Stl)
-        }
-        "model/ply" | "application/ply" | "model/x-ply" => Some(Format::Ply),
-        // curl --data-binary sends x-www-form-urlencoded unless told otherwise: sniff those too.
-        ""
-        | "application/octet-stream"
-        | "application/gzip"
-        | "application/x-www-form-urlencoded" => None,
-        other => {
-            return Err(Error::new(
+    if SNIFFED.contains(&ct.as_str()) {
+        return Ok(None);
+    }
+    match MEDIA_TYPES
+        .iter()
+        .find(|(_, types)| types.contains(&ct.as_str()))
+    {
+        Some((f, _)) => Ok(Some(*f)),
+        None => {
+            let firsts: Vec<&str> = MEDIA_TYPES.iter().map(|(_, types)| types[0]).collect();
+            Err(Error::new(
                 ErrorKind::UnsupportedMediaType,
                 format!(
-                    "Content-Type {other:?} is not a mesh type; use model/obj, model/gltf-binary, model/gltf+json, model/stl, model/ply or ?format="
+                    "Content-Type {ct:?} is not a mesh type; use {} or ?format=",
+                    firsts.join(", ")
                 ),
-            ));
+            ))
         }
-    })
+    }
 }
 
 pub async fn submit(
@@ -97,10 +126,8 @@ pub async fn submit(
     body: Body,
 ) -> Result<Response, Problem> {
     let owner = owner.map(|axum::Extension(o)| o);
-    let method = match q.method {
-        None => MethodSpec::Bits(crate::engine::Method::Solid),
-        Some(m) => MethodSpec::new(crate::names::Named::name(m), q.density_factor)?,
-    };
+    let method = q.method.unwrap_or(MethodName::DEFAULT);
+    let method = MethodSpec::new(method.name(), q.density_factor)?;
     if !(0.0..=app.limits.max_wait_s).contains(&q.wait) {
         return Err(Problem::invalid(format!(
             "wait must be between 0 and {} seconds",
@@ -130,7 +157,7 @@ pub async fn submit(
         grid,
         padding: q.padding,
         method,
-        fill: q.fill.unwrap_or(Fill::Parity),
+        fill: q.fill.unwrap_or(Fill::DEFAULT),
         limits,
         name: q.name,
         owner,
@@ -168,4 +195,64 @@ pub async fn submit(
     let mut r = (StatusCode::ACCEPTED, axum::Json(super::jobs::view(record))).into_response();
     set_location(&mut r, &location);
     Ok(r)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn format_for(format: Option<&str>, content_type: &str) -> app::Result<Option<Format>> {
+        let q: VoxelizeQuery =
+            serde_urlencoded::from_str(&format.map(|f| format!("format={f}")).unwrap_or_default())
+                .unwrap();
+        let mut headers = HeaderMap::new();
+        headers.insert(header::CONTENT_TYPE, content_type.parse().unwrap());
+        format_of(&q, &headers)
+    }
+
+    /// Every mesh format has one row of media types, and no type names two formats.
+    #[test]
+    fn every_mesh_format_has_its_media_types() {
+        for f in Format::ALL {
+            let rows = MEDIA_TYPES.iter().filter(|(g, _)| *g == f).count();
+            assert_eq!(rows, 1, "{f}");
+        }
+        let mut seen = std::collections::HashSet::new();
+        for (_, types) in MEDIA_TYPES {
+            for t in *types {
+                assert!(seen.insert(*t) && !SNIFFED.contains(t), "{t}");
+            }
+        }
+    }
+
+    /// The texts users see, as they were when written by hand.
+    #[test]
+    fn refusals_list_the_formats_and_types_as_before() {
+        let e = format_for(Some("doc"), "model/obj").unwrap_err();
+        assert_eq!(e.kind, ErrorKind::UnsupportedMediaType);
+        assert_eq!(
+            e.detail,
+            "format=\"doc\" is not one of obj, glb, gltf, stl, ply"
+        );
+        let e = format_for(None, "Text/HTML; charset=utf-8").unwrap_err();
+        assert_eq!(e.kind, ErrorKind::UnsupportedMediaType);
+        assert_eq!(
+            e.detail,
+            "Content-Type \"text/html\" is not a mesh type; use model/obj, model/gltf-binary, model/gltf+json, model/stl, model/ply or ?format="
+        );
+    }
+
+    #[test]
+    fn types_and_names_choose_the_format() {
+        assert_eq!(format_for(None, "model/x-ply").unwrap(), Some(Format::Ply));
+        assert_eq!(format_for(None, "text/plain").unwrap(), Some(Format::Obj));
+        assert_eq!(
+            format_for(None, "application/x-www-form-urlencoded").unwrap(),
+            None
+        );
+        assert_eq!(
+            format_for(Some("GLB"), "model/obj").unwrap(),
+            Some(Format::Glb)
+        );
+    }
 }

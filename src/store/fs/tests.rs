@@ -11,7 +11,7 @@ pub(crate) fn meta(id: &str, data: &[u8]) -> VolumeMeta {
     VolumeMeta {
         id: id.into(),
         name: None,
-        kind: "bits".into(),
+        kind: crate::volume::VolumeKind::Bits,
         method: "solid".into(),
         grid: crate::Grid {
             origin: [0.0; 3],

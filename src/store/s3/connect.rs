@@ -115,15 +115,10 @@ pub(super) fn builder(
     b
 }
 
-/// A random-enough name for this process's probe object.
+/// A random name for this process's probe object: 16 hex digits of 8 bytes from the operating
+/// system's random source.
 pub(super) fn instance_name() -> String {
-    use std::hash::{BuildHasher, Hasher};
-    let mut h = std::collections::hash_map::RandomState::new().build_hasher();
-    h.write_u32(std::process::id());
-    h.write_u128(
-        std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| d.as_nanos()),
-    );
-    format!("{:016x}", h.finish())
+    let mut bytes = [0u8; 8];
+    getrandom::fill(&mut bytes).expect("random numbers from the operating system");
+    crate::app::store::hex(&bytes)
 }
