@@ -1439,6 +1439,7 @@ fn a_job_past_its_deadline_fails_with_the_timeout_problem() {
 /// succeed, and `/metrics` counts the slabs, the submissions they went in (never more than the
 /// slabs) and the buffers the pool served. Skips without an adapter unless VOXD_REQUIRE_GPU=1.
 #[test]
+#[cfg(feature = "gpu")]
 fn gpu_jobs_at_once_succeed_and_their_submissions_are_counted() {
     if crate::gpu::gpu().is_none() {
         return;
