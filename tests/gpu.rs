@@ -1,6 +1,8 @@
 //! The GPU engine against the CPU engine, bit for bit. Needs a Vulkan adapter (lavapipe in CI):
 //! without one these tests skip with a notice, unless VOXD_REQUIRE_GPU=1 (set by scripts/test.sh
-//! once it has installed a driver), where that is a failure.
+//! once it has installed a driver), where that is a failure. Built only with the `gpu` feature (on
+//! by default), as is the engine they test.
+#![cfg(feature = "gpu")]
 
 use std::sync::OnceLock;
 

@@ -12,6 +12,7 @@ use std::path::Path;
 use serde_json::Value;
 use voxd::app::ErrorKind;
 use voxd::app::request::MethodName;
+use voxd::codec::format::VolumeFormat;
 use voxd::engine::fill::Fill;
 use voxd::mesh::Format;
 use voxd::names::Named;
@@ -104,6 +105,10 @@ fn named_sets_match_the_contract() {
     assert_eq!(
         sorted(one(&all, voxelize, "format").to_vec()),
         sorted(names::<Format>())
+    );
+    assert_eq!(
+        one(&all, "/v1/volumes/{id}/data", "format"),
+        names::<VolumeFormat>()
     );
     let morphology = "/v1/volumes/{id}/morphology";
     assert_eq!(one(&all, morphology, "op"), names::<MorphOp>());

@@ -18,7 +18,6 @@ use crate::cancel::Control;
 use crate::codec::{VolumeFormat, vxl};
 use crate::grid::Grid;
 use crate::limits::Limits;
-use crate::names::Named;
 use crate::volume::morph::{self, MorphOp};
 use crate::volume::{BitVolume, Volume, VolumeKind, VoxelValue, csg};
 

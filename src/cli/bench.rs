@@ -1,13 +1,56 @@
 //! `voxd bench`: times the CPU and GPU engines per method and resolution on one mesh, with the
 //! GPU time split into upload, dispatch and readback, and checks that both give the same bits.
+//! Built without the `gpu` feature it times the CPU engine alone (as `--cpu-only`), once it has
+//! said why.
 
 use std::time::{Duration, Instant};
 
 use super::args::BenchArgs;
 use voxd::engine::cpu::CpuEngine;
-use voxd::engine::gpu::{GpuEngine, GpuOptions};
-use voxd::engine::{Engine, GridMesh};
+use voxd::engine::gpu::GpuTimings;
+use voxd::engine::{Engine, GridMesh, Method};
 use voxd::grid::{Grid, GridLimits, GridSpec};
+use voxd::volume::BitVolume;
+
+/// The engine timed against the CPU: none can exist without the `gpu` feature.
+#[cfg(feature = "gpu")]
+type Gpu = voxd::engine::gpu::GpuEngine;
+#[cfg(not(feature = "gpu"))]
+enum Gpu {}
+
+#[cfg(feature = "gpu")]
+fn open_gpu(a: &BenchArgs) -> Result<Option<Gpu>, String> {
+    let t = Instant::now();
+    let g = Gpu::new(voxd::engine::gpu::GpuOptions {
+        adapter: a.adapter.clone(),
+        solid_strategy: a.gpu_solid,
+        ..Default::default()
+    })
+    .map_err(|e| e.to_string())?;
+    println!(
+        "gpu: {:?}, opened in {} ms, solid strategy {:?}",
+        g.adapter(),
+        ms(t.elapsed()),
+        a.gpu_solid
+    );
+    Ok(Some(g))
+}
+
+#[cfg(not(feature = "gpu"))]
+fn open_gpu(_: &BenchArgs) -> Result<Option<Gpu>, String> {
+    println!("gpu: none (this voxd was built without the gpu feature)");
+    Ok(None)
+}
+
+#[cfg(feature = "gpu")]
+fn timed(g: &Gpu, gm: &GridMesh, m: Method) -> Result<(BitVolume, GpuTimings), String> {
+    g.voxelize_timed(gm, m).map_err(|e| e.to_string())
+}
+
+#[cfg(not(feature = "gpu"))]
+fn timed(g: &Gpu, _: &GridMesh, _: Method) -> Result<(BitVolume, GpuTimings), String> {
+    match *g {}
+}
 
 fn median(mut v: Vec<Duration>) -> Duration {
     v.sort();
@@ -28,24 +71,7 @@ pub fn run(a: &BenchArgs) -> Result<(), String> {
         mesh.triangles().len(),
         ms(t.elapsed())
     );
-    let gpu = if a.cpu_only {
-        None
-    } else {
-        let t = Instant::now();
-        let g = GpuEngine::new(GpuOptions {
-            adapter: a.adapter.clone(),
-            solid_strategy: a.gpu_solid,
-            ..Default::default()
-        })
-        .map_err(|e| e.to_string())?;
-        println!(
-            "gpu: {:?}, opened in {} ms, solid strategy {:?}",
-            g.adapter(),
-            ms(t.elapsed()),
-            a.gpu_solid
-        );
-        Some(g)
-    };
+    let gpu = if a.cpu_only { None } else { open_gpu(a)? };
     println!(
         "cpu: {} threads, {}",
         rayon::current_num_threads(),
@@ -88,7 +114,7 @@ pub fn run(a: &BenchArgs) -> Result<(), String> {
                     let mut same = true;
                     for i in 0..=runs {
                         let t = Instant::now();
-                        let (v, tm) = g.voxelize_timed(&gm, m).map_err(|e| e.to_string())?;
+                        let (v, tm) = timed(g, &gm, m)?;
                         let el = t.elapsed();
                         same &= Some(&v) == cpu_vol.as_ref();
                         if i > 0 {

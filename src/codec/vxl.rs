@@ -27,7 +27,6 @@ use serde::{Deserialize, Serialize};
 
 use super::{CodecError, malformed};
 use crate::grid::Grid;
-use crate::names::Named;
 use crate::volume::channels::{Attributed, ChannelValues, MAX_CHANNELS};
 use crate::volume::kind::{to_le_bytes, valid_from_le_bytes};
 use crate::volume::sparse::{BRICK_VOXELS, Sparse};

@@ -1,7 +1,8 @@
 //! Engines turn a mesh on a grid into a volume. Every engine consumes the same [`GridMesh`]
 //! (vertices snapped to a fixed-point lattice by [`GridMesh::new`]) and must produce the same bits:
 //! the rules in `docs/methods.md` are implemented once here and in `cpu/`, which is the oracle the
-//! GPU engine is tested against. Engines know nothing of files or HTTP.
+//! GPU engine is tested against. Engines know nothing of files or HTTP. The GPU engine is built
+//! only with the `gpu` Cargo feature (see [`gpu`]).
 
 pub mod cpu;
 pub mod density;
@@ -112,19 +113,23 @@ impl EngineChoice {
 
 /// Opens the chosen engine. `Auto` never fails: without a hardware adapter (or the one
 /// named) it uses the CPU engine and logs why: at `info` when only a software adapter exists
-/// (the expected case on a machine without a GPU), as a warning otherwise.
+/// (the expected case on a machine without a GPU), as a warning otherwise. Built without the
+/// `gpu` feature, `Gpu` is [`EngineError::NoDevice`] and `Auto` is the CPU engine.
 pub fn open(choice: EngineChoice, gpu: gpu::GpuOptions) -> Result<Box<dyn Engine>, EngineError> {
     match choice {
         EngineChoice::Cpu => Ok(Box::new(cpu::CpuEngine)),
-        EngineChoice::Gpu => Ok(Box::new(gpu::GpuEngine::new(gpu)?)),
+        EngineChoice::Gpu => open_gpu(gpu),
+        // Nothing to try, so nothing to log.
+        EngineChoice::Auto if !cfg!(feature = "gpu") => Ok(Box::new(cpu::CpuEngine)),
         EngineChoice::Auto => {
             let options = gpu::GpuOptions {
                 // A named adapter is an explicit request, software or not.
                 hardware_only: gpu.adapter.is_none(),
                 ..gpu
             };
-            match gpu::GpuEngine::new(options) {
-                Ok(e) => Ok(Box::new(e)),
+            match open_gpu(options) {
+                Ok(e) => Ok(e),
+                #[cfg(feature = "gpu")]
                 Err(EngineError::NoDevice(why)) if why.starts_with(gpu::device::NO_HARDWARE) => {
                     tracing::info!("{why}; using the CPU engine (--engine gpu uses them)");
                     Ok(Box::new(cpu::CpuEngine))
@@ -136,6 +141,20 @@ pub fn open(choice: EngineChoice, gpu: gpu::GpuOptions) -> Result<Box<dyn Engine
             }
         }
     }
+}
+
+/// Why `--engine gpu` fails in a build without the `gpu` feature.
+#[cfg(not(feature = "gpu"))]
+const NO_GPU_FEATURE: &str = "this voxd was built without the gpu feature (cargo build --features gpu); use --engine cpu or auto";
+
+#[cfg(feature = "gpu")]
+fn open_gpu(options: gpu::GpuOptions) -> Result<Box<dyn Engine>, EngineError> {
+    Ok(Box::new(gpu::GpuEngine::new(options)?))
+}
+
+#[cfg(not(feature = "gpu"))]
+fn open_gpu(_: gpu::GpuOptions) -> Result<Box<dyn Engine>, EngineError> {
+    Err(EngineError::NoDevice(NO_GPU_FEATURE.to_string()))
 }
 
 /// Triangle vertices as i64 for arithmetic.
@@ -170,4 +189,31 @@ pub(crate) fn axis_bounds(v: &[[i64; 3]; 3], a: usize) -> (i64, i64) {
         v[0][a].min(v[1][a]).min(v[2][a]),
         v[0][a].max(v[1][a]).max(v[2][a]),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Without the `gpu` feature, asking for the GPU says why there is none, and `auto` is the
+    /// CPU engine.
+    #[test]
+    #[cfg(not(feature = "gpu"))]
+    fn without_the_gpu_feature_gpu_is_refused_and_auto_is_the_cpu() {
+        match open(EngineChoice::Gpu, gpu::GpuOptions::default()) {
+            Err(EngineError::NoDevice(why)) => {
+                assert!(why.contains("built without the gpu feature"), "{why}")
+            }
+            Err(e) => panic!("{e}"),
+            Ok(e) => panic!("opened {}", e.name()),
+        }
+        let auto = open(EngineChoice::Auto, gpu::GpuOptions::default()).unwrap();
+        assert_eq!(auto.name(), "cpu");
+    }
+
+    #[test]
+    fn cpu_is_the_cpu_engine() {
+        let e = open(EngineChoice::Cpu, gpu::GpuOptions::default()).unwrap();
+        assert_eq!(e.name(), "cpu");
+    }
 }

@@ -10,33 +10,15 @@ pub const ACCEPTS: &[VolumeKind] = super::BITS_ONLY;
 use crate::cancel::{Canceled, Control};
 use crate::grid::Grid;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum CsgOp {
-    Union,
-    Intersection,
-    Difference,
-    Xor,
-}
-
-impl crate::names::Named for CsgOp {
-    const WHAT: &'static str = "operation";
-    const ALL: &'static [CsgOp] = &[
-        CsgOp::Union,
-        CsgOp::Intersection,
-        CsgOp::Difference,
-        CsgOp::Xor,
-    ];
-    fn name(self) -> &'static str {
-        match self {
-            CsgOp::Union => "union",
-            CsgOp::Intersection => "intersection",
-            CsgOp::Difference => "difference",
-            CsgOp::Xor => "xor",
-        }
+crate::named_enum! {
+    /// How operands combine; the result's grid for each is in the module doc.
+    pub enum CsgOp: "operation" {
+        Union = "union",
+        Intersection = "intersection",
+        Difference = "difference",
+        Xor = "xor",
     }
 }
-
-crate::impl_named!(CsgOp);
 
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum CsgError {

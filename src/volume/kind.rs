@@ -129,35 +129,16 @@ fn describe_all(kinds: &[VolumeKind]) -> String {
     }
 }
 
-/// The element types a voxel, or an attribute channel, can hold; the names are the `.vxl`
-/// header's `value_type`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ValueType {
-    U8,
-    U16,
-    F32,
-    Rgba8,
-}
-
-impl Named for ValueType {
-    const WHAT: &'static str = "value type";
-    const ALL: &'static [ValueType] = &[
-        ValueType::U8,
-        ValueType::U16,
-        ValueType::F32,
-        ValueType::Rgba8,
-    ];
-    fn name(self) -> &'static str {
-        match self {
-            ValueType::U8 => "u8",
-            ValueType::U16 => "u16le",
-            ValueType::F32 => "f32le",
-            ValueType::Rgba8 => "rgba8",
-        }
+crate::named_enum! {
+    /// The element types a voxel, or an attribute channel, can hold; the names are the `.vxl`
+    /// header's `value_type`.
+    pub enum ValueType: "value type" {
+        U8 = "u8",
+        U16 = "u16le",
+        F32 = "f32le",
+        Rgba8 = "rgba8",
     }
 }
-
-crate::impl_named!(ValueType);
 
 impl ValueType {
     /// Bytes of one value in a `.vxl` payload.

@@ -37,52 +37,29 @@ pub const ACCEPTS: &[VolumeKind] = super::BITS_ONLY;
 use crate::cancel::{Canceled, Control};
 use crate::grid::Grid;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Kernel {
-    Cube,
-    Cross,
-    Sphere,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum MorphOp {
-    Dilate,
-    Erode,
-    Open,
-    Close,
-}
-
-impl crate::names::Named for Kernel {
-    const WHAT: &'static str = "kernel";
-    const ALL: &'static [Kernel] = &[Kernel::Cube, Kernel::Cross, Kernel::Sphere];
-    fn name(self) -> &'static str {
-        match self {
-            Kernel::Cube => "cube",
-            Kernel::Cross => "cross",
-            Kernel::Sphere => "sphere",
-        }
+crate::named_enum! {
+    /// The kernel's shape: which offsets d lie within radius r.
+    pub enum Kernel: "kernel" {
+        /// Chebyshev ball, |d|∞ ≤ r.
+        Cube = "cube",
+        /// Manhattan ball, |d|₁ ≤ r: r steps of the 6-neighbourhood.
+        Cross = "cross",
+        /// Euclidean ball, |d|₂ ≤ r.
+        Sphere = "sphere",
     }
 }
 
-impl crate::names::Named for MorphOp {
-    const WHAT: &'static str = "operation";
-    const ALL: &'static [MorphOp] = &[
-        MorphOp::Dilate,
-        MorphOp::Erode,
-        MorphOp::Open,
-        MorphOp::Close,
-    ];
-    fn name(self) -> &'static str {
-        match self {
-            MorphOp::Dilate => "dilate",
-            MorphOp::Erode => "erode",
-            MorphOp::Open => "open",
-            MorphOp::Close => "close",
-        }
+crate::named_enum! {
+    /// The morphology operations (definitions in the module doc).
+    pub enum MorphOp: "operation" {
+        Dilate = "dilate",
+        Erode = "erode",
+        /// dilate(erode).
+        Open = "open",
+        /// erode(dilate).
+        Close = "close",
     }
 }
-
-crate::impl_named!(Kernel, MorphOp);
 
 /// Largest radius accepted (the limits' `max_morph_radius`); keeps every squared distance that
 /// matters within 16 bits.

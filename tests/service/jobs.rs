@@ -443,6 +443,7 @@ fn a_job_past_its_deadline_fails_with_the_timeout_problem() {
 /// A service on the GPU engine (lavapipe in CI) with 4 workers: jobs posted at once all
 /// succeed, and `/metrics` counts the slabs, the submissions they went in (never more than the
 /// slabs) and the buffers the pool served. Skips without an adapter unless VOXD_REQUIRE_GPU=1.
+#[cfg(feature = "gpu")]
 #[test]
 fn gpu_jobs_at_once_succeed_and_their_submissions_are_counted() {
     if crate::gpu::gpu().is_none() {

@@ -15,6 +15,8 @@
 use std::collections::HashMap;
 use std::sync::{Condvar, Mutex, MutexGuard};
 
+use super::BatchStats;
+
 /// Items that have reached the batcher and results not yet taken, by ticket.
 struct State<T, R> {
     waiting: Vec<(u64, T)>,
@@ -29,17 +31,6 @@ struct State<T, R> {
 pub(super) struct Batcher<T, R> {
     state: Mutex<State<T, R>>,
     finished: Condvar,
-}
-
-/// What the batches have been: for metrics, benchmarks and tests.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct BatchStats {
-    /// Batches run (device submissions).
-    pub batches: u64,
-    /// Items in them (command buffers).
-    pub items: u64,
-    /// Items in the largest batch.
-    pub largest: u64,
 }
 
 impl<T, R> Batcher<T, R> {

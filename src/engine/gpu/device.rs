@@ -6,8 +6,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use serde::Serialize;
 
+use super::POOL_BYTES;
 use super::batch::Batcher;
-use super::pool::{BufferPool, POOL_BYTES};
+use super::pool::BufferPool;
 use crate::engine::EngineError;
 
 const COMMON: &str = include_str!("../../../shaders/common.wgsl");
@@ -41,7 +42,7 @@ pub(super) struct GpuDevice {
     /// Buffers kept from one job for the next.
     pub pool: BufferPool,
     /// The jobs' slabs on their way to the queue, submitted together.
-    pub batcher: Batcher<super::Submission, Result<(), String>>,
+    pub batcher: Batcher<super::engine::Submission, Result<(), String>>,
     lost: Arc<AtomicBool>,
 }
 

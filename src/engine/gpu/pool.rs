@@ -10,20 +10,7 @@
 use std::collections::HashMap;
 use std::sync::Mutex;
 
-/// Idle buffers the pool keeps, in bytes (of their size classes).
-pub const POOL_BYTES: u64 = 256 << 20;
-
-/// Counts of what the pool did, for benchmarks and tests.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct PoolStats {
-    /// Buffers created because no idle one of their class was there.
-    pub created: u64,
-    /// Leases served by an idle buffer.
-    pub reused: u64,
-    /// Idle buffers held now, and their bytes.
-    pub idle: u64,
-    pub idle_bytes: u64,
-}
+use super::PoolStats;
 
 type Class = (u32, u64);
 
