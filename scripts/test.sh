@@ -52,11 +52,9 @@ TARGET=${CARGO_TARGET_DIR:-target}
 
 cargo fmt --all -- --check
 cargo clippy --locked --all-targets --quiet -- -D warnings
-# The CPU-only build (no GPU engine, no S3 store, no Redis queue) must keep compiling. Guarded
-# until Cargo.toml declares its features: without a `default` entry there is nothing to turn off.
-if grep -q '^default *=' Cargo.toml; then
-  cargo build --locked --no-default-features --quiet
-fi
+# The CPU-only build (features gpu, s3 and redis off: no wgpu, object_store or redis) must keep
+# compiling; built once here, before the tests build the default binary.
+cargo build --locked --no-default-features --quiet
 # --show-output: skip notices (e.g. ../shared/meshes absent) stay visible. fault-injection: the
 # crash test (tests/crash.rs) aborts the server inside store writes (VOXD_FAULT; inert otherwise).
 cargo test --locked --features fault-injection -- --show-output

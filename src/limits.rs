@@ -101,6 +101,10 @@ impl Default for Limits {
 /// `voxd serve`'s defaults that are not [`Limits`]: each flag's `default_value_t` and the
 /// server's own defaults (`ConnectionLimits::default`) read these constants.
 pub mod serve {
+    /// `--lease-seconds`: the lease of a running job on the shared (Redis) queue.
+    pub const LEASE_S: f64 = 30.0;
+    /// `--max-attempts`: starts of one job at most on the shared (Redis) queue.
+    pub const MAX_ATTEMPTS: u32 = 3;
     /// `--addr`.
     pub const ADDR: &str = "127.0.0.1:8080";
     /// `--data-dir`.

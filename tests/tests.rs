@@ -21,8 +21,11 @@ mod oracles;
 mod props;
 mod query;
 mod real_meshes;
+#[cfg(feature = "redis")]
 mod redis_queue;
+#[cfg(all(feature = "redis", feature = "s3"))]
 mod replicas;
+#[cfg(feature = "s3")]
 mod s3;
 mod service;
 mod stats;

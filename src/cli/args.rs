@@ -262,13 +262,13 @@ pub struct ServeArgs {
     #[arg(
         long,
         env = "VOXD_LEASE_SECONDS",
-        default_value_t = voxd::queue::redis::DEFAULT_LEASE_S,
+        default_value_t = voxd::limits::serve::LEASE_S,
         value_name = "SECONDS"
     )]
     pub lease_seconds: f64,
     /// With a shared queue: starts of one job at most (its replica dying each time); then it
     /// fails.
-    #[arg(long, env = "VOXD_MAX_ATTEMPTS", default_value_t = voxd::queue::redis::DEFAULT_MAX_ATTEMPTS)]
+    #[arg(long, env = "VOXD_MAX_ATTEMPTS", default_value_t = voxd::limits::serve::MAX_ATTEMPTS)]
     pub max_attempts: u32,
     /// API keys, one `NAME:SHA256-HEX[:rate=R,burst=B,jobs=J]` per line (`voxd keygen NAME`
     /// prints one): every /v1 route then needs `Authorization: Bearer KEY`.

@@ -8,6 +8,7 @@
 //! application's worker, [`crate::app::jobs`]).
 
 pub mod local;
+#[cfg(feature = "redis")]
 pub mod redis;
 
 // The contract's names where older callers look for them.

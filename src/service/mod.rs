@@ -20,9 +20,11 @@ use crate::app::store::VolumeStore;
 use crate::app::{self, Error, ErrorKind, Limits};
 use crate::engine::{Engine, EngineChoice};
 use crate::queue::local::LocalQueue;
+#[cfg(feature = "redis")]
 use crate::queue::redis::{RedisOptions, RedisQueue};
 use crate::store::StoreSpec;
 use crate::store::fs::FsStore;
+#[cfg(feature = "s3")]
 use crate::store::s3::S3Store;
 
 pub use routes::{ROUTES, admin_router, router};
@@ -193,6 +195,7 @@ pub async fn open(config: &Config) -> Result<Arc<App>, String> {
             .into();
     tracing::info!(engine = %engine.describe(), "engine ready");
     let store = open_store(config).await?;
+    #[cfg(feature = "s3")]
     if config.queue.is_none() && matches!(config.store, Some(StoreSpec::S3(_))) {
         // The in-process queue keeps its jobs' meshes in memory and takes any record it finds
         // unfinished at start for one of its own interrupted jobs.
@@ -209,6 +212,13 @@ pub async fn open(config: &Config) -> Result<Arc<App>, String> {
                 .map_err(|e| format!("{}: {e}", store.describe()))?
                 .with_job_timeout(config.job_timeout),
         ),
+        #[cfg(not(feature = "redis"))]
+        Some(url) => {
+            return Err(format!(
+                "--queue {url}: this voxd was built without the redis feature (cargo build --features redis)"
+            ));
+        }
+        #[cfg(feature = "redis")]
         Some(url) => Arc::new(
             RedisQueue::open(
                 url,
@@ -238,6 +248,7 @@ pub async fn open(config: &Config) -> Result<Arc<App>, String> {
 pub async fn open_store(config: &Config) -> Result<Arc<dyn VolumeStore>, String> {
     let quota = config.max_store_bytes;
     let dir = match &config.store {
+        #[cfg(feature = "s3")]
         Some(StoreSpec::S3(loc)) => {
             let store = S3Store::open(loc, quota).await.map_err(|e| match e {
                 // The error names the bucket, the endpoint and what failed.

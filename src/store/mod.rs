@@ -11,6 +11,7 @@
 
 pub mod fault;
 pub mod fs;
+#[cfg(feature = "s3")]
 pub mod s3;
 
 use std::path::PathBuf;
@@ -34,13 +35,19 @@ pub use crate::app::store::{
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum StoreSpec {
     Dir(PathBuf),
+    #[cfg(feature = "s3")]
     S3(s3::Location),
 }
 
 impl StoreSpec {
     pub fn parse(s: &str) -> Result<StoreSpec, String> {
         if let Some(rest) = s.strip_prefix("s3://") {
+            #[cfg(feature = "s3")]
             return s3::Location::parse(rest).map(StoreSpec::S3);
+            #[cfg(not(feature = "s3"))]
+            return Err(format!(
+                "{rest:?}: this voxd was built without the s3 feature (cargo build --features s3); use a directory store"
+            ));
         }
         if let Some(path) = s.strip_prefix("file://") {
             if !path.starts_with('/') {
@@ -66,6 +73,7 @@ impl std::fmt::Display for StoreSpec {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             StoreSpec::Dir(p) => write!(f, "{}", p.display()),
+            #[cfg(feature = "s3")]
             StoreSpec::S3(l) => write!(f, "{l}"),
         }
     }

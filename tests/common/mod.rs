@@ -11,10 +11,13 @@
 mod fixtures;
 mod http;
 mod meshes;
+#[cfg(all(feature = "redis", feature = "s3"))]
 pub mod nginx;
 mod oracles;
+#[cfg(feature = "redis")]
 pub mod redis_server;
 mod rng;
+#[cfg(feature = "s3")]
 pub mod s3;
 
 pub use fixtures::*;

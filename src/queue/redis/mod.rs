@@ -68,10 +68,10 @@ const IDLE_POLL: Duration = Duration::from_millis(500);
 
 /// Lease of a running job (`--lease-seconds`): a default `voxd serve` and [`RedisOptions::new`]
 /// share.
-pub const DEFAULT_LEASE_S: f64 = 30.0;
+pub const DEFAULT_LEASE_S: f64 = crate::limits::serve::LEASE_S;
 
 /// Starts of one job at most (`--max-attempts`).
-pub const DEFAULT_MAX_ATTEMPTS: u32 = 3;
+pub const DEFAULT_MAX_ATTEMPTS: u32 = crate::limits::serve::MAX_ATTEMPTS;
 
 /// Prepared meshes of jobs submitted here, kept for when this replica runs them.
 const PREPARED_KEPT: usize = 8;
