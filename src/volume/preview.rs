@@ -14,12 +14,38 @@ pub struct Picture {
     pub pixels: Vec<u8>,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Projection {
-    /// 255 where any voxel along the line is occupied.
-    Max,
-    /// Occupancy summed along the line, scaled so the fullest line is white (a shaded thickness).
-    Sum,
+crate::named_enum! {
+    /// How a projection reduces the line of voxels behind each pixel.
+    pub enum Projection: "projection" {
+        /// 255 where any voxel along the line is occupied.
+        Max = "max",
+        /// Occupancy summed along the line, scaled so the fullest line is white (a shaded
+        /// thickness).
+        Sum = "sum",
+    }
+}
+
+impl Projection {
+    /// What a preview shows when neither a slice nor a projection is asked for.
+    pub const DEFAULT: Projection = Projection::Max;
+}
+
+crate::named_enum! {
+    /// The axis a preview looks along; its index in `[x, y, z]` is [`Axis::index`].
+    pub enum Axis: "axis" {
+        X = "x",
+        Y = "y",
+        Z = "z",
+    }
+}
+
+impl Axis {
+    /// A preview looks down z unless told otherwise.
+    pub const DEFAULT: Axis = Axis::Z;
+
+    pub fn index(self) -> usize {
+        self as usize
+    }
 }
 
 fn value(v: &Volume, p: [u32; 3]) -> (u32, u32) {

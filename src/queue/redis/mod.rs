@@ -175,15 +175,10 @@ impl Drop for RedisQueue {
 /// Six hex digits that differ between processes (and between queues of one process): a
 /// consumer name's tail.
 fn nonce() -> String {
-    use std::hash::{BuildHasher, Hasher};
-    let mut h = std::collections::hash_map::RandomState::new().build_hasher();
-    h.write_u128(
-        std::time::SystemTime::now()
-            .duration_since(std::time::SystemTime::UNIX_EPOCH)
-            .unwrap_or_default()
-            .as_nanos(),
-    );
-    format!("{:06x}", h.finish() & 0xff_ffff)
+    // Three bytes from the operating system's generator (the same source as job ids).
+    let mut b = [0u8; 3];
+    getrandom::fill(&mut b).expect("the operating system's random number generator");
+    format!("{:02x}{:02x}{:02x}", b[0], b[1], b[2])
 }
 
 /// `url` without its password.

@@ -17,7 +17,8 @@ use crate::app::{
     CsgExpr, Error, ErrorKind, MorphologyRequest, PreviewRequest, PreviewView, QueryRequest, ops,
 };
 use crate::codec::VolumeFormat;
-use crate::volume::preview::Projection;
+use crate::names::choices;
+use crate::volume::preview::{Axis, Projection};
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -360,24 +361,25 @@ pub async fn preview(
     Path(id): Path<String>,
     Query(q): Query<PreviewQuery>,
 ) -> Result<Response, Problem> {
-    let axis = match q.axis.as_deref().unwrap_or("z") {
-        "x" => 0,
-        "y" => 1,
-        "z" => 2,
-        a => return Err(Problem::invalid(format!("axis={a:?} is not x, y or z"))),
+    // The two closed sets read their tables (`volume::preview`); the messages name the choices.
+    let axis = match q.axis.as_deref() {
+        None => Axis::DEFAULT,
+        Some(a) => a.parse::<Axis>().map_err(|_| {
+            Problem::invalid(format!("axis={a:?} is not {}", choices::<Axis>()))
+        })?,
     };
     let view = match (q.slice, q.projection.as_deref()) {
         (Some(_), Some(_)) => return Err(Problem::invalid("give slice or projection, not both")),
         (Some(k), None) => PreviewView::Slice(k),
-        (None, None | Some("max")) => PreviewView::Projection(Projection::Max),
-        (None, Some("sum")) => PreviewView::Projection(Projection::Sum),
-        (None, Some(p)) => {
-            return Err(Problem::invalid(format!(
-                "projection={p:?} is not max or sum"
-            )));
-        }
+        (None, None) => PreviewView::Projection(Projection::DEFAULT),
+        (None, Some(p)) => PreviewView::Projection(p.parse::<Projection>().map_err(|_| {
+            Problem::invalid(format!("projection={p:?} is not {}", choices::<Projection>()))
+        })?),
     };
-    let req = PreviewRequest { axis, view };
+    let req = PreviewRequest {
+        axis: axis.index(),
+        view,
+    };
     let limits = app.limits;
     let png = ops::with_stored(&*app.store, &id, move |v| {
         ops::preview_png(v, &req, &limits)
