@@ -3,8 +3,8 @@
 use std::fmt::Write;
 use std::sync::Mutex;
 
-use crate::engine::gpu::GpuStats;
 use crate::app::queue::QueueStats;
+use crate::engine::gpu::GpuStats;
 
 const BUCKETS: [f64; 9] = [0.01, 0.05, 0.1, 0.25, 0.5, 1.0, 5.0, 10.0, 60.0];
 

@@ -130,3 +130,25 @@ pub fn projection(v: &Volume, axis: usize, mode: Projection) -> Picture {
         pixels,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::names::choices;
+
+    /// The preview route's refusals list these choices ("axis=… is not x, y or z", "projection=…
+    /// is not max or sum"); the axis's index is its place in `[x, y, z]`.
+    #[test]
+    fn axes_and_projections_name_their_choices() {
+        assert_eq!(choices::<Axis>(), "x, y or z");
+        assert_eq!(choices::<Projection>(), "max or sum");
+        assert_eq!(Axis::ALL.map(Axis::index), [0, 1, 2]);
+        assert_eq!("y".parse::<Axis>(), Ok(Axis::Y));
+        assert!("w".parse::<Axis>().is_err());
+        assert_eq!("sum".parse::<Projection>(), Ok(Projection::Sum));
+        assert_eq!(
+            (Axis::DEFAULT, Projection::DEFAULT),
+            (Axis::Z, Projection::Max)
+        );
+    }
+}

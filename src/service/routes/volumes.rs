@@ -364,16 +364,19 @@ pub async fn preview(
     // The two closed sets read their tables (`volume::preview`); the messages name the choices.
     let axis = match q.axis.as_deref() {
         None => Axis::DEFAULT,
-        Some(a) => a.parse::<Axis>().map_err(|_| {
-            Problem::invalid(format!("axis={a:?} is not {}", choices::<Axis>()))
-        })?,
+        Some(a) => a
+            .parse::<Axis>()
+            .map_err(|_| Problem::invalid(format!("axis={a:?} is not {}", choices::<Axis>())))?,
     };
     let view = match (q.slice, q.projection.as_deref()) {
         (Some(_), Some(_)) => return Err(Problem::invalid("give slice or projection, not both")),
         (Some(k), None) => PreviewView::Slice(k),
         (None, None) => PreviewView::Projection(Projection::DEFAULT),
         (None, Some(p)) => PreviewView::Projection(p.parse::<Projection>().map_err(|_| {
-            Problem::invalid(format!("projection={p:?} is not {}", choices::<Projection>()))
+            Problem::invalid(format!(
+                "projection={p:?} is not {}",
+                choices::<Projection>()
+            ))
         })?),
     };
     let req = PreviewRequest {
