@@ -20,7 +20,6 @@ use super::voxelize::Prepared;
 use crate::cancel::Control;
 use crate::grid::Grid;
 use crate::limits::Limits;
-use crate::names::Named;
 
 // The errors a queue answers with: the application's, which the queues make and pass on.
 pub use super::error::{Error, ErrorKind, Result};
@@ -38,44 +37,20 @@ pub fn priority(cost: f64, waited_s: f64) -> f64 {
     cost - AGE_CREDIT_PER_SEC * waited_s
 }
 
-/// Where a job is in its life. Its names (records, the API, metrics) are one table, [`Named`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum State {
-    Queued,
-    Running,
-    Succeeded,
-    Failed,
-    Canceled,
-}
-
-impl Named for State {
-    const WHAT: &'static str = "job state";
-    const ALL: &'static [State] = &[
-        State::Queued,
-        State::Running,
-        State::Succeeded,
-        State::Failed,
-        State::Canceled,
-    ];
-    fn name(self) -> &'static str {
-        match self {
-            State::Queued => "queued",
-            State::Running => "running",
-            State::Succeeded => "succeeded",
-            State::Failed => "failed",
-            State::Canceled => "canceled",
-        }
+crate::named_enum! {
+    /// Where a job is in its life. Its names (records, the API, metrics) are this one table.
+    pub enum State: "job state" {
+        Queued = "queued",
+        Running = "running",
+        Succeeded = "succeeded",
+        Failed = "failed",
+        Canceled = "canceled",
     }
 }
-
-crate::impl_named!(State);
 
 impl State {
     pub fn is_final(self) -> bool {
         matches!(self, State::Succeeded | State::Failed | State::Canceled)
-    }
-    pub fn name(self) -> &'static str {
-        Named::name(self)
     }
 }
 
@@ -311,7 +286,7 @@ mod tests {
             names,
             ["queued", "running", "succeeded", "failed", "canceled"]
         );
-        for &s in State::ALL {
+        for s in State::ALL {
             let json = serde_json::to_string(&s).unwrap();
             assert_eq!(json, format!("\"{}\"", s.name()));
             assert_eq!(serde_json::from_str::<State>(&json).unwrap(), s);
