@@ -4,6 +4,7 @@
 //! skipped for idempotent requests (`proxy_next_upstream`). Absent binary: `None` with a notice,
 //! unless `VOXD_REQUIRE_NGINX=1` (scripts/test.sh sets it once it has installed nginx).
 
+use std::os::unix::process::CommandExt;
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -65,6 +66,9 @@ impl Nginx {
             .args(["-p", &dir.to_string_lossy(), "-c"])
             .arg(dir.join("nginx.conf"))
             .args(["-g", "daemon off;"])
+            // A group of its own, so that Drop stops the workers with the master: a killed
+            // master leaves its workers running (they were left behind before this).
+            .process_group(0)
             .stdout(Stdio::null())
             .stderr(Stdio::inherit())
             .spawn()
@@ -90,6 +94,9 @@ impl Nginx {
 
 impl Drop for Nginx {
     fn drop(&mut self) {
+        // The whole group (master and workers): its id is the master's.
+        let group = format!("-{}", self.child.id());
+        let _ = Command::new("kill").args(["-KILL", "--", &group]).status();
         let _ = self.child.kill();
         let _ = self.child.wait();
         let _ = std::fs::remove_dir_all(&self.dir);
