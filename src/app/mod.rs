@@ -36,11 +36,7 @@ pub use store::sha256_hex;
 /// A fresh id (jobs, volumes, requests): 16 hex digits of 8 random bytes from the operating
 /// system (`getrandom`), so ids do not repeat across processes or restarts.
 pub fn new_id() -> String {
-    let mut bytes = [0u8; 8];
-    // The system's random source does not fail once the process runs (std's own `HashMap`
-    // seeds panic in the same case); an id that might repeat would be worse than stopping.
-    getrandom::fill(&mut bytes).expect("random numbers from the operating system");
-    store::hex(&bytes)
+    store::random_hex::<8>()
 }
 
 /// RFC 3339 UTC time of `t` (seconds precision), by `humantime`. Times outside what RFC 3339

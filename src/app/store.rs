@@ -205,6 +205,15 @@ pub fn sha256_hex(b: &[u8]) -> String {
 }
 
 /// Lowercase hex of `bytes`.
+/// `N` bytes from the operating system's random source in lowercase hex (ids, probe and
+/// consumer names). The source does not fail once the process runs (std's own `HashMap` seeds
+/// panic in the same case); a name that might repeat would be worse than stopping.
+pub fn random_hex<const N: usize>() -> String {
+    let mut bytes = [0u8; N];
+    getrandom::fill(&mut bytes).expect("random numbers from the operating system");
+    hex(&bytes)
+}
+
 pub fn hex(bytes: &[u8]) -> String {
     use std::fmt::Write;
     let mut s = String::with_capacity(2 * bytes.len());

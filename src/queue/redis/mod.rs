@@ -175,10 +175,7 @@ impl Drop for RedisQueue {
 /// Six hex digits that differ between processes (and between queues of one process): a
 /// consumer name's tail.
 fn nonce() -> String {
-    // Three bytes from the operating system's generator (the same source as job ids).
-    let mut b = [0u8; 3];
-    getrandom::fill(&mut b).expect("the operating system's random number generator");
-    format!("{:02x}{:02x}{:02x}", b[0], b[1], b[2])
+    crate::app::store::random_hex::<3>()
 }
 
 /// `url` without its password.

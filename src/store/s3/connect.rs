@@ -118,7 +118,5 @@ pub(super) fn builder(
 /// A random name for this process's probe object: 16 hex digits of 8 bytes from the operating
 /// system's random source.
 pub(super) fn instance_name() -> String {
-    let mut bytes = [0u8; 8];
-    getrandom::fill(&mut bytes).expect("random numbers from the operating system");
-    crate::app::store::hex(&bytes)
+    crate::app::store::random_hex::<8>()
 }
