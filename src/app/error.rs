@@ -72,6 +72,8 @@ error_kinds! {
     MisalignedGrids = "misaligned-grids", 422, "The volumes' grids do not line up";
     WrongVolumeKind = "wrong-volume-kind", 422, "Wrong kind of volume";
     EmptyIntersection = "empty-intersection", 422, "The intersection is empty";
+    /// The work would need more memory than the server's whole budget (`--max-memory`).
+    TooMuchMemory = "too-much-memory", 422, "The work needs more memory than the server has";
     /// The request's body or work took longer than allowed.
     Timeout = "timeout", 408, "Too slow";
     /// Too much is in flight (uploads' bytes); retry later.

@@ -13,6 +13,7 @@
 pub mod error;
 pub mod files;
 pub mod jobs;
+pub mod memory;
 pub mod metadata;
 pub mod ops;
 pub mod queue;

@@ -226,6 +226,15 @@ pub struct ServeArgs {
     /// Total bytes of stored volumes.
     #[arg(long, env = "VOXD_MAX_STORE_BYTES", default_value_t = serve::MAX_STORE_BYTES)]
     pub max_store_bytes: u64,
+    /// Bytes of memory all requests, volume operations and jobs may use at once, by their
+    /// estimates, before they start (0: half the machine's or the cgroup's memory).
+    #[arg(
+        long,
+        env = "VOXD_MAX_MEMORY",
+        default_value_t = 0,
+        value_name = "BYTES"
+    )]
+    pub max_memory: u64,
     /// Seconds a connection may take to send a request's head, or sit idle between requests.
     #[arg(long, env = "VOXD_HEADER_TIMEOUT", default_value_t = serve::HEADER_TIMEOUT_S)]
     pub header_timeout: f64,
@@ -307,6 +316,10 @@ impl ServeArgs {
             }
             .with_body_bytes(self.max_body_bytes),
             max_store_bytes: self.max_store_bytes,
+            max_memory: match self.max_memory {
+                0 => voxd::app::memory::MemoryBudget::default_total(),
+                n => n,
+            },
             connections: voxd::service::server::ConnectionLimits {
                 header_read_timeout: secs(self.header_timeout),
                 max_connections: self.max_connections.max(1),

@@ -47,6 +47,9 @@ pub struct Config {
     pub workers: usize,
     pub limits: Limits,
     pub max_store_bytes: u64,
+    /// Bytes of memory admitted work may use at once (`--max-memory`; the process-wide
+    /// [`app::memory::MemoryBudget`]).
+    pub max_memory: u64,
     pub connections: server::ConnectionLimits,
     /// How long shutdown waits for requests and running jobs before it gives up on them.
     pub shutdown_timeout: std::time::Duration,
@@ -76,6 +79,8 @@ pub struct App {
     pub http: server::ConnectionLimits,
     /// Who may call the `/v1` routes (`None`: anyone).
     pub keys: Option<Arc<auth::ApiKeys>>,
+    /// The process-wide memory budget every request, operation and job is admitted by.
+    pub memory: app::memory::MemoryBudget,
     /// Kibibytes of request bodies in memory, over all requests (`http.max_inflight_bytes`).
     inflight: Arc<tokio::sync::Semaphore>,
     /// Parsing and validating uploads runs here, not on the engine's threads, so a running job
@@ -96,6 +101,7 @@ impl App {
         limits: Limits,
         http: server::ConnectionLimits,
         keys: Option<Arc<auth::ApiKeys>>,
+        memory: app::memory::MemoryBudget,
     ) -> Arc<App> {
         let kib =
             (http.max_inflight_bytes >> 10).clamp(1, tokio::sync::Semaphore::MAX_PERMITS as u64);
@@ -115,6 +121,7 @@ impl App {
             limits,
             http,
             keys,
+            memory,
             inflight: Arc::new(tokio::sync::Semaphore::new(kib as usize)),
             ingest: Arc::new(ingest),
             shutting_down: Default::default(),
@@ -241,6 +248,7 @@ pub async fn open(config: &Config) -> Result<Arc<App>, String> {
         config.limits,
         config.connections,
         keys,
+        app::memory::MemoryBudget::new(config.max_memory),
     ))
 }
 

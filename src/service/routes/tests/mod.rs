@@ -171,6 +171,14 @@ async fn built(
     let queue: Arc<dyn JobQueue> =
         Arc::new(LocalQueue::open(capacity, store.clone()).await.unwrap());
     let engine: Arc<dyn Engine> = Arc::new(crate::engine::cpu::CpuEngine);
-    let app = App::with_keys(engine, store, queue, limits, Default::default(), keys);
+    let app = App::with_keys(
+        engine,
+        store,
+        queue,
+        limits,
+        Default::default(),
+        keys,
+        crate::app::memory::MemoryBudget::new(4 << 30),
+    );
     Harness { app, dir }
 }
