@@ -56,9 +56,12 @@ fn units(bytes: u64) -> u64 {
 }
 
 impl MemoryBudget {
-    /// A budget of `total` bytes (at least 1 KiB, at most what a semaphore counts in KiB).
+    /// A budget of `total` bytes (at least 1 KiB, at most what one acquisition can count in KiB:
+    /// `u32::MAX`, so that every admitted request's KiB fit the `u32` it is acquired with).
     pub fn new(total: u64) -> MemoryBudget {
-        let kib = units(total).min(Semaphore::MAX_PERMITS as u64);
+        let kib = units(total)
+            .min(Semaphore::MAX_PERMITS as u64)
+            .min(u32::MAX as u64);
         MemoryBudget {
             total: kib * 1024,
             kib: Arc::new(Semaphore::new(kib as usize)),
@@ -194,6 +197,14 @@ mod tests {
         assert_eq!(b.in_use(), 0);
         let p = b.admit(4 << 20, "two", Duration::from_millis(20)).await;
         assert_eq!(p.unwrap().bytes(), 4 << 20);
+    }
+
+    #[test]
+    fn a_budget_beyond_what_one_acquisition_counts_is_capped_so_no_request_wraps() {
+        let b = MemoryBudget::new(u64::MAX);
+        assert_eq!(b.total(), u32::MAX as u64 * 1024);
+        let e = b.try_admit((u32::MAX as u64 + 1) * 1024, "a huge request").unwrap_err();
+        assert_eq!(e.kind, ErrorKind::TooMuchMemory);
     }
 
     #[test]
