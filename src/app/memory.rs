@@ -203,7 +203,9 @@ mod tests {
     fn a_budget_beyond_what_one_acquisition_counts_is_capped_so_no_request_wraps() {
         let b = MemoryBudget::new(u64::MAX);
         assert_eq!(b.total(), u32::MAX as u64 * 1024);
-        let e = b.try_admit((u32::MAX as u64 + 1) * 1024, "a huge request").unwrap_err();
+        let e = b
+            .try_admit((u32::MAX as u64 + 1) * 1024, "a huge request")
+            .unwrap_err();
         assert_eq!(e.kind, ErrorKind::TooMuchMemory);
     }
 
