@@ -20,6 +20,9 @@ pub struct Limits {
     pub max_triangles: usize,
     /// Bytes of one request body (an uploaded mesh, a JSON document).
     pub max_body_bytes: usize,
+    /// Bytes of one JSON request body (a CSG expression, a query), checked while reading,
+    /// before it is parsed.
+    pub max_json_bytes: usize,
     /// Bytes a gzip'd mesh may expand to.
     pub max_decompressed_bytes: u64,
     /// Points plus rays of one query, points of one normals request.
@@ -68,6 +71,7 @@ impl Limits {
         max_voxels: 2048 * 2048 * 2048,
         max_triangles: 200_000_000,
         max_body_bytes: usize::MAX,
+        max_json_bytes: 1 << 20,
         max_decompressed_bytes: 8 << 30,
         max_queries: 100_000,
         max_preview_pixels: 1 << 24,
@@ -123,8 +127,11 @@ pub mod serve {
     pub const MIN_BODY_RATE: u64 = 16 << 10;
     /// `--send-timeout`, seconds a response may wait for its client to read more.
     pub const SEND_TIMEOUT_S: f64 = 20.0;
-    /// `--max-connections`: open connections at most.
-    pub const MAX_CONNECTIONS: usize = 512;
+    /// `--max-connections`: open connections at most; 0: derived from the file-descriptor
+    /// limit (`service::server::connection_cap`).
+    pub const MAX_CONNECTIONS: usize = 0;
+    /// `--max-connections-per-client`: connections one client address may hold (0: no limit).
+    pub const MAX_CONNECTIONS_PER_CLIENT: usize = 256;
     /// `--shutdown-timeout`, seconds shutdown waits for requests and running jobs.
     pub const SHUTDOWN_TIMEOUT_S: f64 = 30.0;
     /// `--job-timeout`, seconds one job may run (0: no limit).

@@ -212,8 +212,31 @@ fn refused_uploads_say_the_connection_closes() {
     assert_eq!(got.matches("HTTP/1.1 200").count(), 2, "{got}");
 }
 
+/// A child process killed and reaped when dropped, whatever the test did.
+struct Reaped(std::process::Child);
+
+impl std::ops::Deref for Reaped {
+    type Target = std::process::Child;
+    fn deref(&self) -> &std::process::Child {
+        &self.0
+    }
+}
+
+impl std::ops::DerefMut for Reaped {
+    fn deref_mut(&mut self) -> &mut std::process::Child {
+        &mut self.0
+    }
+}
+
+impl Drop for Reaped {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
 /// `voxd serve` with `--admin-addr` on free ports, and the two addresses it prints.
-fn with_admin(dir: &std::path::Path, extra: &[&str]) -> (std::process::Child, String, String) {
+fn with_admin(dir: &std::path::Path, extra: &[&str]) -> (Reaped, String, String) {
     use std::io::BufRead;
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_voxd"))
         .args([
@@ -240,19 +263,27 @@ fn with_admin(dir: &std::path::Path, extra: &[&str]) -> (std::process::Child, St
     };
     let addr = line("voxd listening on http://");
     let admin = line("voxd admin listening on http://");
-    (child, addr, admin)
+    (Reaped(child), addr, admin)
 }
 
-/// With every connection place of `--addr` taken by idle clients, a probe there waits in the
+/// With every connection place of `--addr` taken by busy clients, a probe there waits in the
 /// kernel's backlog, while `--admin-addr` (places of its own) answers `/healthz`, `/readyz` and
 /// `/metrics` at once and nothing else; once the clients leave, the waiting probe is answered.
 #[test]
 fn probes_answer_on_the_admin_listener_while_clients_hold_every_place() {
     let dir = Scratch::new("conn-admin");
-    let (mut child, addr, admin) =
+    let (child, addr, admin) =
         with_admin(&dir, &["--max-connections", "2", "--header-timeout", "30"]);
-    // Two idle clients take both places of the service's listener.
-    let hold: Vec<TcpStream> = (0..2).map(|_| TcpStream::connect(&addr).unwrap()).collect();
+    // Two clients sending bodies take both places of the service's listener (busy connections
+    // are never shed; idle ones would be, to make room).
+    let hold: Vec<TcpStream> = (0..2)
+        .map(|_| {
+            let mut s = TcpStream::connect(&addr).unwrap();
+            s.write_all(b"POST /v1/voxelize?format=obj HTTP/1.1\r\nHost: x\r\nContent-Length: 100000\r\n\r\nv 0 0 0\n")
+                .unwrap();
+            s
+        })
+        .collect();
     std::thread::sleep(Duration::from_millis(300));
     let mut waiting = TcpStream::connect(&addr).unwrap();
     waiting
@@ -290,8 +321,7 @@ fn probes_answer_on_the_admin_listener_while_clients_hold_every_place() {
         "{}",
         String::from_utf8_lossy(&got)
     );
-    let _ = child.kill();
-    let _ = child.wait();
+    drop(child);
 }
 
 /// After SIGTERM the service's listener closes at once, while the admin listener keeps
@@ -350,4 +380,29 @@ fn the_admin_listener_answers_until_the_server_has_drained() {
         TcpStream::connect(&admin).is_err(),
         "admin listener still open"
     );
+}
+
+/// An `Expect` other than `100-continue` cannot be met: 417 `expectation-failed` (issue 30); a
+/// `100-continue` is still served.
+#[test]
+fn an_unknown_expectation_gets_417() {
+    let dir = Scratch::new("conn-expect");
+    let srv = Server::start(&dir, &[]);
+    let (status, headers, body) =
+        http_exchange(&srv.addr, "GET", "/healthz", &[("Expect", "200-ok")], b"").unwrap();
+    assert_eq!(status, 417, "{}", String::from_utf8_lossy(&body));
+    assert_eq!(
+        headers.get("content-type").map(String::as_str),
+        Some("application/problem+json")
+    );
+    assert!(String::from_utf8_lossy(&body).contains("expectation-failed"));
+    let (status, _, _) = http_exchange(
+        &srv.addr,
+        "GET",
+        "/healthz",
+        &[("Expect", "100-continue")],
+        b"",
+    )
+    .unwrap();
+    assert_eq!(status, 200);
 }

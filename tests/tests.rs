@@ -13,8 +13,10 @@ mod crash;
 mod csg;
 mod density;
 mod fill;
+mod flood;
 mod gpu;
 mod loaders;
+mod memory;
 mod morph;
 mod openapi_enums;
 mod oracles;
@@ -29,6 +31,7 @@ mod replicas;
 mod s3;
 mod service;
 mod stats;
+mod upload_memory;
 
 /// With `autotests = false` (Cargo.toml) a file of tests/ that is not declared a module here
 /// would never be compiled nor run: every one is, and so is every file of a folder module

@@ -87,6 +87,8 @@ error_kinds! {
     /// The request's head (request line and headers) is larger, or has more headers, than
     /// allowed.
     HeadersTooLarge = "headers-too-large", 431, "Request header fields too large";
+    /// An `Expect` header other than `100-continue` (the only expectation HTTP/1.1 defines).
+    ExpectationFailed = "expectation-failed", 417, "Expectation failed";
     /// No API key, or not a valid one, where the service requires one (`--api-keys-file`).
     Unauthorized = "unauthorized", 401, "Authentication required";
     /// The API key's request rate is exceeded; retry after `Retry-After`.

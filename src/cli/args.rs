@@ -218,6 +218,9 @@ pub struct ServeArgs {
     /// Largest request body in bytes (gzip'd meshes may expand 16× this).
     #[arg(long, env = "VOXD_MAX_BODY_BYTES", default_value_t = Limits::SERVICE.max_body_bytes)]
     pub max_body_bytes: usize,
+    /// Largest JSON request body in bytes (CSG expressions, queries), checked while reading.
+    #[arg(long, env = "VOXD_MAX_JSON_BYTES", default_value_t = Limits::SERVICE.max_json_bytes)]
+    pub max_json_bytes: usize,
     #[arg(long, env = "VOXD_MAX_TRIANGLES", default_value_t = Limits::SERVICE.max_triangles)]
     pub max_triangles: usize,
     /// Voxel budget of one job.
@@ -248,9 +251,18 @@ pub struct ServeArgs {
     /// is closed and the work behind the response stops.
     #[arg(long, env = "VOXD_SEND_TIMEOUT", default_value_t = serve::SEND_TIMEOUT_S)]
     pub send_timeout: f64,
-    /// Open connections at most (more wait until one closes).
+    /// Open connections at most; 0: the file-descriptor limit less an eighth (at least 256),
+    /// within 64..32768. At the cap the connection idle longest is closed for a new one.
     #[arg(long, env = "VOXD_MAX_CONNECTIONS", default_value_t = serve::MAX_CONNECTIONS)]
     pub max_connections: usize,
+    /// Connections one client address may hold at once; more are closed at once (0: no limit;
+    /// raise it or turn it off behind a balancer, where every client has its address).
+    #[arg(
+        long,
+        env = "VOXD_MAX_CONNECTIONS_PER_CLIENT",
+        default_value_t = serve::MAX_CONNECTIONS_PER_CLIENT
+    )]
+    pub max_connections_per_client: usize,
     /// Seconds shutdown waits for requests and running jobs.
     #[arg(long, env = "VOXD_SHUTDOWN_TIMEOUT", default_value_t = serve::SHUTDOWN_TIMEOUT_S)]
     pub shutdown_timeout: f64,
@@ -312,6 +324,7 @@ impl ServeArgs {
             limits: Limits {
                 max_triangles: self.max_triangles,
                 max_voxels: self.max_voxels,
+                max_json_bytes: self.max_json_bytes,
                 ..Limits::SERVICE
             }
             .with_body_bytes(self.max_body_bytes),
@@ -322,7 +335,8 @@ impl ServeArgs {
             },
             connections: voxd::service::server::ConnectionLimits {
                 header_read_timeout: secs(self.header_timeout),
-                max_connections: self.max_connections.max(1),
+                max_connections: self.max_connections,
+                max_connections_per_client: self.max_connections_per_client,
                 send_timeout: secs(self.send_timeout.max(1.0)),
                 body_idle_timeout: secs(self.body_timeout.max(0.1)),
                 min_body_rate: self.min_body_rate,

@@ -24,6 +24,14 @@ pub struct MeshDiagnostics {
     pub watertight: bool,
     pub bbox_min: [f64; 3],
     pub bbox_max: [f64; 3],
+    /// Degenerate triangles dropped at load as copies of a segment or point kept (not counted
+    /// in `triangles`); omitted when none were.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub dropped_triangles: u64,
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }
 
 /// For every position, the number of its class under exact equality (-0.0 = 0.0): positions
@@ -329,6 +337,7 @@ impl MeshDiagnostics {
                 .filter(|u| u.load(Ordering::Relaxed))
                 .count(),
             degenerate_triangles: degenerate,
+            dropped_triangles: mesh.dropped,
             boundary_edges: boundary,
             non_manifold_edges: non_manifold,
             watertight: boundary == 0 && non_manifold == 0,
@@ -404,6 +413,7 @@ impl MeshDiagnostics {
             triangles: mesh.triangles.len(),
             vertices: used.iter().filter(|&&u| u).count(),
             degenerate_triangles: degenerate,
+            dropped_triangles: mesh.dropped,
             boundary_edges: boundary,
             non_manifold_edges: non_manifold,
             watertight: boundary == 0 && non_manifold == 0,

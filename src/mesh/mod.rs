@@ -3,6 +3,8 @@
 //! sane size, every index in range. Nothing here knows about grids or voxels.
 
 pub mod binary;
+pub mod cost;
+mod degenerate;
 mod diagnostics;
 mod gltf;
 mod obj;
@@ -30,6 +32,8 @@ pub const MAX_ABS_COORDINATE: f64 = 1e15;
 pub struct Mesh {
     positions: Vec<[f64; 3]>,
     triangles: Vec<[u32; 3]>,
+    /// Degenerate triangles the loader dropped as copies of one it kept (`degenerate`).
+    dropped: u64,
 }
 
 #[derive(Clone, Debug, thiserror::Error, PartialEq)]
@@ -206,12 +210,11 @@ pub fn load_bytes(
     format: Option<Format>,
     opts: &LoadOptions,
 ) -> Result<Mesh, MeshError> {
-    let mut s = if bytes.starts_with(&[0x1f, 0x8b]) {
-        Stream::gzip(bytes, opts.max_decompressed_bytes)
-    } else {
-        Stream::whole(bytes)
-    };
-    load_stream(&mut s, format, opts)
+    load_stream(
+        &mut Stream::of(bytes, opts.max_decompressed_bytes),
+        format,
+        opts,
+    )
 }
 
 fn load_stream(
@@ -223,12 +226,17 @@ fn load_stream(
         Some(f) => f,
         None => sniff_stream(s)?.ok_or(MeshError::UnknownFormat)?,
     };
-    let mesh = match format {
+    let mut mesh = match format {
         Format::Obj => obj::parse(s, opts)?,
         Format::Gltf | Format::Glb => gltf::parse(s, opts)?,
         Format::Stl => stl::parse(s, opts)?,
         Format::Ply => ply::parse(s, opts)?,
     };
+    // STL drops its copies as it reads (a triangle soup: a dropped triangle's corners are not
+    // kept either); the indexed formats here, where only the triangle goes.
+    let mut repeats = degenerate::Repeats::default();
+    repeats.filter(&mesh.positions, &mut mesh.triangles);
+    mesh.dropped += repeats.dropped;
     if mesh.triangles.len() > opts.max_triangles {
         return Err(MeshError::TooManyTriangles {
             count: mesh.triangles.len(),
@@ -283,6 +291,7 @@ impl Mesh {
         Ok(Mesh {
             positions,
             triangles,
+            dropped: 0,
         })
     }
 
@@ -294,11 +303,13 @@ impl Mesh {
             Ok(&Mesh {
                 positions: positions.clone(),
                 triangles: triangles.clone(),
+                dropped: 0,
             })
         );
         Mesh {
             positions,
             triangles,
+            dropped: 0,
         }
     }
 
@@ -307,6 +318,11 @@ impl Mesh {
     }
     pub fn triangles(&self) -> &[[u32; 3]] {
         &self.triangles
+    }
+    /// Degenerate triangles dropped at load as copies of a segment or point already kept
+    /// (see `degenerate`); 0 for a mesh built with [`Mesh::new`].
+    pub fn dropped_triangles(&self) -> u64 {
+        self.dropped
     }
     pub fn triangle(&self, t: usize) -> [[f64; 3]; 3] {
         self.triangles[t].map(|i| self.positions[i as usize])
@@ -338,6 +354,7 @@ impl Mesh {
         Mesh {
             positions: self.positions.clone(),
             triangles,
+            dropped: self.dropped,
         }
     }
 }

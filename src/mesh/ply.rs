@@ -198,6 +198,21 @@ pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshErro
     }
 }
 
+/// The vertex and face counts a header at the start of `head` declares (for the parse's cost
+/// estimate, `super::cost`); `None` when the header is not all in `head` or is malformed.
+pub(super) fn header_counts(head: &[u8]) -> Option<(u64, u64)> {
+    let end = find(head, b"end_header")?;
+    let (elements, _, _) = parse_header(head, end).ok()?;
+    let count = |name: &str| {
+        elements
+            .iter()
+            .filter(|e| e.name == name)
+            .map(|e| e.count as u64)
+            .sum::<u64>()
+    };
+    Some((count("vertex"), count("face") + count("tristrips")))
+}
+
 /// The header's counts against the limits, and the bytes they need at least against what the
 /// file holds (or, compressed, may still expand to).
 fn check_counts(

@@ -2,6 +2,7 @@
 //! triangle count n in its header, whatever its first bytes say (many binary STLs begin with
 //! "solid").
 
+use super::degenerate::Repeats;
 use super::stream::{Stream, after_last_newline, line_blocks};
 use super::{HEAD, LoadOptions, Mesh, MeshError, malformed};
 
@@ -75,6 +76,12 @@ pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshErro
     // text (ASCII STL, whose bytes 80..84 are just characters), and text with facets in its
     // first bytes is read as ASCII as it is decoded.
     let ascii_facets = text && head.windows(5).any(|w| w == b"facet");
+    // A compressed binary STL is read record by record as it is decoded (its degenerate
+    // copies dropped as they come), never whole: a gigabyte of decoded records costs the mesh
+    // they hold, not the gigabyte.
+    if n <= max && !s.at_end() && !text {
+        return parse_binary_stream(s, n);
+    }
     if n <= max && !s.at_end() && !ascii_facets {
         s.fill_to(want as usize + 1)?;
     }
@@ -117,25 +124,91 @@ fn parse_binary(bytes: &[u8]) -> Result<Mesh, MeshError> {
     if 3 * n as u64 > u32::MAX as u64 {
         return Err(malformed("STL", "more than 4 billion vertices"));
     }
-    let mut positions = Vec::with_capacity(3 * n);
+    let mut soup = Soup::default();
     for rec in bytes[84..].chunks_exact(50) {
-        for v in 0..3 {
-            let o = 12 + 12 * v;
-            let c = |i: usize| {
-                f32::from_le_bytes(rec[o + 4 * i..o + 4 * i + 4].try_into().unwrap()) as f64
-            };
-            positions.push([c(0), c(1), c(2)]);
-        }
+        soup.push(record(rec));
     }
-    if n == 0 {
-        return Err(MeshError::NoTriangles(
-            " (binary STL with a triangle count of 0)".into(),
+    soup.mesh(" (binary STL with a triangle count of 0)")
+}
+
+/// The three corners of a binary STL record.
+fn record(rec: &[u8]) -> [[f64; 3]; 3] {
+    std::array::from_fn(|v| {
+        let o = 12 + 12 * v;
+        std::array::from_fn(|i| {
+            f32::from_le_bytes(rec[o + 4 * i..o + 4 * i + 4].try_into().unwrap()) as f64
+        })
+    })
+}
+
+/// The `n` records of a binary STL whose header is at hand, read as they are decoded; the file
+/// must end right after them.
+fn parse_binary_stream(s: &mut Stream, n: u64) -> Result<Mesh, MeshError> {
+    if 3 * n > u32::MAX as u64 {
+        return Err(malformed("STL", "more than 4 billion vertices"));
+    }
+    s.consume(84);
+    let mut soup = Soup::default();
+    let mut left = n as usize;
+    while left > 0 {
+        s.fill_to(50 * left.min(1 << 14))?;
+        let at_hand = s.available();
+        let take = (at_hand.len() / 50).min(left);
+        if take == 0 {
+            let len = 84 + 50 * (n as usize - left) + at_hand.len();
+            return Err(malformed(
+                "STL",
+                format!(
+                    "truncated or padded binary STL: header says {n} triangles ({} bytes) but the file has {len} bytes",
+                    84 + 50 * n
+                ),
+            ));
+        }
+        for rec in at_hand[..50 * take].chunks_exact(50) {
+            soup.push(record(rec));
+        }
+        s.consume(50 * take);
+        left -= take;
+    }
+    if !s.peek(1)?.is_empty() {
+        return Err(malformed(
+            "STL",
+            format!(
+                "truncated or padded binary STL: header says {n} triangles ({} bytes) but the file is longer",
+                84 + 50 * n
+            ),
         ));
     }
-    let triangles = (0..n as u32)
-        .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
-        .collect();
-    Mesh::new(positions, triangles)
+    soup.mesh(" (binary STL with a triangle count of 0)")
+}
+
+/// A triangle soup as STL is: three positions per triangle, degenerate copies dropped.
+#[derive(Default)]
+struct Soup {
+    positions: Vec<[f64; 3]>,
+    repeats: Repeats,
+}
+
+impl Soup {
+    #[inline]
+    fn push(&mut self, t: [[f64; 3]; 3]) {
+        if self.repeats.keep(&t) {
+            self.positions.extend_from_slice(&t);
+        }
+    }
+
+    fn mesh(self, empty: &str) -> Result<Mesh, MeshError> {
+        if self.positions.is_empty() {
+            return Err(MeshError::NoTriangles(empty.into()));
+        }
+        let n = self.positions.len() as u32 / 3;
+        let mut mesh = Mesh::new(
+            self.positions,
+            (0..n).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect(),
+        )?;
+        mesh.dropped = self.repeats.dropped;
+        Ok(mesh)
+    }
 }
 
 /// ASCII blocks of a compressed file: about this many bytes, lines at most `MAX_LINE`.
@@ -150,6 +223,7 @@ fn parse_ascii(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshError> {
     let mut open = false;
     let mut ended = false;
     let mut lineno = 0usize;
+    let mut repeats = Repeats::default();
     let max = opts.max_triangles;
     line_blocks(s, "STL", BLOCK, MAX_LINE, after_last_newline, |block, _| {
         for line in block.split_inclusive(|&b| b == b'\n') {
@@ -217,6 +291,10 @@ fn parse_ascii(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshError> {
                         ));
                     }
                     open = false;
+                    let t = positions.len() - 3;
+                    if !repeats.keep(&[positions[t], positions[t + 1], positions[t + 2]]) {
+                        positions.truncate(t);
+                    }
                 }
                 Some(b"endsolid") => ended = true,
                 _ => {}
@@ -234,8 +312,10 @@ fn parse_ascii(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshError> {
         return Err(MeshError::NoTriangles(" (ASCII STL without facets)".into()));
     }
     let n = positions.len() as u32 / 3;
-    Mesh::new(
+    let mut mesh = Mesh::new(
         positions,
         (0..n).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect(),
-    )
+    )?;
+    mesh.dropped = repeats.dropped;
+    Ok(mesh)
 }

@@ -30,7 +30,20 @@ pub(super) struct Stream<'a> {
     test_block: Option<usize>,
 }
 
+/// The first two bytes of every gzip member.
+pub(super) const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
+
 impl<'a> Stream<'a> {
+    /// A file as uploaded: gzip (by its magic bytes) decoded as it is read up to `limit`
+    /// decoded bytes, anything else as it is.
+    pub(super) fn of(bytes: &'a [u8], limit: u64) -> Stream<'a> {
+        if bytes.starts_with(&GZIP_MAGIC) {
+            Stream::gzip(bytes, limit)
+        } else {
+            Stream::whole(bytes)
+        }
+    }
+
     /// A file all in memory.
     pub(super) fn whole(bytes: &'a [u8]) -> Stream<'a> {
         Stream {

@@ -12,10 +12,10 @@ use axum::http::{HeaderMap, header};
 use bytes::Bytes;
 use futures_util::StreamExt;
 use serde::de::DeserializeOwned;
-use tokio::sync::OwnedSemaphorePermit;
 
 use super::App;
 use super::problem::Problem;
+use crate::app::memory::MemoryPermit;
 use crate::app::{Error, ErrorKind, Result};
 
 /// A query string deserialized into `T` (`#[serde(deny_unknown_fields)]` types refuse unknown
@@ -33,27 +33,46 @@ impl<T: DeserializeOwned, S: Send + Sync> FromRequestParts<S> for Query<T> {
     }
 }
 
-/// A request body in memory, with its share of the in-flight byte budget (released on drop).
+/// A request body in memory, with its share of the process-wide memory budget (released on
+/// drop).
 pub struct BodyBytes {
     pub bytes: Bytes,
-    _permits: Vec<OwnedSemaphorePermit>,
+    _permits: Vec<MemoryPermit>,
 }
 
-/// Reads a body within `limit` bytes and the connection limits: each chunk must come within
-/// the idle timeout, the average rate after the grace period must be at least the minimum, and
-/// the bytes count against the budget of bodies in flight over all requests. A declared
-/// `Content-Length` over the limit is refused before anything is read.
+/// Bytes a body of unknown length (chunked) holds of the budget before its first chunk; it
+/// asks for more in doubling steps as it grows.
+const FIRST_CHUNKED_HOLD: u64 = 64 << 10;
+
+/// Reads a body within `limit` bytes and the connection limits. Its memory is held of the
+/// process-wide budget before it is read: a declared `Content-Length` at once, a chunked body in
+/// doubling steps. Waiting for the budget is at most the body timeout and then `busy` (503,
+/// `Retry-After`), never charged to the client: the body's rate clock starts once the budget is
+/// held, and stops while a chunked body waits for its next step. Each chunk must come within
+/// the idle timeout, and the average rate after the grace period must be at least the minimum.
+/// A declared `Content-Length` over the limit is refused before anything is read.
 pub async fn read_body(
     app: &App,
     headers: &HeaderMap,
     body: Body,
     limit: usize,
 ) -> Result<BodyBytes> {
+    read_body_as(app, headers, body, limit, "request body").await
+}
+
+/// [`read_body`], with `what` the body is named in a refusal ("JSON body").
+async fn read_body_as(
+    app: &App,
+    headers: &HeaderMap,
+    body: Body,
+    limit: usize,
+    what: &str,
+) -> Result<BodyBytes> {
     let http = &app.http;
     let too_large = || {
         Error::new(
             ErrorKind::BodyTooLarge,
-            format!("the request body is larger than {limit} bytes"),
+            format!("the {what} is larger than {limit} bytes"),
         )
     };
     let declared = headers
@@ -63,11 +82,15 @@ pub async fn read_body(
     if declared.is_some_and(|n| n > limit as u64) {
         return Err(too_large());
     }
-    let start = tokio::time::Instant::now();
+    let what = format!("this {what}");
+    let wait = http.body_idle_timeout;
+    let first = declared.unwrap_or(FIRST_CHUNKED_HOLD.min(limit as u64));
+    let mut permits = vec![app.memory.admit(first, &what, wait).await?];
+    let mut held = first;
+    // The rate clock starts now that the budget is held.
+    let mut start = tokio::time::Instant::now();
     let mut body = body.into_data_stream();
     let mut buf = Vec::with_capacity(declared.unwrap_or(0).min(limit as u64) as usize);
-    let mut permits = vec![];
-    let mut held_kib: u64 = 0;
     loop {
         let next = tokio::time::timeout(http.body_idle_timeout, body.next())
             .await
@@ -82,30 +105,17 @@ pub async fn read_body(
             })?;
         let Some(chunk) = next else { break };
         let chunk = chunk.map_err(|e| Error::invalid(format!("reading the request body: {e}")))?;
-        if buf.len() + chunk.len() > limit {
+        let want = (buf.len() + chunk.len()) as u64;
+        if want > limit as u64 {
             return Err(too_large());
         }
-        let want_kib = (buf.len() + chunk.len()).div_ceil(1024) as u64;
-        if want_kib > held_kib {
-            let more = (want_kib - held_kib) as u32;
-            let p = tokio::time::timeout(
-                http.body_idle_timeout,
-                app.inflight.clone().acquire_many_owned(more),
-            )
-            .await
-            .map_err(|_| {
-                Error::new(
-                    ErrorKind::Busy,
-                    format!(
-                        "uploads already hold {} bytes in memory; retry later",
-                        http.max_inflight_bytes
-                    ),
-                )
-                .retry_after(5)
-            })?
-            .expect("the semaphore is never closed");
-            permits.push(p);
-            held_kib = want_kib;
+        if want > held {
+            // A declared length that was too short, or a chunked body: double what is held.
+            let more = want.max(held.saturating_mul(2)).min(limit as u64) - held;
+            let waited = tokio::time::Instant::now();
+            permits.push(app.memory.admit(more, &what, wait).await?);
+            held += more;
+            start += waited.elapsed();
         }
         buf.extend_from_slice(&chunk);
         let t = start.elapsed();
@@ -152,8 +162,9 @@ pub fn check_content_encoding(headers: &HeaderMap, gzip_ok: bool) -> Result<bool
     }
 }
 
-/// A JSON body deserialized into `T`, read within the service's body limit and connection
-/// limits.
+/// A JSON body deserialized into `T`, read within its own small limit (`--max-json-bytes`,
+/// checked while reading: a larger body is refused before any of it is parsed) and the
+/// connection limits. Parsing holds [`JSON_TREE_FACTOR`] times the body of the memory budget.
 pub struct Json<T>(pub T);
 
 impl<T: DeserializeOwned> FromRequest<Arc<App>> for Json<T> {
@@ -162,12 +173,31 @@ impl<T: DeserializeOwned> FromRequest<Arc<App>> for Json<T> {
     async fn from_request(req: Request, app: &Arc<App>) -> Result<Self, Problem> {
         let (parts, body) = req.into_parts();
         check_content_encoding(&parts.headers, false)?;
-        let body = read_body(app, &parts.headers, body, app.limits.max_body_bytes).await?;
+        let limit = app.limits.max_json_bytes;
+        let body = read_body_as(app, &parts.headers, body, limit, "JSON body")
+            .await
+            .map_err(|e| match e.kind {
+                ErrorKind::BodyTooLarge => Error::new(
+                    e.kind,
+                    format!("{} (--max-json-bytes); it was not parsed", e.detail),
+                ),
+                _ => e,
+            })?;
+        let _tree = app
+            .admit(
+                JSON_TREE_FACTOR * body.bytes.len() as u64,
+                "parsing this JSON body",
+            )
+            .await?;
         serde_json::from_slice(&body.bytes)
             .map(Json)
             .map_err(|e| Problem::invalid(format!("the body is not the JSON expected: {e}")))
     }
 }
+
+/// Bytes a parsed JSON document may take per byte of its text, at most (a generic tree of
+/// small values: ~17× measured for a CSG expression).
+pub const JSON_TREE_FACTOR: u64 = 20;
 
 /// Deserializes `X,Y,Z` query values.
 pub mod triple {

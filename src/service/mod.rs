@@ -81,8 +81,6 @@ pub struct App {
     pub keys: Option<Arc<auth::ApiKeys>>,
     /// The process-wide memory budget every request, operation and job is admitted by.
     pub memory: app::memory::MemoryBudget,
-    /// Kibibytes of request bodies in memory, over all requests (`http.max_inflight_bytes`).
-    inflight: Arc<tokio::sync::Semaphore>,
     /// Parsing and validating uploads runs here, not on the engine's threads, so a running job
     /// never delays accepting (or refusing) the next one.
     ingest: Arc<rayon::ThreadPool>,
@@ -103,8 +101,6 @@ impl App {
         keys: Option<Arc<auth::ApiKeys>>,
         memory: app::memory::MemoryBudget,
     ) -> Arc<App> {
-        let kib =
-            (http.max_inflight_bytes >> 10).clamp(1, tokio::sync::Semaphore::MAX_PERMITS as u64);
         let threads = std::thread::available_parallelism()
             .map_or(2, |n| n.get())
             .clamp(1, 4);
@@ -122,7 +118,6 @@ impl App {
             http,
             keys,
             memory,
-            inflight: Arc::new(tokio::sync::Semaphore::new(kib as usize)),
             ingest: Arc::new(ingest),
             shutting_down: Default::default(),
         })
@@ -134,35 +129,16 @@ impl App {
             .load(std::sync::atomic::Ordering::Relaxed)
     }
 
-    /// Holds `bytes` of the in-memory budget (`http.max_inflight_bytes`, shared with request
-    /// bodies) for as long as the permit lives; `busy` when it does not free up within
-    /// `http.body_idle_timeout`. More than the whole budget holds the whole budget.
-    pub async fn hold_memory(
-        &self,
-        bytes: u64,
-        what: &str,
-    ) -> app::Result<tokio::sync::OwnedSemaphorePermit> {
-        let total = (self.http.max_inflight_bytes >> 10)
-            .clamp(1, tokio::sync::Semaphore::MAX_PERMITS as u64);
-        let kib = bytes.div_ceil(1024).clamp(1, total).min(u32::MAX as u64) as u32;
-        tokio::time::timeout(
-            self.http.body_idle_timeout,
-            self.inflight.clone().acquire_many_owned(kib),
-        )
-        .await
-        .map_err(|_| {
-            Error::new(
-                ErrorKind::Busy,
-                format!(
-                    "{what} need {bytes} bytes of memory, and uploads and downloads already hold the {} allowed; retry later",
-                    self.http.max_inflight_bytes
-                ),
-            )
-            .retry_after(5)
-        })
-        .map(|p| p.expect("the semaphore is never closed"))
+    /// Holds `bytes` of the process-wide memory budget for `what` while the permit lives:
+    /// waits at most [`MEMORY_WAIT`], then `busy` (503, `Retry-After`); work over the whole
+    /// budget is `too-much-memory` (422) at once.
+    pub async fn admit(&self, bytes: u64, what: &str) -> app::Result<app::memory::MemoryPermit> {
+        self.memory.admit(bytes, what, MEMORY_WAIT).await
     }
 }
+
+/// How long a request waits for its memory before it is refused as `busy`.
+pub const MEMORY_WAIT: std::time::Duration = std::time::Duration::from_secs(5);
 
 impl app::jobs::JobObserver for App {
     fn job_done(&self, secs: f64, result: &app::Result<crate::app::store::VolumeMeta>) {
@@ -298,15 +274,12 @@ pub async fn serve(
             ))
         })
         .collect();
-    let listener = tokio::net::TcpListener::bind(config.addr)
-        .await
-        .map_err(|e| format!("cannot listen on {}: {e}", config.addr))?;
+    let listener =
+        server::bind(config.addr).map_err(|e| format!("cannot listen on {}: {e}", config.addr))?;
     let admin = match config.admin_addr {
-        Some(a) => Some(
-            tokio::net::TcpListener::bind(a)
-                .await
-                .map_err(|e| format!("cannot listen on {a} (--admin-addr): {e}"))?,
-        ),
+        Some(a) => {
+            Some(server::bind(a).map_err(|e| format!("cannot listen on {a} (--admin-addr): {e}"))?)
+        }
         None => None,
     };
     on_bound(
@@ -327,6 +300,8 @@ pub async fn serve(
             admin_router(app.clone()),
             server::ConnectionLimits {
                 max_connections: server::ADMIN_CONNECTIONS,
+                // Probes come from few addresses (the orchestrator's).
+                max_connections_per_client: 0,
                 ..config.connections
             },
             async move {

@@ -10,13 +10,14 @@ use std::time::Duration;
 use bytes::Bytes;
 
 use super::super::error::{Error, Result};
+use super::super::memory::{MemoryBudget, MemoryPermit};
 use super::super::queue::{JobQueue, JobRecord, NewJob, Owner, State};
 use super::super::request::{JobSpec, MeshSource, MethodSpec, VoxelizeRequest};
 use super::super::store::{VolumeMeta, VolumeStore};
 use crate::engine::fill::Fill;
 use crate::grid::GridSpec;
 use crate::limits::Limits;
-use crate::mesh::Format;
+use crate::mesh::{self, Format, LoadOptions};
 
 /// A voxelization job as a front asks for it, all but the upload's bytes.
 #[derive(Clone, Debug)]
@@ -70,6 +71,32 @@ pub struct Jobs<'a> {
     pub queue: &'a dyn JobQueue,
     pub store: &'a dyn VolumeStore,
     pub pool: Option<&'a rayon::ThreadPool>,
+    /// The budget an upload's parse is admitted by (`None`: not admitted).
+    pub memory: Option<&'a MemoryBudget>,
+}
+
+/// How long an upload's parse waits for memory before it is answered `busy`.
+pub const PARSE_WAIT: Duration = Duration::from_secs(10);
+
+/// Admits the parse of an uploaded mesh by its estimate ([`mesh::cost`]), and holds the parse to
+/// the decoded size the estimate assumed (so it holds for the file as parsed).
+async fn admit_parse(
+    memory: Option<&MemoryBudget>,
+    req: &mut VoxelizeRequest,
+) -> Result<MemoryPermit> {
+    let (Some(memory), MeshSource::Bytes { bytes, format }) = (memory, &req.source) else {
+        return Ok(MemoryPermit::none());
+    };
+    let opts = LoadOptions {
+        external: req.source.external(),
+        max_triangles: req.limits.max_triangles,
+        max_decompressed_bytes: req.limits.max_decompressed_bytes,
+    };
+    let est = mesh::cost::estimate(bytes, *format, &opts);
+    req.limits.max_decompressed_bytes = req.limits.max_decompressed_bytes.min(est.decoded);
+    memory
+        .admit(est.bytes, "parsing the mesh", PARSE_WAIT)
+        .await
 }
 
 /// Submits a voxelization job: asks the queue whether it would take one (before the upload is
@@ -84,8 +111,10 @@ pub async fn submit<G: Send>(
 ) -> Result<Submitted> {
     jobs.queue.admission(sub.owner.as_ref()).await?;
     let (bytes, guard) = upload.await?;
-    let req = sub.request(bytes);
+    let mut req = sub.request(bytes);
     let spec = JobSpec::of(&req);
+    // Held through the parse and until the job is queued, as the upload's guard is.
+    let parse = admit_parse(jobs.memory, &mut req).await?;
     let work = super::super::ops::on_pool(jobs.pool, move || super::super::prepare(&req)).await?;
     let id = super::super::new_id();
     let job = NewJob {
@@ -107,6 +136,7 @@ pub async fn submit<G: Send>(
     // The upload's budget is given back once the job is queued (a shared queue has stored
     // the prepared job by then, which the budget stood for meanwhile).
     drop(guard);
+    drop(parse);
     if !wait {
         return Ok(Submitted::Pending(Box::new(record)));
     }

@@ -10,6 +10,9 @@ use super::super::problem::Problem;
 use super::AppState;
 use crate::app::{Error, ErrorKind};
 
+/// How long `/readyz` waits for each of its probes (store, queue, usage) before answering 503.
+pub const PROBE_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(2);
+
 const OPENAPI: &str = include_str!("../../../openapi.yaml");
 
 pub async fn healthz() -> Response {
@@ -25,20 +28,41 @@ pub async fn readyz(axum::extract::State(app): AppState) -> Result<Response, Pro
         )
         .into());
     }
-    app.store.health().await.map_err(|e| {
+    // Each probe is bounded: a store or queue that hangs (an S3 endpoint paused, a Redis that
+    // takes connections but never answers) makes the replica unready at once, not a probe
+    // that hangs until the balancer gives up on it.
+    let unready = |kind, what: &str| {
         Error::new(
-            ErrorKind::StorageUnavailable,
-            format!("the store is not writable: {e}"),
+            kind,
+            format!(
+                "{what} did not answer within {} s",
+                PROBE_TIMEOUT.as_secs_f64()
+            ),
         )
         .retry_after(5)
-    })?;
-    let q = app.queue.stats().await;
+    };
+    tokio::time::timeout(PROBE_TIMEOUT, app.store.health())
+        .await
+        .map_err(|_| unready(ErrorKind::StorageUnavailable, "the store's probe"))?
+        .map_err(|e| {
+            Error::new(
+                ErrorKind::StorageUnavailable,
+                format!("the store is not writable: {e}"),
+            )
+            .retry_after(5)
+        })?;
+    let q = tokio::time::timeout(PROBE_TIMEOUT, app.queue.stats())
+        .await
+        .map_err(|_| unready(ErrorKind::QueueUnavailable, "the job queue"))?;
     if let Some(why) = q.unavailable {
         return Err(Error::new(ErrorKind::QueueUnavailable, why)
             .retry_after(5)
             .into());
     }
-    let usage = app.store.usage().await.map_err(Error::from)?;
+    let usage = tokio::time::timeout(PROBE_TIMEOUT, app.store.usage())
+        .await
+        .map_err(|_| unready(ErrorKind::StorageUnavailable, "the store's usage"))?
+        .map_err(Error::from)?;
     Ok(axum::Json(json!({
         "status": "ready",
         "engine": app.engine.describe(),

@@ -166,6 +166,18 @@ fn check_head(req: &Request, http: &super::server::ConnectionLimits) -> Option<P
             ),
         ));
     }
+    // HTTP/1.1 defines one expectation; any other cannot be met (RFC 9110 §10.1.1).
+    if let Some(v) = req.headers().get(header::EXPECT)
+        && !v.as_bytes().eq_ignore_ascii_case(b"100-continue")
+    {
+        return Some(Problem::new(
+            ErrorKind::ExpectationFailed,
+            format!(
+                "the request expects {:?}; only `Expect: 100-continue` is understood",
+                String::from_utf8_lossy(v.as_bytes())
+            ),
+        ));
+    }
     None
 }
 

@@ -13,8 +13,10 @@ use serde_json::{Value, json};
 use super::super::extract::{Json, Query};
 use super::super::problem::Problem;
 use super::{AppState, created};
+use crate::app::store::VolumeMeta;
 use crate::app::{
-    CsgExpr, Error, ErrorKind, MorphologyRequest, PreviewRequest, PreviewView, QueryRequest, ops,
+    CsgExpr, Error, ErrorKind, MorphologyRequest, PreviewRequest, PreviewView, QueryRequest, cost,
+    ops,
 };
 use crate::codec::VolumeFormat;
 use crate::names::choices;
@@ -85,6 +87,15 @@ pub async fn get(
         .map_err(Error::from)?
         .ok_or_else(|| Error::not_found("volume", &id))?;
     Ok(axum::Json(meta).into_response())
+}
+
+/// A stored volume's catalogue entry (read before any work, for its cost).
+async fn meta_of(app: &crate::service::App, id: &str) -> Result<VolumeMeta, Error> {
+    app.store
+        .get(id)
+        .await
+        .map_err(Error::from)?
+        .ok_or_else(|| Error::not_found("volume", id))
 }
 
 pub async fn delete(
@@ -180,13 +191,16 @@ pub async fn data(
         return Ok(r);
     }
     // A conversion holds the decoded volume while it streams: that memory comes out of the
-    // same budget as request bodies, for as long as the download lasts.
+    // process-wide budget, for as long as the download lasts.
     let hold = match format {
         VolumeFormat::Vxl => None,
-        _ => {
-            let bytes = kind.decoded_bytes(meta.grid.voxel_count());
-            Some(app.hold_memory(bytes, "downloads").await?)
-        }
+        _ => Some(
+            app.admit(
+                cost::conversion(&meta),
+                &format!("converting volume {id} to {}", format.name()),
+            )
+            .await?,
+        ),
     };
     let download = ops::download(&*app.store, &meta, format).await?;
     let media = format.media_type();
@@ -264,6 +278,15 @@ pub async fn csg(
     }
     let expr = CsgExpr::from_json(&expr, &app.limits)?;
     ops::check_csg(&*app.store, &expr, &app.limits).await?;
+    let mut metas = std::collections::HashMap::new();
+    for id in expr.volume_ids() {
+        let m = meta_of(&app, &id).await?;
+        metas.insert(id, m);
+    }
+    let _memory = app
+        .admit(cost::csg(&metas, &expr), "this CSG expression")
+        .await?;
+    drop(metas);
     let meta = ops::csg_stored(&*app.store, expr, q.name).await?;
     Ok(created(&meta))
 }
@@ -279,6 +302,13 @@ pub async fn intersect(
     axum::extract::State(app): AppState,
     Json(body): Json<IntersectBody>,
 ) -> Result<Response, Problem> {
+    let (a, b) = (meta_of(&app, &body.a).await?, meta_of(&app, &body.b).await?);
+    let _memory = app
+        .admit(
+            cost::intersect(&a, &b),
+            &format!("the overlap of volumes {} and {}", body.a, body.b),
+        )
+        .await?;
     let overlap = ops::intersect_stored(&*app.store, &body.a, &body.b).await?;
     Ok(axum::Json(overlap).into_response())
 }
@@ -292,6 +322,14 @@ pub async fn morphology(
     if let Some(n) = &q.name {
         super::check_name(n, &app.limits)?;
     }
+    let src = meta_of(&app, &id).await?;
+    let out = ops::morphology_grid(&src.grid, &req, &app.limits)?;
+    let _memory = app
+        .admit(
+            cost::morphology(&src, &out),
+            &format!("morphology of volume {id}"),
+        )
+        .await?;
     let meta = ops::morphology_stored(&*app.store, &id, req, q.name, app.limits).await?;
     Ok(created(&meta))
 }
@@ -300,6 +338,10 @@ pub async fn stats(
     axum::extract::State(app): AppState,
     Path(id): Path<String>,
 ) -> Result<Response, Problem> {
+    let meta = meta_of(&app, &id).await?;
+    let _memory = app
+        .admit(cost::stats(&meta), &format!("statistics of volume {id}"))
+        .await?;
     Ok(axum::Json(ops::stats_stored(&*app.store, &id).await?).into_response())
 }
 
@@ -310,6 +352,14 @@ pub async fn query(
 ) -> Result<Response, Problem> {
     let limits = app.limits;
     req.check(&limits)?;
+    let meta = meta_of(&app, &id).await?;
+    let answer_bytes = limits.max_queries as u64 * 64;
+    let _memory = app
+        .admit(
+            cost::read_only(&meta, answer_bytes),
+            &format!("a query of volume {id}"),
+        )
+        .await?;
     let answer = ops::with_stored(&*app.store, &id, move |v| ops::query(v, &req, &limits)).await?;
     Ok(axum::Json(answer).into_response())
 }
@@ -341,6 +391,13 @@ pub async fn normals(
         .collect::<Result<_, _>>()?;
     let limits = app.limits;
     ops::check_normal_points(&points, &limits)?;
+    let meta = meta_of(&app, &id).await?;
+    let _memory = app
+        .admit(
+            cost::read_only(&meta, points.len() as u64 * 64),
+            &format!("normals of volume {id}"),
+        )
+        .await?;
     let normals = ops::with_stored(&*app.store, &id, move |v| {
         ops::normals_at(v, &points, &limits)
     })
@@ -384,6 +441,13 @@ pub async fn preview(
         view,
     };
     let limits = app.limits;
+    let meta = meta_of(&app, &id).await?;
+    let _memory = app
+        .admit(
+            cost::read_only(&meta, limits.max_preview_pixels.saturating_mul(9)),
+            &format!("a preview of volume {id}"),
+        )
+        .await?;
     let png = ops::with_stored(&*app.store, &id, move |v| {
         ops::preview_png(v, &req, &limits)
     })

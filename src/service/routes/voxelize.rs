@@ -181,6 +181,7 @@ pub async fn submit(
         queue: &*app.queue,
         store: &*app.store,
         pool: Some(&app.ingest),
+        memory: Some(&app.memory),
     };
     let record = match jobs::submit(jobs, sub, upload).await? {
         Submitted::Done(meta) => return Ok(created(&meta)),

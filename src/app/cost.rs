@@ -1,0 +1,160 @@
+//! Estimates of the peak memory each volume operation and job will use, read from the stored
+//! volumes' metadata (grid, kind, stored size) before anything is loaded, so that the work can
+//! be admitted by the process-wide [`super::memory::MemoryBudget`] before it starts.
+//!
+//! Every operation on a stored volume first reads its `.vxl` (the stored bytes) and decodes it
+//! (the decoded volume), both alive at once while it decodes; then it works, and a derived
+//! volume is encoded again before it is stored. The estimates add those up, plus what each
+//! operation allocates on the side. Measured against peak RSS in `bench/hostile/memory.py`
+//! (figures in `docs/security.md`, "Memory").
+
+use std::collections::HashMap;
+
+use crate::grid::Grid;
+use crate::volume::{VolumeKind, csg};
+
+use super::request::{CsgExpr, MethodSpec};
+use super::store::VolumeMeta;
+
+/// Bytes a bit volume on `grid` takes in memory: one u64 word per 64 voxels of a column.
+pub fn bits_bytes(grid: &Grid) -> u64 {
+    let [nx, ny, nz] = grid.dims.map(u64::from);
+    nx.saturating_mul(ny)
+        .saturating_mul(nz.div_ceil(64))
+        .saturating_mul(8)
+}
+
+/// Bytes a volume of `kind` on `grid` takes decoded (bit kinds padded to whole words).
+pub fn decoded_bytes(kind: VolumeKind, grid: &Grid) -> u64 {
+    match kind {
+        VolumeKind::Bits | VolumeKind::Channels => bits_bytes(grid),
+        k => k.decoded_bytes(grid.voxel_count()),
+    }
+}
+
+/// Loading a stored volume: its stored bytes and the decoded volume, both alive while it
+/// decodes.
+pub fn load(meta: &VolumeMeta) -> u64 {
+    meta.bytes
+        .saturating_add(decoded_bytes(meta.kind, &meta.grid))
+}
+
+/// Runs of set voxels along z that statistics' component labelling is estimated to keep: at
+/// most one per set voxel, and assumed at most this many per column (a column crossing a
+/// solid more often than that is rare; the estimate is not a bound for such volumes).
+const RUNS_PER_COLUMN: u64 = 4;
+
+/// `GET /v1/volumes/{id}/stats`: the loaded volume, and the component labelling's run table
+/// (8 bytes a run, up to twice that while it grows, and a parent index of 8 bytes a run) and
+/// column index (8 bytes a column).
+pub fn stats(meta: &VolumeMeta) -> u64 {
+    let [nx, ny, _] = meta.grid.dims.map(u64::from);
+    let columns = nx * ny;
+    let runs = meta
+        .solid_voxels
+        .min(columns.saturating_mul(RUNS_PER_COLUMN));
+    load(meta)
+        .saturating_add(columns.saturating_mul(8))
+        .saturating_add(runs.saturating_mul(24))
+}
+
+/// Queries, normals and previews: the loaded volume and their answer (bounded by the request
+/// limits, `answer` bytes).
+pub fn read_only(meta: &VolumeMeta, answer: u64) -> u64 {
+    load(meta).saturating_add(answer)
+}
+
+/// A derived bit volume on `grid`: the result, one working copy, and its encoding before it
+/// is stored (at most about the result's size).
+fn derived(grid: &Grid) -> u64 {
+    bits_bytes(grid).saturating_mul(3)
+}
+
+/// Morphology of `meta` onto `out` (the result grid).
+pub fn morphology(meta: &VolumeMeta, out: &Grid) -> u64 {
+    load(meta).saturating_add(derived(out))
+}
+
+/// A CSG expression over the volumes `metas` (by id): every operand loaded once, each
+/// operation's result alive until its parent combines it, and the final result with a working
+/// copy and its encoding.
+pub fn csg(metas: &HashMap<String, VolumeMeta>, expr: &CsgExpr) -> u64 {
+    // (the node's grid, the bytes of its operation results)
+    fn walk(e: &CsgExpr, metas: &HashMap<String, VolumeMeta>) -> (Option<Grid>, u64) {
+        match e {
+            CsgExpr::Volume(id) => (metas.get(id).map(|m| m.grid), 0),
+            CsgExpr::Op { op, operands } => {
+                let mut grids = vec![];
+                let mut bytes = 0u64;
+                for o in operands {
+                    let (g, b) = walk(o, metas);
+                    grids.extend(g);
+                    bytes = bytes.saturating_add(b);
+                }
+                let g = csg::result_grid(*op, &grids).ok();
+                let own = g.as_ref().map_or(0, bits_bytes);
+                (g, bytes.saturating_add(own))
+            }
+        }
+    }
+    let loads = metas.values().map(load).fold(0, u64::saturating_add);
+    let (top, nodes) = walk(expr, metas);
+    let top = match expr {
+        CsgExpr::Volume(_) => 0,
+        _ => top.as_ref().map_or(0, bits_bytes).saturating_mul(2),
+    };
+    loads.saturating_add(nodes).saturating_add(top)
+}
+
+/// The overlap of two stored volumes (nothing stored): both loaded (once when they are one).
+pub fn intersect(a: &VolumeMeta, b: &VolumeMeta) -> u64 {
+    if a.id == b.id {
+        load(a)
+    } else {
+        load(a).saturating_add(load(b))
+    }
+}
+
+/// A download converted to another format: the loaded volume for as long as the download lasts
+/// (the encoder runs a few 256 KiB chunks ahead of the client). A `.vxl` download streams the
+/// stored bytes and holds nothing.
+pub fn conversion(meta: &VolumeMeta) -> u64 {
+    load(meta).saturating_add(4 * (256 << 10))
+}
+
+/// A voxelization job on `grid` (not counting the mesh, which its loading admits): the
+/// surface and solid bit grids and the encoded result for bit methods; for density, the fine
+/// bit grid (`factor`³ voxels a voxel) and the byte-per-voxel result with its encoding.
+pub fn voxelize_job(grid: &Grid, method: &MethodSpec) -> u64 {
+    match method {
+        MethodSpec::Bits(_) => bits_bytes(grid).saturating_mul(3),
+        MethodSpec::Density { factor } => {
+            let f = u64::from(*factor).pow(3);
+            let voxels = grid.voxel_count();
+            (voxels.saturating_mul(f) / 8).saturating_add(voxels.saturating_mul(2))
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid(n: u32) -> Grid {
+        Grid {
+            origin: [0.0; 3],
+            voxel_size: 1.0,
+            dims: [n, n, n],
+        }
+    }
+
+    #[test]
+    fn bit_grids_count_whole_words_per_column() {
+        assert_eq!(bits_bytes(&grid(64)), 64 * 64 * 8);
+        assert_eq!(bits_bytes(&grid(65)), 65 * 65 * 2 * 8);
+        assert_eq!(
+            voxelize_job(&grid(1024), &MethodSpec::Density { factor: 2 }),
+            (1u64 << 30) + (2u64 << 30)
+        );
+    }
+}
