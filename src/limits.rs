@@ -107,7 +107,7 @@ impl Default for Limits {
 pub mod serve {
     /// `--lease-seconds`: the lease of a running job on the shared (Redis) queue.
     pub const LEASE_S: f64 = 30.0;
-    /// `--max-attempts`: starts of one job at most on the shared (Redis) queue.
+    /// `--max-attempts`: starts of one job at most (either queue).
     pub const MAX_ATTEMPTS: u32 = 3;
     /// `--addr`.
     pub const ADDR: &str = "127.0.0.1:8080";

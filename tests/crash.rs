@@ -10,8 +10,9 @@
 //!   its length, sha256 and ETag agree with its metadata, and it decodes to its grid;
 //! - every volume the service acknowledged (a `201`, a job seen succeeded) is still there unless
 //!   this test deleted it, and a volume whose delete was answered is gone;
-//! - every job id the service answered with is known and terminal (succeeded, failed, canceled)
-//!   or queued, and a succeeded job's volume exists;
+//! - every job id the service answered with is known and terminal (succeeded, failed, canceled),
+//!   queued, or running again (a job answered `202` is kept and run again after a restart), and
+//!   a succeeded job's volume exists;
 //! - `/readyz`'s `stored_bytes` is the sum of the sizes of the volume files in `volumes/` and
 //!   of the live records in its packs.
 //!
@@ -480,7 +481,33 @@ fn packs(dir: &Path) -> (BTreeMap<String, u64>, bool) {
     (puts, torn)
 }
 
-/// Every check of a restarted server on `dir` (before any new write).
+/// Waits (120 s at most) until every job answered for is final: a restart runs kept jobs again.
+/// False when the server died meanwhile (an armed fault fired during such a run).
+fn settle(srv: &mut Server, known: &Known) -> bool {
+    let deadline = Instant::now() + Duration::from_secs(120);
+    loop {
+        if srv.child.try_wait().ok().flatten().is_some() {
+            return false;
+        }
+        let pending =
+            known.jobs.iter().any(
+                |j| match srv.req("GET", &format!("/v1/jobs/{j}"), "", b"") {
+                    Ok(r) => r
+                        .try_json()
+                        .is_some_and(|v| v["state"] == "queued" || v["state"] == "running"),
+                    Err(_) => true,
+                },
+            );
+        if !pending {
+            return true;
+        }
+        assert!(Instant::now() < deadline, "kept jobs still run after 120 s");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// Every check of a restarted server on `dir` once its kept jobs have run again (before any new
+/// write of the test's).
 fn check(srv: &Server, dir: &Path, known: &mut Known, round: usize) {
     let vols = files(&dir.join("volumes"));
     let jobs = files(&dir.join("jobs"));
@@ -594,14 +621,19 @@ fn check(srv: &Server, dir: &Path, known: &mut Known, round: usize) {
         );
         let v = r.try_json().unwrap();
         let state = v["state"].as_str().unwrap();
+        // Running: a kept job queued or interrupted at the kill, run again since the restart.
         assert!(
-            ["succeeded", "failed", "canceled", "queued"].contains(&state),
+            ["succeeded", "failed", "canceled", "queued", "running"].contains(&state),
             "round {round}: job {j} is {state} after a restart"
         );
         if state == "succeeded" {
             let vol = v["volume_id"].as_str().unwrap();
+            // A job run again since the restart may have ended after the listing.
+            let there = ids.contains(vol)
+                || known.delete_sent.contains(vol)
+                || srv.must("GET", &format!("/v1/volumes/{vol}"), b"").status == 200;
             assert!(
-                ids.contains(vol) || known.delete_sent.contains(vol),
+                there,
                 "round {round}: job {j} succeeded but its volume {vol} is gone"
             );
         } else if let Some(vol) = known.succeeded.get(j) {
@@ -679,6 +711,10 @@ fn sigkill_and_aborts_inside_writes_lose_nothing_acknowledged() {
             eprintln!("crash round {round}: {fault:?} fired while the server recovered");
             continue;
         };
+        if !settle(&mut srv, &known.lock().unwrap()) {
+            eprintln!("crash round {round}: {fault:?} fired while kept jobs ran again");
+            continue;
+        }
         check(&srv, &dir, &mut known.lock().unwrap(), round);
         match (kind, &fault) {
             (_, Some(f)) => {
@@ -728,6 +764,7 @@ fn sigkill_and_aborts_inside_writes_lose_nothing_acknowledged() {
     }
     // The last restart is checked too, and the server still works and stops cleanly.
     let mut srv = Server::start(&dir, None).unwrap();
+    assert!(settle(&mut srv, &known.lock().unwrap()), "the server died");
     check(&srv, &dir, &mut known.lock().unwrap(), rounds);
     let r = srv
         .req(
@@ -738,6 +775,27 @@ fn sigkill_and_aborts_inside_writes_lose_nothing_acknowledged() {
         )
         .unwrap();
     assert_eq!(r.status, 201, "{}", String::from_utf8_lossy(&r.body));
+    // How the accepted jobs ended: a job answered `202` finishes or fails for a reason of its
+    // own; interrupted only once the process died during each of its --max-attempts starts.
+    let mut ends: BTreeMap<String, usize> = BTreeMap::new();
+    for j in &known.lock().unwrap().jobs {
+        let v = srv
+            .must("GET", &format!("/v1/jobs/{j}"), b"")
+            .try_json()
+            .unwrap();
+        let detail = v["problem"]["detail"].as_str().unwrap_or_default();
+        let end = if detail.starts_with("interrupted") {
+            assert!(
+                v["attempts"].as_u64() >= Some(3),
+                "job {j} was accepted and ended interrupted before its attempts: {v}"
+            );
+            "interrupted after 3 starts".to_string()
+        } else {
+            v["state"].as_str().unwrap().to_string()
+        };
+        *ends.entry(end).or_default() += 1;
+    }
+    eprintln!("crash test: accepted jobs ended {ends:?}");
     let pid = srv.child.id().to_string();
     assert!(
         Command::new("kill")

@@ -23,17 +23,26 @@ fn server(name: &str, extra: &[&str]) -> (Scratch, Server) {
     (dir, srv)
 }
 
-/// A 256³ box volume's id.
-fn big_volume(srv: &Server) -> String {
+/// A server with the small budget (and `extra`) over a data directory that holds a 256³ box
+/// volume, and that volume's id. The volume is made by a server with the default budget first:
+/// its voxelization (three times its 2 MiB of bits) does not fit the small one.
+fn with_big_volume(name: &str, extra: &[&str]) -> (Scratch, Server, String) {
+    let dir = Scratch::new(name);
+    let seed = Server::start(&dir, &[]);
     let r = request(
-        &srv.addr,
+        &seed.addr,
         "POST",
         "/v1/voxelize?format=obj&resolution=256&wait=60",
         &[],
         &box_obj([0.0; 3], [1.0; 3]),
     )
     .ok(201);
-    r.json()["id"].as_str().unwrap().to_string()
+    let id = r.json()["id"].as_str().unwrap().to_string();
+    drop(seed);
+    let mut args = vec!["--max-memory", BUDGET, "--send-timeout", "60"];
+    args.extend_from_slice(extra);
+    let srv = Server::start(&dir, &args);
+    (dir, srv, id)
 }
 
 /// Sends a request on a fresh connection and reads the response head only (the status), leaving
@@ -55,8 +64,7 @@ fn head_only(addr: &str, path: &str) -> (u16, String, TcpStream) {
 
 #[test]
 fn an_operation_over_the_whole_budget_is_refused_with_its_numbers() {
-    let (_dir, srv) = server("mem-422", &[]);
-    let id = big_volume(&srv);
+    let (_dir, srv, id) = with_big_volume("mem-422", &[]);
     let r = request(
         &srv.addr,
         "GET",
@@ -74,8 +82,7 @@ fn an_operation_over_the_whole_budget_is_refused_with_its_numbers() {
 
 #[test]
 fn concurrent_operations_beyond_the_budget_are_busy_with_retry_after() {
-    let (_dir, srv) = server("mem-503", &[]);
-    let id = big_volume(&srv);
+    let (_dir, srv, id) = with_big_volume("mem-503", &[]);
     let path = format!("/v1/volumes/{id}/data?format=npy");
     let clients: Vec<_> = (0..4)
         .map(|_| {
@@ -142,11 +149,10 @@ fn a_json_body_over_its_limit_is_refused_while_it_is_read() {
 #[test]
 fn an_upload_waiting_for_memory_is_busy_not_a_timeout() {
     // A short body timeout, and a body rate no waiting client could have kept.
-    let (_dir, srv) = server(
+    let (_dir, srv, id) = with_big_volume(
         "mem-wait",
         &["--body-timeout", "2", "--min-body-rate", "100000000"],
     );
-    let id = big_volume(&srv);
     let (status, _, reader) = head_only(&srv.addr, &format!("/v1/volumes/{id}/data?format=npy"));
     assert_eq!(status, 200);
     // 2 MB: more than is free while the download is held, less than the whole budget. It asks
@@ -183,4 +189,32 @@ fn an_upload_waiting_for_memory_is_busy_not_a_timeout() {
     );
     assert!(text.contains("problems/busy"), "{text}");
     drop(reader);
+}
+
+/// A voxelization whose volume and working set (three times a 256³ bit volume's 2 MiB) exceed
+/// the whole budget is refused when it is submitted, with its numbers; a smaller one runs.
+#[test]
+fn a_job_over_the_whole_budget_is_refused_when_submitted() {
+    let (_dir, srv) = server("mem-job", &[]);
+    let r = request(
+        &srv.addr,
+        "POST",
+        "/v1/voxelize?format=obj&resolution=256&wait=60",
+        &[],
+        &box_obj([0.0; 3], [1.0; 3]),
+    );
+    let p = r.problem(422, "too-much-memory");
+    let detail = p["detail"].as_str().unwrap();
+    assert!(
+        detail.contains("the voxelization") && detail.contains(BUDGET),
+        "{detail}"
+    );
+    request(
+        &srv.addr,
+        "POST",
+        "/v1/voxelize?format=obj&resolution=64&wait=60",
+        &[],
+        &box_obj([0.0; 3], [1.0; 3]),
+    )
+    .ok(201);
 }

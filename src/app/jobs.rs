@@ -9,7 +9,9 @@ use std::time::{Duration, Instant};
 
 use tracing::Instrument;
 
+use super::cost;
 use super::error::{Error, ErrorKind, Result};
+use super::memory::{MemoryBudget, MemoryPermit};
 use super::metadata::{self, Origin};
 use super::ops::blocking;
 use super::queue::{Claim, CommitGuard, JobQueue, Work};
@@ -21,6 +23,7 @@ use crate::engine::Engine;
 
 pub mod stored;
 mod submit;
+pub mod sweep;
 pub use submit::{Jobs, Submission, Submitted, submit};
 
 /// Runs a claimed job on `engine` under its control and stores its volume (under the claim's
@@ -185,16 +188,53 @@ pub async fn work(
     store: Arc<dyn VolumeStore>,
     engine: Arc<dyn Engine>,
     observer: Arc<dyn JobObserver>,
+    memory: Option<MemoryBudget>,
 ) {
     work_with(
         queue,
         store,
         engine,
         observer,
+        memory,
         JOBS_PER_WORKER,
         STORE_BYTES_PER_WORKER,
     )
     .await
+}
+
+/// Memory a voxelization job holds while it runs: the engine's volume and working set by its
+/// grid and method ([`cost::voxelize_job`]) and its mesh (positions and triangles).
+pub fn job_bytes(work: &Prepared) -> u64 {
+    let mesh = (24 * work.mesh.positions().len() + 12 * work.mesh.triangles().len()) as u64;
+    cost::voxelize_job(&work.grid, &work.method).saturating_add(mesh)
+}
+
+/// Holds job `claim`'s memory before it runs ([`job_bytes`]): it waits in its worker while other
+/// work holds the budget, looking at its control every second (a job canceled or past its
+/// deadline meanwhile stops waiting); one larger than the whole budget fails with
+/// `too-much-memory`.
+async fn admit_job(memory: &MemoryBudget, work: &Prepared, claim: &Claim) -> Result<MemoryPermit> {
+    let what = format!(
+        "job {} ({} on {:?})",
+        claim.id,
+        work.method.name(),
+        work.grid.dims
+    );
+    loop {
+        match memory
+            .admit(job_bytes(work), &what, Duration::from_secs(1))
+            .await
+        {
+            Err(e) if e.kind == ErrorKind::Busy => match claim.control.check() {
+                Err(Canceled::Canceled) => {
+                    return Err(Error::new(ErrorKind::NotCancelable, "canceled"));
+                }
+                Err(Canceled::DeadlinePassed) => return Err(timed_out(claim.timeout)),
+                Ok(()) => {}
+            },
+            r => return r,
+        }
+    }
 }
 
 /// [`work`] with `jobs` places and a budget of `store_bytes` (the tests use small ones).
@@ -203,6 +243,7 @@ async fn work_with(
     store: Arc<dyn VolumeStore>,
     engine: Arc<dyn Engine>,
     observer: Arc<dyn JobObserver>,
+    memory: Option<MemoryBudget>,
     jobs: usize,
     store_bytes: usize,
 ) {
@@ -235,10 +276,25 @@ async fn work_with(
             Ok(work) => {
                 span.record("method", work.method.name());
                 span.record("dims", tracing::field::debug(work.grid.dims));
-                span.in_scope(|| tracing::info!("job started"));
-                build(engine.clone(), work, &claim)
-                    .instrument(span.clone())
-                    .await
+                // Its memory first (held until its volume is built and encoded).
+                let permit = match &memory {
+                    Some(m) => admit_job(m, &work, &claim)
+                        .instrument(span.clone())
+                        .await
+                        .map(Some),
+                    None => Ok(None),
+                };
+                match permit {
+                    Ok(permit) => {
+                        span.in_scope(|| tracing::info!("job started"));
+                        let built = build(engine.clone(), work, &claim)
+                            .instrument(span.clone())
+                            .await;
+                        drop(permit);
+                        built
+                    }
+                    Err(e) => Err(e),
+                }
             }
             Err(e) => Err(e),
         };
@@ -537,6 +593,7 @@ mod tests {
                 store.clone(),
                 Arc::new(CpuEngine),
                 Arc::new(Quiet),
+                None,
                 jobs,
                 bytes,
             ));

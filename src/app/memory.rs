@@ -85,6 +85,11 @@ impl MemoryBudget {
         self.total - self.kib.available_permits() as u64 * 1024
     }
 
+    /// `too-much-memory` when `bytes` exceed the whole budget: work that could never run.
+    pub fn check_fits(&self, bytes: u64, what: &str) -> Result<()> {
+        self.never_fits(bytes, what).map_or(Ok(()), Err)
+    }
+
     fn never_fits(&self, bytes: u64, what: &str) -> Option<Error> {
         (bytes > self.total).then(|| {
             Error::new(

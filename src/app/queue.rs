@@ -73,8 +73,9 @@ pub struct JobRecord {
     pub timings: Timings,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub volume_id: Option<String>,
-    /// Times a shared queue started the job (more than one when its replica died and another
-    /// took it over); not shown by the in-process queue.
+    /// Times the job was started (more than one when its process or replica died during a
+    /// start and it was run again); not shown for a job never started, nor by the in-process
+    /// queue for a job whose answer was still awaited (it is not kept through a crash).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub attempts: Option<u32>,
     /// Why the job failed.
@@ -268,8 +269,9 @@ pub trait JobQueue: Send + Sync {
     fn storing(&self, _id: &str, _volume_id: &str) {}
     /// Records the end of a job a worker took: its volume's id, or why it failed.
     async fn finish(&self, id: &str, result: Result<String>);
-    /// Stops accepting jobs and fails the queued ones with `why`; running jobs finish. The
-    /// number of queued jobs failed.
+    /// Stops accepting jobs and fails the queued ones that would not survive the process with
+    /// `why` (kept jobs stay queued for the next start); running jobs finish. The number of
+    /// queued jobs failed.
     async fn close(&self, why: Error) -> usize;
     async fn stats(&self) -> QueueStats;
 }

@@ -140,6 +140,12 @@ pub trait VolumeStore: Send + Sync {
     async fn get_upload(&self, id: &str) -> Result<Option<Bytes>, StoreError>;
     /// Removes a job's upload (none is not an error).
     async fn delete_upload(&self, id: &str) -> Result<(), StoreError>;
+    /// The uploads kept (job ids), each with when it was written: what the sweep of uploads
+    /// that no job refers to reads ([`crate::app::jobs::sweep`]). A store that cannot list
+    /// them lists none.
+    async fn list_uploads(&self) -> Result<Vec<(String, std::time::SystemTime)>, StoreError> {
+        Ok(vec![])
+    }
     /// Where the store is, for logs.
     fn describe(&self) -> String;
 }

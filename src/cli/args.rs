@@ -98,7 +98,7 @@ pub enum Command {
         output: PathBuf,
     },
     /// Run the HTTP service.
-    Serve(ServeArgs),
+    Serve(Box<ServeArgs>),
     /// Time the CPU and GPU engines per method and resolution on a mesh (a markdown table).
     Bench(BenchArgs),
     /// Make an API key for NAME: prints the key (first line; give it to the caller, it is not
@@ -287,10 +287,19 @@ pub struct ServeArgs {
         value_name = "SECONDS"
     )]
     pub lease_seconds: f64,
-    /// With a shared queue: starts of one job at most (its replica dying each time); then it
-    /// fails.
+    /// Starts of one job at most (its process or replica dying each time, on either queue);
+    /// then it fails.
     #[arg(long, env = "VOXD_MAX_ATTEMPTS", default_value_t = voxd::limits::serve::MAX_ATTEMPTS)]
     pub max_attempts: u32,
+    /// Seconds after which a job's upload that no queued or running job refers to is deleted
+    /// (swept at start and periodically).
+    #[arg(
+        long,
+        env = "VOXD_UPLOAD_GRACE",
+        default_value_t = voxd::app::jobs::sweep::UPLOAD_GRACE_S,
+        value_name = "SECONDS"
+    )]
+    pub upload_grace: u64,
     /// API keys, one `NAME:SHA256-HEX[:rate=R,burst=B,jobs=J]` per line (`voxd keygen NAME`
     /// prints one): every /v1 route then needs `Authorization: Bearer KEY`.
     #[arg(long, env = "VOXD_API_KEYS_FILE", value_name = "FILE")]
@@ -351,6 +360,7 @@ impl ServeArgs {
             // At least a tenth of a second: renewals come every third of it.
             lease: secs(self.lease_seconds.max(0.1)),
             max_attempts: self.max_attempts.max(1),
+            upload_grace: std::time::Duration::from_secs(self.upload_grace),
             api_keys_file: self.api_keys_file.clone(),
             key_limits: KeyLimits {
                 rate: self.key_rate,

@@ -15,18 +15,18 @@
 use super::stream::{GZIP_MAGIC, Stream};
 use super::{Format, LoadOptions, sniff_stream};
 
-/// Decode windows, blocks and thread buffers of one parse at most.
-pub const FIXED: u64 = 32 << 20;
 /// The part of [`FIXED`] every parse takes: decoder state and the first step's buffers.
 const BASE: u64 = 2 << 20;
 /// The largest block a line parser reads at once (`stl::BLOCK`); a parse holds up to three
 /// blocks' worth while one is parsed and the next is read.
 const MAX_BLOCK: u64 = 8 << 20;
+/// Decode windows, blocks and thread buffers of one parse at most.
+pub const FIXED: u64 = BASE + 3 * MAX_BLOCK;
 
 /// The fixed part of a parse of a file that decodes to `decoded` bytes: small files do not get
 /// the windows of large ones.
 pub fn fixed_part(decoded: u64) -> u64 {
-    BASE.saturating_add(3 * decoded.min(MAX_BLOCK)).min(FIXED)
+    BASE + 3 * decoded.min(MAX_BLOCK)
 }
 /// Bytes per vertex at most: its position (24) twice over while its `Vec` grows, and the
 /// diagnosis' hash, id and table slot.
@@ -175,6 +175,7 @@ mod tests {
         assert_eq!(fixed_part(0), 2 << 20);
         assert_eq!(fixed_part(1 << 20), 5 << 20);
         assert_eq!(fixed_part(u64::MAX), FIXED);
+        assert_eq!(FIXED, 26 << 20);
     }
 
     #[test]

@@ -40,7 +40,12 @@ use crate::app::queue::{
     Timings, Work, priority,
 };
 use crate::app::store::VolumeStore;
+use crate::app::voxelize::Prepared;
 use crate::cancel::Control;
+use crate::limits::Limits;
+
+mod records;
+use records::{Recovery, Stored, Write, parse_record, recover, write_records};
 
 struct Job {
     record: JobRecord,
@@ -57,6 +62,22 @@ struct Job {
     /// The success written ahead by [`JobQueue::storing`]: the volume it names, and when that
     /// record is durable.
     ahead: Option<(String, oneshot::Receiver<()>)>,
+    /// The job's request as data (the `JobSpec` as JSON), written with its records while it
+    /// is kept.
+    spec: Option<String>,
+    /// Kept: its prepared mesh is in the store (`uploads/{id}`) and its records carry `spec`,
+    /// so that it runs again after a crash (see [`records`]); the upload goes when it ends.
+    kept: bool,
+    /// A job submitted with a wait ([`JobQueue::submit_deferred`]): its prepared mesh, until
+    /// [`JobQueue::persist`] keeps it (the answer is then `202`) or the job ends.
+    prepared: Option<Arc<Prepared>>,
+}
+
+impl Job {
+    /// The request its records carry: a kept job's.
+    fn kept_spec(&self) -> Option<&str> {
+        self.spec.as_deref().filter(|_| self.kept)
+    }
 }
 
 struct Inner {
@@ -72,9 +93,6 @@ struct Inner {
     active: HashMap<String, usize>,
 }
 
-/// A record to write (`None`: to remove), and who waits for it.
-type Write = (String, Option<Bytes>, oneshot::Sender<()>);
-
 /// Finished jobs remembered at most (their records in memory and in the store); past it the
 /// oldest are forgotten, in batches of a tenth, so a long-running server's job records stay
 /// bounded (a soak of 10 minutes left 15,746 of them).
@@ -89,21 +107,44 @@ pub struct LocalQueue {
     writes: mpsc::UnboundedSender<Write>,
     /// Finished jobs remembered at most ([`KEEP_FINISHED`]).
     keep_finished: usize,
+    /// Where kept jobs' uploads are.
+    store: Arc<dyn VolumeStore>,
 }
 
 impl LocalQueue {
-    /// A queue of `capacity` waiting jobs whose records live in `store`. Records of earlier
-    /// processes are loaded; a job that was queued or running when that process died is marked
-    /// failed (interrupted), since its mesh was only in memory, and so is one whose success was
-    /// written ahead of a volume the store does not have. Spawns the record writer.
+    /// A queue of `capacity` waiting jobs whose records live in `store` ([`LocalQueue::open_with`]
+    /// with this build's default limits and `--max-attempts`).
     pub async fn open(capacity: usize, store: Arc<dyn VolumeStore>) -> Result<LocalQueue> {
+        let attempts = crate::limits::serve::MAX_ATTEMPTS;
+        LocalQueue::open_with(capacity, store, Limits::default(), attempts).await
+    }
+
+    /// A queue of `capacity` waiting jobs whose records live in `store`. Records of earlier
+    /// processes are loaded; a kept job (answered `202`) that was queued or running when that
+    /// process died is queued again, to be prepared from its stored upload under `limits`,
+    /// unless it was started `max_attempts` times already ([`records`]); other unfinished jobs
+    /// are marked failed (interrupted), and so is one whose success was written ahead of a
+    /// volume the store does not have and that was not kept. Spawns the record writer.
+    pub async fn open_with(
+        capacity: usize,
+        store: Arc<dyn VolumeStore>,
+        limits: Limits,
+        max_attempts: u32,
+    ) -> Result<LocalQueue> {
         let (writes, rx) = mpsc::unbounded_channel();
         tokio::spawn(write_records(store.clone(), rx));
         let mut jobs = HashMap::new();
-        // Records written again: those of interrupted jobs, and confirmed successes.
+        // Records written again: those of interrupted jobs, requeued ones, confirmed successes.
         let mut rewrite = vec![];
+        // Jobs queued again, and uploads of jobs that will not run again.
+        let (mut queue, mut gone) = (vec![], vec![]);
         for bytes in store.job_records().await? {
-            let Some((mut record, unconfirmed)) = parse_record(&bytes) else {
+            let Some(Stored {
+                mut record,
+                unconfirmed,
+                spec,
+            }) = parse_record(&bytes)
+            else {
                 tracing::warn!("ignoring an unreadable job record");
                 continue;
             };
@@ -115,62 +156,99 @@ impl LocalQueue {
                     None => false,
                 };
                 if stored {
-                    rewrite.push(record.clone());
+                    rewrite.push((record.clone(), None));
+                    gone.push(record.id.clone());
                 } else {
                     record.state = State::Running;
                     record.volume_id = None;
+                    record.progress = 0.0;
                 }
             }
+            let mut requeued = None;
             if !record.state.is_final() {
-                record.state = State::Failed;
                 record.position = None;
-                record.error = Some(Error::new(
-                    ErrorKind::ShuttingDown,
-                    "interrupted: the server stopped before this job finished; submit it again",
-                ));
-                rewrite.push(record.clone());
+                match recover(&record, spec.as_deref(), max_attempts) {
+                    Recovery::Requeue => {
+                        record.state = State::Queued;
+                        record.progress = 0.0;
+                        requeued = spec;
+                        queue.push((record.created.clone(), record.id.clone()));
+                    }
+                    Recovery::Fail(e) => {
+                        record.state = State::Failed;
+                        record.error = Some(e);
+                        gone.push(record.id.clone());
+                    }
+                }
+                rewrite.push((record.clone(), requeued.clone()));
             }
             let (done, _) = watch::channel(record.state);
             let now = Instant::now();
+            let kept = requeued.is_some();
             jobs.insert(
                 record.id.clone(),
                 Job {
                     record,
-                    loaded: true,
-                    work: None,
+                    loaded: !kept,
+                    work: requeued.clone().map(|spec| Work::Stored { spec, limits }),
                     cost: 0.0,
                     enqueued: now,
                     started: None,
-                    finished: Some(now),
+                    finished: (!kept).then_some(now),
                     control: Control::new(),
                     done,
                     ahead: None,
+                    spec: requeued,
+                    kept,
+                    prepared: None,
                 },
             );
         }
-        tracing::info!(jobs = jobs.len(), "job records loaded");
-        // Every loaded job is final (those that were not are failed above).
+        // Oldest first: the order they were accepted in.
+        queue.sort();
+        let queue: Vec<String> = queue.into_iter().map(|(_, id)| id).collect();
+        tracing::info!(
+            jobs = jobs.len(),
+            requeued = queue.len(),
+            "job records loaded"
+        );
         let finished = jobs
             .values()
+            .filter(|j| j.record.state.is_final())
             .map(|j| (j.record.created.clone(), j.record.id.clone()))
             .collect();
+        let mut inner = Inner {
+            jobs,
+            queue: vec![],
+            closed: false,
+            finished,
+            active: HashMap::new(),
+        };
+        for id in queue {
+            inner.queue.push(id.clone());
+            inner.queued(&id);
+        }
         let q = LocalQueue {
-            inner: Mutex::new(Inner {
-                jobs,
-                queue: vec![],
-                closed: false,
-                finished,
-                active: HashMap::new(),
-            }),
+            inner: Mutex::new(inner),
             ready: Notify::new(),
             capacity,
             job_timeout: None,
             writes,
             keep_finished: KEEP_FINISHED,
+            store: store.clone(),
         };
-        let acks: Vec<_> = rewrite.iter().map(|r| q.record(r)).collect();
+        let acks: Vec<_> = rewrite
+            .iter()
+            .map(|(r, spec)| q.write(r, false, spec.as_deref()))
+            .collect();
         for a in acks {
             let _ = a.await;
+        }
+        // Their final records are durable: the uploads of jobs that will not run again go.
+        for id in gone {
+            if let Err(e) = store.delete_upload(&id).await {
+                tracing::warn!(job = %id, "cannot delete the job's upload: {e}");
+            }
         }
         q.prune(q.keep_finished);
         Ok(q)
@@ -195,23 +273,24 @@ impl LocalQueue {
 
     /// Hands a record to the writer (call it while holding the lock, so records are written in
     /// the order of the changes); the receiver resolves once it is durable.
-    fn record(&self, r: &JobRecord) -> oneshot::Receiver<()> {
-        self.write(r, false)
+    /// The job's request goes with it while the job is kept (`spec`).
+    fn record(&self, r: &JobRecord, spec: Option<&str>) -> oneshot::Receiver<()> {
+        self.write(r, false, spec)
     }
 
-    /// [`LocalQueue::record`], marked [`UNCONFIRMED`] when `unconfirmed`.
-    fn write(&self, r: &JobRecord, unconfirmed: bool) -> oneshot::Receiver<()> {
+    /// [`LocalQueue::record`], marked [`records::UNCONFIRMED`] when `unconfirmed`.
+    fn write(&self, r: &JobRecord, unconfirmed: bool, spec: Option<&str>) -> oneshot::Receiver<()> {
         let (tx, rx) = oneshot::channel();
-        let bytes = if unconfirmed {
-            let mut v = serde_json::to_value(r).expect("job record serialises");
-            v[UNCONFIRMED] = true.into();
-            serde_json::to_vec(&v)
-        } else {
-            serde_json::to_vec(r)
-        };
-        let bytes = Bytes::from(bytes.expect("job record serialises"));
+        let bytes = records::encode(r, unconfirmed, spec);
         let _ = self.writes.send((r.id.clone(), Some(bytes), tx));
         rx
+    }
+
+    /// Deletes a kept job's upload once its final record is durable.
+    async fn drop_upload(&self, id: &str) {
+        if let Err(e) = self.store.delete_upload(id).await {
+            tracing::warn!(job = %id, "cannot delete the job's upload: {e}");
+        }
     }
 
     /// Forgets the oldest finished jobs once more than `keep` (+ a tenth) are known, down to
@@ -228,77 +307,6 @@ impl LocalQueue {
             inner.jobs.remove(&id);
             let (tx, _) = oneshot::channel();
             let _ = self.writes.send((id, None, tx));
-        }
-    }
-}
-
-/// Reads a record, and whether it is a success written ahead of its volume ([`UNCONFIRMED`]);
-/// records of earlier versions carried a problem document instead of `error`.
-fn parse_record(bytes: &[u8]) -> Option<(JobRecord, bool)> {
-    let mut v: serde_json::Value = serde_json::from_slice(bytes).ok()?;
-    let unconfirmed = v
-        .as_object_mut()
-        .and_then(|o| o.remove(UNCONFIRMED))
-        .is_some_and(|b| b == serde_json::Value::Bool(true));
-    if let Some(p) = v.as_object_mut().and_then(|o| o.remove("problem")) {
-        let kind = p
-            .get("type")
-            .and_then(|t| t.as_str())
-            .and_then(|t| t.rsplit('/').next())
-            .and_then(|slug| slug.parse::<ErrorKind>().ok())
-            .unwrap_or(ErrorKind::Internal);
-        let detail = p.get("detail").and_then(|d| d.as_str()).unwrap_or("");
-        v["error"] = serde_json::to_value(Error::new(kind, detail)).ok()?;
-    }
-    Some((serde_json::from_value(v).ok()?, unconfirmed))
-}
-
-/// The mark of a success written ahead of its volume (see the module's documentation).
-const UNCONFIRMED: &str = "unconfirmed_volume";
-
-/// Records waiting to be written at most per group commit.
-const GROUP_MAX: usize = 256;
-
-/// The one writer of job records, in order, each acknowledged once durable: a group commit.
-/// Whatever has queued up while the last batch was being written goes in the next one, each
-/// job's newest record only (a job that was queued, started and finished meanwhile is written
-/// once, in its last state), and every change in a batch is acknowledged once the whole batch
-/// is durable. Order per job is kept: a batch holds the
-/// newest change of each of its jobs, and batches are written one after the other.
-async fn write_records(store: Arc<dyn VolumeStore>, mut rx: mpsc::UnboundedReceiver<Write>) {
-    while let Some(first) = rx.recv().await {
-        let mut pending = vec![first];
-        while pending.len() < GROUP_MAX {
-            match rx.try_recv() {
-                Ok(w) => pending.push(w),
-                Err(_) => break,
-            }
-        }
-        // The newest change per job, in the order of the jobs' last changes.
-        let mut newest: HashMap<String, usize> = HashMap::new();
-        for (i, (id, _, _)) in pending.iter().enumerate() {
-            newest.insert(id.clone(), i);
-        }
-        let mut acks = Vec::with_capacity(pending.len());
-        let mut batch = Vec::with_capacity(newest.len());
-        for (i, (id, bytes, ack)) in pending.into_iter().enumerate() {
-            if newest.get(&id) == Some(&i) {
-                batch.push((id, bytes));
-            }
-            acks.push(ack);
-        }
-        // A batch whose every change nobody waits for (the record after a success written
-        // ahead, removals of forgotten jobs) need not be synced now: the next batch's sync
-        // covers it, and a crash of this process loses nothing written.
-        let durable = acks.iter().any(|a| !a.is_closed());
-        let ids: Vec<String> = batch.iter().map(|(id, _)| id.clone()).collect();
-        for (id, r) in ids.iter().zip(store.put_job_records(batch, durable).await) {
-            if let Err(e) = r {
-                tracing::error!(job = %id, "cannot write the job record: {e}");
-            }
-        }
-        for ack in acks {
-            let _ = ack.send(());
         }
     }
 }
@@ -384,34 +392,66 @@ impl Inner {
 }
 
 impl LocalQueue {
-    /// Queues a job; with `sync`, returns once its record is durable.
+    /// Queues a job; with `sync`, keeps it (its upload stored first, see [`records`]) and
+    /// returns once its record is durable.
     async fn queue_job(&self, job: NewJob, sync: bool) -> Result<JobRecord> {
-        let (record, durable) = {
+        // Asked before the upload is written, and again once it is.
+        self.lock().admits(self.capacity, job.owner.as_ref())?;
+        let spec = serde_json::to_string(&job.spec).expect("a spec serialises");
+        let record = job.queued_record();
+        let (id, cost, owner) = (job.id.clone(), job.cost(), job.owner.clone());
+        let (work, prepared) = if sync {
+            let (work, bytes) = job.into_shared().await?;
+            self.store
+                .put_upload(&id, bytes)
+                .await
+                .map_err(|e| Error::from(e).context("cannot keep the job's upload"))?;
+            (work, None)
+        } else {
+            let work = job.into_work();
+            let Work::Prepared(p) = &work else {
+                unreachable!("a new job's work is prepared")
+            };
+            let p = p.clone();
+            (work, Some(p))
+        };
+        let admitted = {
             let mut inner = self.lock();
-            inner.admits(self.capacity, job.owner.as_ref())?;
-            let (done, _) = watch::channel(State::Queued);
-            let record = job.queued_record();
-            let (id, cost) = (job.id.clone(), job.cost());
-            inner.jobs.insert(
-                id.clone(),
-                Job {
-                    record,
-                    loaded: false,
-                    cost,
-                    work: Some(job.into_work()),
-                    enqueued: Instant::now(),
-                    started: None,
-                    finished: None,
-                    control: Control::new(),
-                    done,
-                    ahead: None,
-                },
-            );
-            inner.queue.push(id.clone());
-            inner.queued(&id);
-            let v = inner.view(&id).expect("just inserted");
-            let durable = self.record(&v);
-            (v, durable)
+            inner.admits(self.capacity, owner.as_ref()).map(|()| {
+                let (done, _) = watch::channel(State::Queued);
+                inner.jobs.insert(
+                    id.clone(),
+                    Job {
+                        record,
+                        loaded: false,
+                        cost,
+                        work: Some(work),
+                        enqueued: Instant::now(),
+                        started: None,
+                        finished: None,
+                        control: Control::new(),
+                        done,
+                        ahead: None,
+                        spec: Some(spec),
+                        kept: sync,
+                        prepared,
+                    },
+                );
+                inner.queue.push(id.clone());
+                inner.queued(&id);
+                let v = inner.view(&id).expect("just inserted");
+                let durable = self.record(&v, inner.jobs[&id].kept_spec());
+                (v, durable)
+            })
+        };
+        let (record, durable) = match admitted {
+            Ok(r) => r,
+            Err(e) => {
+                if sync {
+                    self.drop_upload(&id).await;
+                }
+                return Err(e);
+            }
         };
         self.ready.notify_one();
         if sync {
@@ -436,14 +476,41 @@ impl JobQueue for LocalQueue {
     }
 
     async fn persist(&self, id: &str) -> Result<()> {
+        // A job answered `202` is kept: its upload is stored first, then its record.
+        let prepared = {
+            let mut inner = self.lock();
+            match inner.jobs.get_mut(id) {
+                Some(j) if !j.record.state.is_final() && !j.kept => j.prepared.take(),
+                _ => None,
+            }
+        };
+        let mut ended = false;
+        if let Some(p) = prepared {
+            let bytes = tokio::task::spawn_blocking(move || crate::app::jobs::stored::encode(&p))
+                .await
+                .map_err(|e| Error::internal(format!("encoding the job panicked: {e}")))?;
+            self.store
+                .put_upload(id, Bytes::from(bytes))
+                .await
+                .map_err(|e| Error::from(e).context("cannot keep the job's upload"))?;
+            let mut inner = self.lock();
+            if let Some(j) = inner.jobs.get_mut(id) {
+                j.kept = true;
+                // Ended meanwhile: its end did not know of the upload.
+                ended = j.record.state.is_final();
+            }
+        }
         let durable = {
             let inner = self.lock();
             let Some(v) = inner.view(id) else {
                 return Ok(());
             };
-            self.record(&v)
+            self.record(&v, inner.jobs[id].kept_spec())
         };
         let _ = durable.await;
+        if ended {
+            self.drop_upload(id).await;
+        }
         Ok(())
     }
 
@@ -460,7 +527,7 @@ impl JobQueue for LocalQueue {
     }
 
     async fn cancel(&self, id: &str) -> Result<Option<JobRecord>> {
-        let (record, durable) = {
+        let (record, durable, kept) = {
             let mut inner = self.lock();
             let Some(job) = inner.jobs.get_mut(id) else {
                 return Ok(None);
@@ -472,6 +539,8 @@ impl JobQueue for LocalQueue {
                 ));
             }
             job.control.cancel();
+            job.prepared = None;
+            let kept = job.kept;
             if job.record.state == State::Running {
                 job.record.progress = job.control.progress();
             }
@@ -482,10 +551,13 @@ impl JobQueue for LocalQueue {
             inner.queue.retain(|q| q != id);
             inner.ended(id);
             let v = inner.view(id).expect("present");
-            let durable = self.record(&v);
-            (v, durable)
+            let durable = self.record(&v, None);
+            (v, durable, kept)
         };
         let _ = durable.await;
+        if kept {
+            self.drop_upload(id).await;
+        }
         Ok(Some(record))
     }
 
@@ -493,7 +565,8 @@ impl JobQueue for LocalQueue {
         loop {
             // Registered before looking, so a submit between the look and the wait still wakes.
             let notified = self.ready.notified();
-            {
+            // The guard is dropped before any await (the future must be `Send`).
+            let picked = {
                 let mut inner = self.lock();
                 let now = Instant::now();
                 let score =
@@ -510,12 +583,20 @@ impl JobQueue for LocalQueue {
                     let id = inner.queue.remove(i);
                     let job = inner.jobs.get_mut(&id).expect("queued job exists");
                     job.record.state = State::Running;
+                    job.record.attempts = Some(job.record.attempts.unwrap_or(0) + 1);
                     job.started = Some(now);
                     if let Some(at) = self.job_timeout.and_then(|t| now.checked_add(t)) {
                         job.control.set_deadline(at);
                     }
                     job.done.send_replace(State::Running);
-                    return Some(Claim {
+                    // A kept job's start is durable before it runs: each start counts
+                    // against `--max-attempts` if the process dies during it.
+                    let started = job.kept.then(|| {
+                        let v = inner.view(&id).expect("present");
+                        self.record(&v, inner.jobs[&id].kept_spec())
+                    });
+                    let job = inner.jobs.get_mut(&id).expect("queued job exists");
+                    let claim = Claim {
                         // The worker's alone: the mesh is freed as soon as its job is built.
                         work: job.work.take().expect("queued work"),
                         name: job.record.name.clone(),
@@ -524,11 +605,19 @@ impl JobQueue for LocalQueue {
                         volume_id: None,
                         guard: None,
                         id,
-                    });
-                }
-                if inner.closed {
+                    };
+                    Some((claim, started))
+                } else if inner.closed {
                     return None;
+                } else {
+                    None
                 }
+            };
+            if let Some((claim, started)) = picked {
+                if let Some(durable) = started {
+                    let _ = durable.await;
+                }
+                return Some(claim);
             }
             notified.await;
         }
@@ -543,7 +632,7 @@ impl JobQueue for LocalQueue {
         v.volume_id = Some(volume_id.to_string());
         v.progress = 1.0;
         // Under the lock, like every record: written in the order of the changes.
-        let durable = self.write(&v, true);
+        let durable = self.write(&v, true, inner.jobs.get(id).and_then(Job::kept_spec));
         if let Some(job) = inner.jobs.get_mut(id) {
             job.ahead = Some((volume_id.to_string(), durable));
         }
@@ -553,14 +642,16 @@ impl JobQueue for LocalQueue {
         // The final record is made durable first and shown after: a job seen finished stays
         // finished through a crash. A success written ahead (`storing`) is that record: it is
         // waited for instead, and this one, without the mark, is not.
-        let (record, durable) = {
+        let (record, durable, kept) = {
             let mut inner = self.lock();
             let now = Instant::now();
             let Some(job) = inner.jobs.get_mut(id) else {
                 return;
             };
             job.work = None;
+            job.prepared = None;
             let ahead = job.ahead.take();
+            let kept = job.kept;
             if job.record.state == State::Canceled {
                 return;
             }
@@ -579,14 +670,17 @@ impl JobQueue for LocalQueue {
                     v.error = Some(e);
                 }
             }
-            let durable = self.record(&v);
+            let durable = self.record(&v, None);
             let durable = match ahead {
                 Some((volume, ahead)) if v.volume_id.as_ref() == Some(&volume) => ahead,
                 _ => durable,
             };
-            (v, durable)
+            (v, durable, kept)
         };
         let _ = durable.await;
+        if kept {
+            self.drop_upload(id).await;
+        }
         let mut inner = self.lock();
         if let Some(job) = inner.jobs.get_mut(id) {
             // A cancel that came meanwhile was recorded after this record, and wins.
@@ -604,23 +698,35 @@ impl JobQueue for LocalQueue {
     }
 
     async fn close(&self, why: Error) -> usize {
+        // Kept jobs (answered `202`) stay queued, in the store as in memory: the next start
+        // runs them. Jobs whose requests still wait for their answer fail now.
         let acks: Vec<_> = {
             let mut inner = self.lock();
             inner.closed = true;
             let queued: Vec<String> = std::mem::take(&mut inner.queue);
             let mut acks = vec![];
+            let mut kept = 0;
             for id in &queued {
-                if let Some(job) = inner.jobs.get_mut(id) {
-                    job.record.state = State::Failed;
-                    job.record.error = Some(why.clone());
-                    job.work = None;
-                    job.finished = Some(Instant::now());
-                    job.done.send_replace(State::Failed);
-                    inner.ended(id);
+                let Some(job) = inner.jobs.get_mut(id) else {
+                    continue;
+                };
+                if job.kept {
+                    kept += 1;
+                    continue;
                 }
+                job.record.state = State::Failed;
+                job.record.error = Some(why.clone());
+                job.work = None;
+                job.prepared = None;
+                job.finished = Some(Instant::now());
+                job.done.send_replace(State::Failed);
+                inner.ended(id);
                 if let Some(v) = inner.view(id) {
-                    acks.push(self.record(&v));
+                    acks.push(self.record(&v, None));
                 }
+            }
+            if kept > 0 {
+                tracing::info!(kept, "queued jobs kept for the next start");
             }
             acks
         };

@@ -60,7 +60,11 @@ pub struct Config {
     pub queue: Option<String>,
     /// A shared queue's lease (`--lease-seconds`) and starts per job (`--max-attempts`).
     pub lease: std::time::Duration,
+    /// Starts per job on either queue (`--max-attempts`): a job whose process died during it
+    /// that many times fails.
     pub max_attempts: u32,
+    /// Uploads that no job refers to are deleted once this old (`--upload-grace`).
+    pub upload_grace: std::time::Duration,
     /// API keys (`--api-keys-file`): `None` leaves the routes open.
     pub api_keys_file: Option<PathBuf>,
     /// Each key's limits unless its line says otherwise (`--key-rate`, `--key-burst`,
@@ -190,10 +194,15 @@ pub async fn open(config: &Config) -> Result<Arc<App>, String> {
     }
     let queue: Arc<dyn JobQueue> = match &config.queue {
         None => Arc::new(
-            LocalQueue::open(config.queue_capacity.max(1), store.clone())
-                .await
-                .map_err(|e| format!("{}: {e}", store.describe()))?
-                .with_job_timeout(config.job_timeout),
+            LocalQueue::open_with(
+                config.queue_capacity.max(1),
+                store.clone(),
+                config.limits,
+                config.max_attempts.max(1),
+            )
+            .await
+            .map_err(|e| format!("{}: {e}", store.describe()))?
+            .with_job_timeout(config.job_timeout),
         ),
         #[cfg(not(feature = "redis"))]
         Some(url) => {
@@ -217,6 +226,12 @@ pub async fn open(config: &Config) -> Result<Arc<App>, String> {
             .await?,
         ),
     };
+    // Uploads no job refers to go after `--upload-grace`, now and periodically.
+    tokio::spawn(app::jobs::sweep::sweep_periodically(
+        store.clone(),
+        Arc::downgrade(&queue),
+        config.upload_grace,
+    ));
     Ok(App::with_keys(
         engine,
         store,
@@ -271,6 +286,7 @@ pub async fn serve(
                 app.store.clone(),
                 app.engine.clone(),
                 app.clone(),
+                Some(app.memory.clone()),
             ))
         })
         .collect();

@@ -670,6 +670,19 @@ impl VolumeStore for S3Store {
         .await
     }
 
+    async fn list_uploads(&self) -> Result<Vec<(String, std::time::SystemTime)>, StoreError> {
+        let s = &self.shared;
+        s.client
+            .list(Some(&s.key("uploads")))
+            .try_filter_map(|o| async move {
+                let id = o.location.filename().filter(|id| safe_id(id));
+                Ok(id.map(|id| (id.to_string(), std::time::SystemTime::from(o.last_modified))))
+            })
+            .try_collect()
+            .await
+            .map_err(|e| s.err("listing uploads", e))
+    }
+
     fn describe(&self) -> String {
         format!("{} at {}", self.shared.loc, self.shared.endpoint)
     }

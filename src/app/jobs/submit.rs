@@ -116,6 +116,10 @@ pub async fn submit<G: Send>(
     // Held through the parse and until the job is queued, as the upload's guard is.
     let parse = admit_parse(jobs.memory, &mut req).await?;
     let work = super::super::ops::on_pool(jobs.pool, move || super::super::prepare(&req)).await?;
+    // A job that could never get its memory is refused now, not failed later.
+    if let Some(m) = jobs.memory {
+        m.check_fits(super::job_bytes(&work), "the voxelization")?;
+    }
     let id = super::super::new_id();
     let job = NewJob {
         id: id.clone(),

@@ -250,19 +250,29 @@ async fn deferred_records_are_written_once_or_when_persisted() {
     let d2 = lines("d2");
     assert_eq!(d2.len(), 1, "{d2:?}");
     assert!(d2[0].contains("\"succeeded\""), "{d2:?}");
-    // The same with `submit`: the queued record first, then the final one.
+    // The same with `submit` (a kept job): the queued record first, its start (durable
+    // before it runs, so that it counts as an attempt), then the final one.
     q.submit(tiny_job("s3")).await.unwrap();
     assert_eq!(lines("s3").len(), 1);
     let c = q.next().await.unwrap();
-    q.finish(&c.id, Ok("v3".into())).await;
     assert_eq!(lines("s3").len(), 2);
+    assert!(lines("s3")[1].contains("\"running\""));
+    q.finish(&c.id, Ok("v3".into())).await;
+    assert_eq!(lines("s3").len(), 3);
     // Persisted: on disk when `persist` returns, still queued.
     q.submit_deferred(tiny_job("p1")).await.unwrap();
     assert!(lines("p1").is_empty());
     q.persist("p1").await.unwrap();
+    // Kept: its upload is stored first (the writer may write the record as it was meanwhile),
+    // then its record with its request.
     let p1 = lines("p1");
-    assert_eq!(p1.len(), 1, "{p1:?}");
-    assert!(p1[0].contains("\"queued\""), "{p1:?}");
+    assert!((1..=2).contains(&p1.len()), "{p1:?}");
+    let last = p1.last().unwrap();
+    assert!(
+        last.contains("\"queued\"") && last.contains("\"spec\""),
+        "{p1:?}"
+    );
+    assert!(store.get_upload("p1").await.unwrap().is_some());
     drop((q, store));
 }
 
@@ -367,6 +377,77 @@ async fn the_indexes_agree_with_a_walk_of_every_job() {
         q.finish(&id, Ok("v".into())).await;
         check(&q);
     }
-    assert!(q.lock().active.is_empty());
+    // What is left active: the kept jobs that the close left queued for the next start.
+    let inner = q.lock();
+    let kept_queued = inner
+        .jobs
+        .values()
+        .filter(|j| j.kept && j.record.state == State::Queued && j.record.key_name.is_some())
+        .count();
+    assert_eq!(inner.active.values().sum::<usize>(), kept_queued);
+    drop(inner);
     drop((q, store));
+}
+
+/// A kept job (answered `202`: `submit`, or `persist` after `submit_deferred`) survives the
+/// process: its upload is in the store until it ends, a start finds it queued again, and each
+/// start that the process does not survive counts; at `max_attempts` starts it fails
+/// ("interrupted N times") and its upload goes. A shutdown (`close`) leaves it queued; a job
+/// that ends deletes its upload; a job never kept fails at the next start, as before.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn kept_jobs_run_again_after_a_crash_up_to_their_attempts() {
+    let (_dir, store) = scratch_store("kept");
+    let open = || LocalQueue::open_with(8, store.clone(), Limits::default(), 2);
+    let has_upload = |id: &'static str| {
+        let store = store.clone();
+        async move { store.get_upload(id).await.unwrap().is_some() }
+    };
+    let q = open().await.unwrap();
+    q.submit(tiny_job("k1")).await.unwrap();
+    q.submit_deferred(tiny_job("d2")).await.unwrap();
+    q.persist("d2").await.unwrap();
+    q.submit_deferred(tiny_job("w3")).await.unwrap();
+    assert!(has_upload("k1").await && has_upload("d2").await);
+    assert!(
+        !has_upload("w3").await,
+        "a job not answered yet is not kept"
+    );
+    // The process dies with all three queued (the old queue never runs again).
+    let q2 = open().await.unwrap();
+    for (id, state) in [
+        ("k1", State::Queued),
+        ("d2", State::Queued),
+        ("w3", State::Failed),
+    ] {
+        assert_eq!(q2.get(id).await.unwrap().unwrap().state, state, "{id}");
+    }
+    // k1 starts, and the process dies during it; d2 runs to its end.
+    let c = q2.next().await.unwrap();
+    assert_eq!(c.id, "k1");
+    assert!(
+        matches!(c.work, Work::Stored { .. }),
+        "prepared from its upload"
+    );
+    assert_eq!(q2.get("k1").await.unwrap().unwrap().attempts, Some(1));
+    let d = q2.next().await.unwrap();
+    assert_eq!(d.id, "d2");
+    q2.finish("d2", Err(Error::internal("ended"))).await;
+    assert!(!has_upload("d2").await, "an ended job's upload goes");
+    // Started once: queued again. Started twice (the limit): failed, its upload gone.
+    let q3 = open().await.unwrap();
+    assert_eq!(q3.get("k1").await.unwrap().unwrap().state, State::Queued);
+    assert_eq!(q3.next().await.unwrap().id, "k1");
+    let q4 = open().await.unwrap();
+    let k1 = q4.get("k1").await.unwrap().unwrap();
+    assert_eq!((k1.state, k1.attempts), (State::Failed, Some(2)));
+    assert!(k1.error.unwrap().detail.contains("interrupted 2 times"));
+    assert!(!has_upload("k1").await);
+    // A shutdown keeps a kept queued job for the next start.
+    q4.submit(tiny_job("s5")).await.unwrap();
+    assert_eq!(q4.close(Error::internal("closing")).await, 0);
+    assert!(q4.next().await.is_none());
+    let q5 = open().await.unwrap();
+    assert_eq!(q5.get("s5").await.unwrap().unwrap().state, State::Queued);
+    assert!(has_upload("s5").await);
+    drop((q, q2, q3, q4, q5));
 }

@@ -322,6 +322,9 @@ pub async fn morphology(
     if let Some(n) = &q.name {
         super::check_name(n, &app.limits)?;
     }
+    // The request is checked before the volume is looked up: a bad request is 400 whatever
+    // the id.
+    req.check(&app.limits)?;
     let src = meta_of(&app, &id).await?;
     let out = ops::morphology_grid(&src.grid, &req, &app.limits)?;
     let _memory = app

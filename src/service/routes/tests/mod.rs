@@ -45,6 +45,7 @@ async fn harness_with(name: &str, tune: impl FnOnce(Limits) -> Limits) -> Harnes
         app.store.clone(),
         app.engine.clone(),
         app.clone(),
+        Some(app.memory.clone()),
     ));
     h
 }

@@ -1,0 +1,64 @@
+//! The sweep of uploads no job refers to: a job's upload (`uploads/{id}` in the store) lives
+//! while the job is queued or running and is deleted when it ends; one left behind (its
+//! process killed between storing it and recording the job, or before deleting it, a job
+//! forgotten) is deleted once older than a grace period (`--upload-grace`), at start and
+//! periodically, whichever queue and store the process uses. The grace covers an upload being
+//! stored for a job not yet recorded: keep it above the time a submit takes.
+
+use std::sync::Arc;
+use std::time::{Duration, SystemTime};
+
+use super::super::queue::JobQueue;
+use super::super::store::VolumeStore;
+
+/// `--upload-grace` by default: an hour.
+pub const UPLOAD_GRACE_S: u64 = 3600;
+
+/// Deletes the uploads in `store` older than `grace` whose job `queue` does not know as
+/// queued or running; how many.
+pub async fn sweep(store: &dyn VolumeStore, queue: &dyn JobQueue, grace: Duration) -> usize {
+    let uploads = match store.list_uploads().await {
+        Ok(u) => u,
+        Err(e) => {
+            tracing::warn!("cannot list uploads to sweep: {e}");
+            return 0;
+        }
+    };
+    let now = SystemTime::now();
+    let mut swept = 0;
+    for (id, written) in uploads {
+        if now.duration_since(written).unwrap_or_default() < grace {
+            continue;
+        }
+        match queue.get(&id).await {
+            Ok(Some(r)) if !r.state.is_final() => continue,
+            Ok(_) => {}
+            // Not known whether a job needs it: kept.
+            Err(_) => continue,
+        }
+        match store.delete_upload(&id).await {
+            Ok(()) => swept += 1,
+            Err(e) => tracing::warn!(job = %id, "cannot delete an orphaned upload: {e}"),
+        }
+    }
+    if swept > 0 {
+        tracing::info!(swept, "orphaned uploads deleted");
+    }
+    swept
+}
+
+/// Sweeps at once, then every quarter of `grace` (between 5 s and 15 min), until the queue is
+/// dropped.
+pub async fn sweep_periodically(
+    store: Arc<dyn VolumeStore>,
+    queue: std::sync::Weak<dyn JobQueue>,
+    grace: Duration,
+) {
+    let every = (grace / 4).clamp(Duration::from_secs(5), Duration::from_secs(900));
+    loop {
+        let Some(q) = queue.upgrade() else { return };
+        sweep(&*store, &*q, grace).await;
+        drop(q);
+        tokio::time::sleep(every).await;
+    }
+}
