@@ -19,7 +19,7 @@ fn voxd() -> Command {
 }
 
 /// `voxd keygen NAME`: the key, and `NAME:hex(sha256(key))`.
-fn keygen(name: &str) -> (String, String) {
+pub fn keygen(name: &str) -> (String, String) {
     let out = voxd().args(["keygen", name]).output().unwrap();
     assert!(out.status.success(), "{out:?}");
     let text = String::from_utf8(out.stdout).unwrap();

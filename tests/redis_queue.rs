@@ -223,6 +223,8 @@ async fn a_keys_job_limit_spans_replicas() {
         owner: Some(voxd::app::queue::Owner {
             name: name.into(),
             max_jobs,
+            tenant: name.into(),
+            role: voxd::app::queue::Role::User,
         }),
         ..job(id, 8, false)
     };
@@ -466,14 +468,16 @@ async fn a_dead_workers_job_is_taken_over_then_failed_after_its_last_attempt() {
         "{}",
         e.detail
     );
-    assert!(!looking.is_finished(), "nothing else to run");
-    looking.abort();
     // The replica that failed the job removes its upload right after (`clean_up`), not in the
-    // same step: wait for it (the CI run of 2026-12-02 saw it still there at the first look).
+    // same step, and in the task that looks for work: wait for it before that task is stopped
+    // (stopped first, the removal may never run: the CI run of 2026-12-04 saw that; a real
+    // replica's leftover is swept after --upload-grace).
     eventually(30, "the failed job's upload removed", async || {
         store.get_upload("j").await.unwrap().is_none().then_some(())
     })
     .await;
+    assert!(!looking.is_finished(), "nothing else to run");
+    looking.abort();
     assert_eq!(c.stats().await.running, 0);
 }
 

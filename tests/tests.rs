@@ -32,6 +32,7 @@ mod replicas;
 mod s3;
 mod service;
 mod stats;
+mod tenants;
 mod upload_memory;
 
 /// With `autotests = false` (Cargo.toml) a file of tests/ that is not declared a module here

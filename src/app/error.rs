@@ -91,6 +91,8 @@ error_kinds! {
     ExpectationFailed = "expectation-failed", 417, "Expectation failed";
     /// No API key, or not a valid one, where the service requires one (`--api-keys-file`).
     Unauthorized = "unauthorized", 401, "Authentication required";
+    /// The API key's role does not allow the request (a `read-only` key asking to write).
+    Forbidden = "forbidden", 403, "Not allowed for this API key";
     /// The API key's request rate is exceeded; retry after `Retry-After`.
     RateLimited = "rate-limited", 429, "Too many requests for this API key";
     /// The API key already has its most jobs queued or running.

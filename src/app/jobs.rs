@@ -36,7 +36,8 @@ pub async fn run(
     claim: &Claim,
 ) -> Result<VolumeMeta> {
     let work = prepared(store, &claim.id, claim.work.clone()).await?;
-    let built = build(engine, work, claim).await?;
+    let mut built = build(engine, work, claim).await?;
+    built.meta.owner = claim.owner.clone();
     keep(
         store,
         claim.volume_id.as_deref(),
@@ -302,6 +303,10 @@ async fn work_with(
         // no longer holds either) is freed now, before the wait for the byte budget below, not
         // when the store is done with the volume.
         let (id, volume_id, guard) = (claim.id, claim.volume_id, claim.guard);
+        let built = built.map(|mut b| {
+            b.meta.owner = claim.owner;
+            b
+        });
         drop(claim.work);
         // The volume's share of the byte budget (the whole of it for one larger than that),
         // before the next job is taken: this worker's volumes waiting on the store stay within

@@ -138,6 +138,8 @@ pub fn build(
             Origin::Derived { provenance, .. } => Some((*provenance).clone()),
             Origin::Mesh { .. } => None,
         },
+        // The caller sets it (a job's tenant, an operation's).
+        owner: None,
     };
     Ok(Built { meta, vxl })
 }

@@ -401,14 +401,23 @@ pub async fn load_bits(
         .map_err(|e| e.context(format!("volume {id}")))
 }
 
+/// What a stored volume is called and who owns it.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Label {
+    pub name: Option<String>,
+    /// The tenant that owns it ([`VolumeMeta::owner`]).
+    pub owner: Option<String>,
+}
+
 /// Stores a volume computed from others.
 pub async fn store_derived(
     store: &dyn VolumeStore,
     v: BitVolume,
-    name: Option<String>,
+    label: Label,
     method: &'static str,
     provenance: Value,
 ) -> Result<VolumeMeta> {
+    let Label { name, owner } = label;
     let built = blocking(move || {
         metadata::build(
             &Volume::Bits(v),
@@ -421,6 +430,8 @@ pub async fn store_derived(
         )
     })
     .await?;
+    let mut built = built;
+    built.meta.owner = owner;
     store.put(built.meta.clone(), built.vxl).await?;
     Ok(built.meta)
 }
@@ -430,9 +441,9 @@ pub async fn store_derived(
 pub async fn csg_stored(
     store: &dyn VolumeStore,
     expr: CsgExpr,
-    name: Option<String>,
+    label: Label,
 ) -> Result<VolumeMeta> {
-    csg_stored_with(store, expr, name, &Control::new()).await
+    csg_stored_with(store, expr, label, &Control::new()).await
 }
 
 /// Checks a CSG expression's cost before anything is read: every node's result grid (from the
@@ -498,7 +509,7 @@ pub async fn check_csg(store: &dyn VolumeStore, expr: &CsgExpr, limits: &Limits)
 pub async fn csg_stored_with(
     store: &dyn VolumeStore,
     expr: CsgExpr,
-    name: Option<String>,
+    label: Label,
     ctl: &Control,
 ) -> Result<VolumeMeta> {
     let mut vols = HashMap::new();
@@ -509,7 +520,7 @@ pub async fn csg_stored_with(
     let provenance = expr.to_json();
     let v = blocking_with(ctl, move |ctl| eval_csg_with(&expr, &vols, ctl)).await?;
     ctl.check()?;
-    store_derived(store, v, name, "csg", provenance).await
+    store_derived(store, v, label, "csg", provenance).await
 }
 
 /// Morphology of a stored volume, stored. Dropping the future cancels the work at its next
@@ -518,10 +529,10 @@ pub async fn morphology_stored(
     store: &dyn VolumeStore,
     id: &str,
     req: MorphologyRequest,
-    name: Option<String>,
+    label: Label,
     limits: Limits,
 ) -> Result<VolumeMeta> {
-    morphology_stored_with(store, id, req, name, limits, &Control::new()).await
+    morphology_stored_with(store, id, req, label, limits, &Control::new()).await
 }
 
 /// [`morphology_stored`] under `ctl` (cancel, deadline, progress).
@@ -529,7 +540,7 @@ pub async fn morphology_stored_with(
     store: &dyn VolumeStore,
     id: &str,
     req: MorphologyRequest,
-    name: Option<String>,
+    label: Label,
     limits: Limits,
     ctl: &Control,
 ) -> Result<VolumeMeta> {
@@ -540,7 +551,7 @@ pub async fn morphology_stored_with(
     store_derived(
         store,
         out,
-        name,
+        label,
         "morphology",
         morphology_provenance(id, &req),
     )

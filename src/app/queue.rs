@@ -69,6 +69,9 @@ pub struct JobRecord {
     /// The name of the API key that submitted the job (never the key).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub key_name: Option<String>,
+    /// The tenant that owns the job, and the volume it makes (the key's tenant).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub owner: Option<String>,
     pub created: String,
     pub timings: Timings,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -113,9 +116,42 @@ pub struct NewJob {
 pub struct Owner {
     pub name: String,
     pub max_jobs: usize,
+    /// The tenant whose volumes and jobs the key works with (the key's name unless its line
+    /// says `tenant=`): what the volumes and jobs it makes are owned by.
+    pub tenant: String,
+    pub role: Role,
+}
+
+/// What a key may do (`role=` in the keys file).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Role {
+    /// Reads and writes its tenant's volumes and jobs.
+    #[default]
+    User,
+    /// Reads its tenant's volumes and jobs; every write is `403 forbidden`.
+    ReadOnly,
+    /// Reads and writes every tenant's volumes and jobs (and those owned by none).
+    Admin,
+}
+
+impl Role {
+    pub fn parse(s: &str) -> Option<Role> {
+        match s {
+            "user" => Some(Role::User),
+            "read-only" => Some(Role::ReadOnly),
+            "admin" => Some(Role::Admin),
+            _ => None,
+        }
+    }
 }
 
 impl Owner {
+    /// Whether this key may see a volume or job owned by `owner` (`None`: made without keys,
+    /// or before volumes had owners): its tenant's, and every one for an admin.
+    pub fn sees(&self, owner: Option<&str>) -> bool {
+        self.role == Role::Admin || owner == Some(self.tenant.as_str())
+    }
+
     /// The refusal of a job past the key's limit.
     pub fn too_many(&self, active: usize) -> Error {
         Error::new(
@@ -168,6 +204,7 @@ impl NewJob {
             grid: self.work.grid,
             name: self.name.clone(),
             key_name: self.owner.as_ref().map(|o| o.name.clone()),
+            owner: self.owner.as_ref().map(|o| o.tenant.clone()),
             created: self.created.clone(),
             timings: Timings::default(),
             volume_id: None,
@@ -194,6 +231,8 @@ pub struct Claim {
     pub id: String,
     pub work: Work,
     pub name: Option<String>,
+    /// The tenant that owns the job: its volume's owner.
+    pub owner: Option<String>,
     /// The job's control: canceled when the job is canceled while it runs (the work stops at
     /// its next check point and its result is discarded), with the job's deadline when the
     /// queue has a job timeout; the job's record shows its progress while it runs.

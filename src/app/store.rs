@@ -47,6 +47,10 @@ pub struct VolumeMeta {
     /// For volumes computed from others: how (the CSG expression, the morphology).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub provenance: Option<serde_json::Value>,
+    /// The tenant that owns the volume (the API key's tenant that made it); none for volumes
+    /// made without keys (or before volumes had owners): only admin keys see those.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub owner: Option<String>,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

@@ -600,6 +600,7 @@ impl JobQueue for LocalQueue {
                         // The worker's alone: the mesh is freed as soon as its job is built.
                         work: job.work.take().expect("queued work"),
                         name: job.record.name.clone(),
+                        owner: job.record.owner.clone(),
                         control: job.control.clone(),
                         timeout: self.job_timeout,
                         volume_id: None,

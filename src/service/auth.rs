@@ -1,9 +1,18 @@
 //! API keys (`--api-keys-file FILE`): who may call the `/v1` routes, and how much.
 //!
 //! The file has one key per line, `NAME:SHA256-HEX`, optionally followed by that key's own
-//! limits, `NAME:SHA256-HEX:rate=R,burst=B,jobs=J` (any subset; the rest are the service's
-//! defaults, `--key-rate`, `--key-burst`, `--key-max-jobs`). Blank lines and lines starting with
-//! `#` are ignored. Only digests are kept at rest; `voxd keygen NAME` makes a key and its line.
+//! options, `NAME:SHA256-HEX:rate=R,burst=B,jobs=J,role=ROLE,tenant=T` (any subset; the limits
+//! not given are the service's defaults, `--key-rate`, `--key-burst`, `--key-max-jobs`). Blank
+//! lines and lines starting with `#` are ignored. Only digests are kept at rest; `voxd keygen
+//! NAME` makes a key and its line.
+//!
+//! Tenants: every volume and job is owned by the tenant of the key that made it (`tenant=`,
+//! the key's name by default; keys that name one tenant share its volumes and jobs). A key sees
+//! its tenant's volumes and jobs only: any other is `404 not-found`, as if it did not exist, so
+//! ids do not leak. Roles (`role=`): `user` (the default) reads and writes its tenant's;
+//! `read-only` reads them, and every write (an upload, CSG, morphology, a delete, a cancel) is
+//! `403 forbidden`; `admin` reads and writes every tenant's, and the volumes owned by none (made
+//! without keys, or before volumes had owners).
 //!
 //! A request presents `Authorization: Bearer KEY`. The key's SHA-256 is compared with every
 //! digest in the file, each comparison in constant time and all of them always made, so the
@@ -24,7 +33,7 @@ use governor::clock::{Clock, DefaultClock};
 use governor::{DefaultDirectRateLimiter, Quota, RateLimiter};
 use sha2::{Digest, Sha256};
 
-use crate::app::queue::Owner;
+use crate::app::queue::{Owner, Role};
 use crate::app::{Error, ErrorKind};
 
 /// A key's limits. `rate` 0: no rate limit; `max_jobs` 0: no job limit.
@@ -51,6 +60,8 @@ struct Key {
     name: String,
     digest: [u8; 32],
     limits: KeyLimits,
+    tenant: String,
+    role: Role,
     limiter: Option<DefaultDirectRateLimiter>,
     requests: AtomicU64,
     limited: AtomicU64,
@@ -107,12 +118,33 @@ fn parse_hex32(s: &str) -> Option<[u8; 32]> {
     Some(out)
 }
 
-fn parse_limits(s: &str, defaults: KeyLimits) -> Result<KeyLimits, String> {
+/// A key line's options: its limits, role and tenant.
+struct Options {
+    limits: KeyLimits,
+    role: Role,
+    tenant: Option<String>,
+}
+
+fn parse_options(s: &str, defaults: KeyLimits) -> Result<Options, String> {
     let mut l = defaults;
+    let (mut role, mut tenant) = (Role::User, None);
     for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
         let (k, v) = part
             .split_once('=')
             .ok_or_else(|| format!("{part:?} is not NAME=VALUE"))?;
+        match k.trim() {
+            "role" => {
+                role = Role::parse(v.trim())
+                    .ok_or_else(|| format!("role={v:?}: use user, read-only or admin"))?;
+                continue;
+            }
+            "tenant" => {
+                check_name(v.trim()).map_err(|e| format!("tenant: {e}"))?;
+                tenant = Some(v.trim().to_string());
+                continue;
+            }
+            _ => {}
+        }
         let n: u64 = v
             .trim()
             .parse()
@@ -122,10 +154,18 @@ fn parse_limits(s: &str, defaults: KeyLimits) -> Result<KeyLimits, String> {
             "rate" => l.rate = n32,
             "burst" => l.burst = n32,
             "jobs" => l.max_jobs = n32 as usize,
-            other => return Err(format!("unknown limit {other:?} (rate, burst or jobs)")),
+            other => {
+                return Err(format!(
+                    "unknown option {other:?} (rate, burst, jobs, role or tenant)"
+                ));
+            }
         }
     }
-    Ok(l)
+    Ok(Options {
+        limits: l,
+        role,
+        tenant,
+    })
 }
 
 impl ApiKeys {
@@ -150,9 +190,17 @@ impl ApiKeys {
                         "{name}: expected NAME:SHA256-HEX (64 hex digits; `voxd keygen {name}` prints such a line)"
                     ))
                 })?;
-            let limits = match fields.next() {
-                Some(l) => parse_limits(l, defaults).map_err(|e| at(format!("{name}: {e}")))?,
-                None => defaults,
+            let Options {
+                limits,
+                role,
+                tenant,
+            } = match fields.next() {
+                Some(l) => parse_options(l, defaults).map_err(|e| at(format!("{name}: {e}")))?,
+                None => Options {
+                    limits: defaults,
+                    role: Role::User,
+                    tenant: None,
+                },
             };
             if keys.iter().any(|k| k.name == name) {
                 return Err(at(format!("{name}: a second key of that name")));
@@ -168,6 +216,8 @@ impl ApiKeys {
                 name: name.into(),
                 digest,
                 limits,
+                tenant: tenant.unwrap_or_else(|| name.to_string()),
+                role,
                 limiter,
                 requests: AtomicU64::new(0),
                 limited: AtomicU64::new(0),
@@ -287,6 +337,8 @@ impl ApiKeys {
         Ok(Owner {
             name: key.name.clone(),
             max_jobs: key.limits.max_jobs,
+            tenant: key.tenant.clone(),
+            role: key.role,
         })
     }
 
@@ -421,7 +473,9 @@ mod tests {
             (&format!("a:{digest}\na:{}\n", "0".repeat(64)), "second key"),
             (&format!("a:{digest}\nb:{digest}\n"), "same key"),
             (&format!("\n\na:{digest}:rate=x\n"), "line 3"),
-            (&format!("a:{digest}:speed=3\n"), "unknown limit"),
+            (&format!("a:{digest}:speed=3\n"), "unknown option"),
+            (&format!("a:{digest}:role=root\n"), "read-only or admin"),
+            (&format!("a:{digest}:tenant=a/b\n"), "tenant"),
             (&format!("a:{digest}:rate=99999999999\n"), "too large"),
         ] {
             let e = ApiKeys::parse(text, KeyLimits::DEFAULT).err().unwrap();
@@ -430,6 +484,35 @@ mod tests {
         }
         assert!(generate("").is_err() && generate("a/b").is_err());
         assert!(generate(&"x".repeat(65)).is_err() && generate(&"x".repeat(64)).is_ok());
+    }
+
+    #[test]
+    fn roles_and_tenants_come_from_the_keys_line() {
+        let (ka, la) = generate("a").unwrap();
+        let (kr, lr) = generate("r").unwrap();
+        let (kx, lx) = generate("x").unwrap();
+        let keys = ApiKeys::parse(
+            &format!("{la}\n{lr}:role=read-only,tenant=a,jobs=2\n{lx}:role=admin\n"),
+            KeyLimits::DEFAULT,
+        )
+        .unwrap();
+        let owner = |k: &str| {
+            let mut h = HeaderMap::new();
+            let v = HeaderValue::from_str(&format!("Bearer {k}")).unwrap();
+            h.insert(header::AUTHORIZATION, v);
+            keys.authenticate(&h).unwrap()
+        };
+        let (a, r, x) = (owner(&ka), owner(&kr), owner(&kx));
+        assert_eq!((a.tenant.as_str(), a.role), ("a", Role::User));
+        assert_eq!(
+            (r.tenant.as_str(), r.role, r.max_jobs),
+            ("a", Role::ReadOnly, 2)
+        );
+        assert_eq!((x.tenant.as_str(), x.role), ("x", Role::Admin));
+        // Its tenant's only; an admin every one's, and those owned by none.
+        assert!(a.sees(Some("a")) && r.sees(Some("a")));
+        assert!(!a.sees(Some("x")) && !a.sees(None) && !r.sees(Some("r")));
+        assert!(x.sees(Some("a")) && x.sees(None));
     }
 
     #[test]

@@ -328,6 +328,8 @@ async fn the_indexes_agree_with_a_walk_of_every_job() {
                 job.owner = owners.get(owner).map(|name| Owner {
                     name: name.to_string(),
                     max_jobs: 3,
+                    tenant: name.to_string(),
+                    role: crate::app::queue::Role::User,
                 });
                 let active = job
                     .owner

@@ -413,13 +413,14 @@ impl Inner {
         {
             control.set_deadline(at);
         }
-        let name = serde_json::from_str::<JobRecord>(&run.record)
+        let (name, owner) = serde_json::from_str::<JobRecord>(&run.record)
             .ok()
-            .and_then(|r| r.name);
+            .map_or((None, None), |r| (r.name, r.owner));
         Some(Claim {
             id: run.id.clone(),
             work,
             name,
+            owner,
             control: control.clone(),
             timeout: self.opts.job_timeout,
             volume_id: Some(volume_id_for(&run.id)),

@@ -6,6 +6,7 @@ use serde_json::Value;
 
 use super::super::problem::Problem;
 use super::AppState;
+use super::volumes::{Caller, sees};
 use crate::app::Error;
 use crate::app::queue::JobRecord;
 
@@ -19,22 +20,33 @@ pub fn view(mut r: JobRecord) -> Value {
     v
 }
 
+/// Job `id`'s record, if `caller` may see it: another tenant's job is `not-found`.
+async fn visible(app: &crate::service::App, caller: &Caller, id: &str) -> Result<JobRecord, Error> {
+    app.queue
+        .get(id)
+        .await?
+        .filter(|r| sees(caller, r.owner.as_deref()))
+        .ok_or_else(|| Error::not_found("job", id))
+}
+
 pub async fn get(
     axum::extract::State(app): AppState,
+    caller: Caller,
     Path(id): Path<String>,
 ) -> Result<Response, Problem> {
-    let r = app
-        .queue
-        .get(&id)
-        .await?
-        .ok_or_else(|| Error::not_found("job", &id))?;
+    let r = visible(&app, &caller, &id).await?;
     Ok(axum::Json(view(r)).into_response())
 }
 
 pub async fn cancel(
     axum::extract::State(app): AppState,
+    caller: Caller,
     Path(id): Path<String>,
 ) -> Result<Response, Problem> {
+    // Only a job the caller may see may be canceled.
+    if caller.is_some() {
+        visible(&app, &caller, &id).await?;
+    }
     let r = app
         .queue
         .cancel(&id)

@@ -22,6 +22,7 @@ use tracing::Instrument;
 use super::App;
 use super::problem::Problem;
 use crate::app::ErrorKind;
+use crate::app::queue::Role;
 
 /// The `.vxl` media type (its row of `codec::FORMATS`): already compressed, so not again.
 pub const VXL_MEDIA_TYPE: &str = crate::codec::VolumeFormat::Vxl.media_type();
@@ -219,6 +220,17 @@ async fn request_context(State(app): AppState, mut req: Request, next: Next) -> 
             match keys.authenticate(req.headers()) {
                 Ok(owner) => {
                     span.record("key", tracing::field::display(&owner.name));
+                    if owner.role == Role::ReadOnly && writes(req.method(), &path) {
+                        let e = crate::app::Error::new(
+                            ErrorKind::Forbidden,
+                            format!(
+                                "key {} is read-only: it may read its tenant's volumes and jobs, not {} {path}",
+                                owner.name,
+                                req.method()
+                            ),
+                        );
+                        return Some(Problem::from(e).into_response());
+                    }
                     req.extensions_mut().insert(owner);
                     None
                 }
@@ -280,3 +292,14 @@ type AppState = State<Arc<App>>;
 
 #[cfg(test)]
 mod tests;
+
+/// Whether a `/v1` request writes (makes, changes or deletes a volume or job): what a
+/// `read-only` key may not do. The POSTs that only read (a query, an overlap) are not writes.
+fn writes(method: &axum::http::Method, path: &str) -> bool {
+    use axum::http::Method;
+    match *method {
+        Method::GET | Method::HEAD | Method::OPTIONS => false,
+        Method::POST => !(path.ends_with("/query") || path == "/v1/volumes/intersect"),
+        _ => true,
+    }
+}

@@ -13,6 +13,7 @@ use serde_json::{Value, json};
 use super::super::extract::{Json, Query};
 use super::super::problem::Problem;
 use super::{AppState, created};
+use crate::app::queue::Owner;
 use crate::app::store::VolumeMeta;
 use crate::app::{
     CsgExpr, Error, ErrorKind, MorphologyRequest, PreviewRequest, PreviewView, QueryRequest, cost,
@@ -31,6 +32,7 @@ pub struct ListQuery {
 
 pub async fn list(
     axum::extract::State(app): AppState,
+    caller: Caller,
     Query(q): Query<ListQuery>,
 ) -> Result<Response, Problem> {
     let limit = q.limit.unwrap_or(app.limits.default_list_page);
@@ -40,11 +42,7 @@ pub async fn list(
             app.limits.max_list_page
         )));
     }
-    let (page, mut more) = app
-        .store
-        .list(q.after.as_deref(), limit)
-        .await
-        .map_err(Error::from)?;
+    let (page, mut more, scanned) = visible_page(&app, &caller, q.after, limit).await?;
     // A page is bounded in bytes too (at least one volume a page): the rest is on the next
     // page. Each volume is serialised once, into the body.
     let mut body = br#"{"volumes":["#.to_vec();
@@ -61,8 +59,11 @@ pub async fn list(
         body.extend_from_slice(&b);
         last = Some(&m.id);
     }
+    // Cut short by bytes: after the last one shown; else after the last one looked at (those
+    // past the last shown were other tenants').
+    let cut = last.is_some_and(|l| page.last().is_some_and(|p| &p.id != l));
     let next = more
-        .then_some(last)
+        .then(|| if cut { last.cloned() } else { scanned })
         .flatten()
         .map(|id| format!("/v1/volumes?after={id}&limit={limit}"));
     body.extend_from_slice(br#"],"next":"#);
@@ -76,40 +77,88 @@ pub async fn list(
     Ok(r)
 }
 
+/// Store pages read at most for one page of a caller's volumes: where other tenants' volumes
+/// fill them, a page may hold fewer than `limit` (its `next` goes on from there).
+const SCAN_PAGES: usize = 16;
+
+/// Up to `limit` volumes after `after` that `caller` may see, whether more may follow, and the
+/// id of the last volume looked at (where the next page starts).
+async fn visible_page(
+    app: &crate::service::App,
+    caller: &Caller,
+    mut after: Option<String>,
+    limit: usize,
+) -> Result<(Vec<VolumeMeta>, bool, Option<String>), Error> {
+    let mut out = Vec::with_capacity(limit);
+    for _ in 0..SCAN_PAGES {
+        let (page, more) = app
+            .store
+            .list(after.as_deref(), limit - out.len())
+            .await
+            .map_err(Error::from)?;
+        after = page.last().map(|m| m.id.clone()).or(after);
+        out.extend(
+            page.into_iter()
+                .filter(|m| sees(caller, m.owner.as_deref())),
+        );
+        if !more || out.len() == limit {
+            return Ok((out, more, after));
+        }
+    }
+    Ok((out, true, after))
+}
+
 pub async fn get(
     axum::extract::State(app): AppState,
+    caller: Caller,
     Path(id): Path<String>,
 ) -> Result<Response, Problem> {
-    let meta = app
-        .store
-        .get(&id)
-        .await
-        .map_err(Error::from)?
-        .ok_or_else(|| Error::not_found("volume", &id))?;
+    let meta = meta_of(&app, &caller, &id).await?;
     Ok(axum::Json(meta).into_response())
 }
 
-/// A stored volume's catalogue entry (read before any work, for its cost).
-async fn meta_of(app: &crate::service::App, id: &str) -> Result<VolumeMeta, Error> {
+/// The API key a request was made with (`None`: the service needs no keys).
+pub type Caller = Option<axum::Extension<Owner>>;
+
+/// Whether `caller` may see what `owner` owns: everything without keys.
+pub fn sees(caller: &Caller, owner: Option<&str>) -> bool {
+    caller
+        .as_ref()
+        .is_none_or(|axum::Extension(o)| o.sees(owner))
+}
+
+/// The tenant that owns what `caller` makes (`None` without keys).
+pub fn tenant(caller: &Caller) -> Option<String> {
+    caller.as_ref().map(|axum::Extension(o)| o.tenant.clone())
+}
+
+/// A stored volume's catalogue entry (read before any work, for its cost), if `caller` may see
+/// it: another tenant's volume is `not-found`, as one that does not exist.
+async fn meta_of(
+    app: &crate::service::App,
+    caller: &Caller,
+    id: &str,
+) -> Result<VolumeMeta, Error> {
     app.store
         .get(id)
         .await
         .map_err(Error::from)?
+        .filter(|m| sees(caller, m.owner.as_deref()))
         .ok_or_else(|| Error::not_found("volume", id))
 }
 
 pub async fn delete(
     axum::extract::State(app): AppState,
+    caller: Caller,
     Path(id): Path<String>,
     headers: HeaderMap,
 ) -> Result<Response, Problem> {
-    if let Some(want) = headers.get(header::IF_MATCH) {
-        let meta = app
-            .store
-            .get(&id)
-            .await
-            .map_err(Error::from)?
-            .ok_or_else(|| Error::not_found("volume", &id))?;
+    // Only a volume the caller may see may be deleted (with keys, its owner is read first).
+    let meta = match (&caller, headers.get(header::IF_MATCH)) {
+        (None, None) => None,
+        _ => Some(meta_of(&app, &caller, &id).await?),
+    };
+    if let (Some(want), Some(meta)) = (headers.get(header::IF_MATCH), &meta) {
         let want = want.to_str().unwrap_or("");
         // Strong comparison: the ETag of any download of this volume's current content.
         let prefix = format!("\"{}-", etag_sha(&meta.sha256));
@@ -156,6 +205,7 @@ pub struct DataQuery {
 
 pub async fn data(
     axum::extract::State(app): AppState,
+    caller: Caller,
     Path(id): Path<String>,
     Query(q): Query<DataQuery>,
     headers: HeaderMap,
@@ -169,12 +219,7 @@ pub async fn data(
             ))
         })?,
     };
-    let meta = app
-        .store
-        .get(&id)
-        .await
-        .map_err(Error::from)?
-        .ok_or_else(|| Error::not_found("volume", &id))?;
+    let meta = meta_of(&app, &caller, &id).await?;
     let kind = meta.kind;
     ops::check_format(kind, format)?;
     ops::check_conversion(&meta.grid, format, &app.limits)?;
@@ -270,6 +315,7 @@ pub struct NameQuery {
 
 pub async fn csg(
     axum::extract::State(app): AppState,
+    caller: Caller,
     Query(q): Query<NameQuery>,
     Json(expr): Json<Value>,
 ) -> Result<Response, Problem> {
@@ -277,17 +323,22 @@ pub async fn csg(
         super::check_name(n, &app.limits)?;
     }
     let expr = CsgExpr::from_json(&expr, &app.limits)?;
-    ops::check_csg(&*app.store, &expr, &app.limits).await?;
+    // Every operand must be the caller's to see before anything about it is checked.
     let mut metas = std::collections::HashMap::new();
     for id in expr.volume_ids() {
-        let m = meta_of(&app, &id).await?;
+        let m = meta_of(&app, &caller, &id).await?;
         metas.insert(id, m);
     }
+    ops::check_csg(&*app.store, &expr, &app.limits).await?;
     let _memory = app
         .admit(cost::csg(&metas, &expr), "this CSG expression")
         .await?;
     drop(metas);
-    let meta = ops::csg_stored(&*app.store, expr, q.name).await?;
+    let label = ops::Label {
+        name: q.name,
+        owner: tenant(&caller),
+    };
+    let meta = ops::csg_stored(&*app.store, expr, label).await?;
     Ok(created(&meta))
 }
 
@@ -300,9 +351,13 @@ pub struct IntersectBody {
 
 pub async fn intersect(
     axum::extract::State(app): AppState,
+    caller: Caller,
     Json(body): Json<IntersectBody>,
 ) -> Result<Response, Problem> {
-    let (a, b) = (meta_of(&app, &body.a).await?, meta_of(&app, &body.b).await?);
+    let (a, b) = (
+        meta_of(&app, &caller, &body.a).await?,
+        meta_of(&app, &caller, &body.b).await?,
+    );
     let _memory = app
         .admit(
             cost::intersect(&a, &b),
@@ -315,6 +370,7 @@ pub async fn intersect(
 
 pub async fn morphology(
     axum::extract::State(app): AppState,
+    caller: Caller,
     Path(id): Path<String>,
     Query(q): Query<NameQuery>,
     Json(req): Json<MorphologyRequest>,
@@ -325,7 +381,7 @@ pub async fn morphology(
     // The request is checked before the volume is looked up: a bad request is 400 whatever
     // the id.
     req.check(&app.limits)?;
-    let src = meta_of(&app, &id).await?;
+    let src = meta_of(&app, &caller, &id).await?;
     let out = ops::morphology_grid(&src.grid, &req, &app.limits)?;
     let _memory = app
         .admit(
@@ -333,15 +389,20 @@ pub async fn morphology(
             &format!("morphology of volume {id}"),
         )
         .await?;
-    let meta = ops::morphology_stored(&*app.store, &id, req, q.name, app.limits).await?;
+    let label = ops::Label {
+        name: q.name,
+        owner: tenant(&caller),
+    };
+    let meta = ops::morphology_stored(&*app.store, &id, req, label, app.limits).await?;
     Ok(created(&meta))
 }
 
 pub async fn stats(
     axum::extract::State(app): AppState,
+    caller: Caller,
     Path(id): Path<String>,
 ) -> Result<Response, Problem> {
-    let meta = meta_of(&app, &id).await?;
+    let meta = meta_of(&app, &caller, &id).await?;
     let _memory = app
         .admit(cost::stats(&meta), &format!("statistics of volume {id}"))
         .await?;
@@ -350,12 +411,13 @@ pub async fn stats(
 
 pub async fn query(
     axum::extract::State(app): AppState,
+    caller: Caller,
     Path(id): Path<String>,
     Json(req): Json<QueryRequest>,
 ) -> Result<Response, Problem> {
     let limits = app.limits;
     req.check(&limits)?;
-    let meta = meta_of(&app, &id).await?;
+    let meta = meta_of(&app, &caller, &id).await?;
     let answer_bytes = limits.max_queries as u64 * 64;
     let _memory = app
         .admit(
@@ -376,6 +438,7 @@ pub struct NormalsQuery {
 
 pub async fn normals(
     axum::extract::State(app): AppState,
+    caller: Caller,
     Path(id): Path<String>,
     Query(q): Query<NormalsQuery>,
 ) -> Result<Response, Problem> {
@@ -394,7 +457,7 @@ pub async fn normals(
         .collect::<Result<_, _>>()?;
     let limits = app.limits;
     ops::check_normal_points(&points, &limits)?;
-    let meta = meta_of(&app, &id).await?;
+    let meta = meta_of(&app, &caller, &id).await?;
     let _memory = app
         .admit(
             cost::read_only(&meta, points.len() as u64 * 64),
@@ -418,6 +481,7 @@ pub struct PreviewQuery {
 
 pub async fn preview(
     axum::extract::State(app): AppState,
+    caller: Caller,
     Path(id): Path<String>,
     Query(q): Query<PreviewQuery>,
 ) -> Result<Response, Problem> {
@@ -444,7 +508,7 @@ pub async fn preview(
         view,
     };
     let limits = app.limits;
-    let meta = meta_of(&app, &id).await?;
+    let meta = meta_of(&app, &caller, &id).await?;
     let _memory = app
         .admit(
             cost::read_only(&meta, limits.max_preview_pixels.saturating_mul(9)),
