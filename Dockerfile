@@ -9,6 +9,16 @@
 # Configuration comes only from VOXD_* and AWS_* variables (README, "Command line" and
 # "Replicas"). The NVIDIA container toolkit mounts the host's Vulkan ICD (nvidia_icd.json) and
 # driver at run time; none is baked in here.
+#
+# The binary comes from the build stage (Rust, from source) unless VOXD_BIN_STAGE=prebuilt: then
+# it is the file `voxd` at the root of the build context, a binary built outside for Debian 12
+# (glibc 2.36), and the Rust stage is skipped. scripts/image-check.sh builds the image that way
+# (crates cannot be fetched from inside a build there):
+#   podman build --format docker --build-arg VOXD_BIN_STAGE=prebuilt -f Dockerfile DIR_WITH_VOXD
+
+# Which stage supplies /out/voxd: build (the default) or prebuilt. A stage chosen through FROM,
+# not through COPY --from=${...}: buildah resolves --from before it expands variables.
+ARG VOXD_BIN_STAGE=build
 
 ############################## build ##############################
 FROM rust:1.95-bookworm AS build
@@ -31,6 +41,13 @@ COPY src ./src
 COPY shaders ./shaders
 RUN cargo build --release --locked --bin voxd \
  && install -D -m 0755 target/release/voxd /out/voxd
+
+############################## prebuilt ##############################
+# Only with --build-arg VOXD_BIN_STAGE=prebuilt (BuildKit and buildah skip unused stages).
+FROM scratch AS prebuilt
+COPY --chmod=0755 voxd /out/voxd
+
+FROM ${VOXD_BIN_STAGE} AS bin
 
 ############################## runtime ##############################
 FROM debian:bookworm-slim
@@ -55,7 +72,7 @@ RUN groupadd --system --gid 10001 voxd \
  && mkdir -p /data \
  && chown voxd:voxd /data
 
-COPY --from=build /out/voxd /usr/local/bin/voxd
+COPY --from=bin /out/voxd /usr/local/bin/voxd
 
 # The default 127.0.0.1 is unreachable from outside the container. /data holds volumes and job
 # records unless VOXD_STORE=s3://… puts them in a bucket.

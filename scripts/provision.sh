@@ -5,7 +5,7 @@
 # fuzz.sh) run it for that part, so each still runs alone on a fresh machine.
 #   ./scripts/provision.sh               # every part
 #   ./scripts/provision.sh s3 contract   # only these parts
-# Parts: python redis nginx s3 deploy vulkan contract deploy-check fuzz (described below).
+# Parts: python redis nginx s3 deploy vulkan contract deploy-check image fuzz (described below).
 # Idempotent: each part checks first and installs only what is missing, so a provisioned machine
 # costs a few probes. Debian packages need root and apt-get; without them a part prints what it
 # could not do and the tests that need it skip with a NOTICE (unless a VOXD_REQUIRE_* says
@@ -136,6 +136,16 @@ part_deploy_check() {
   fi
 }
 
+# image: Debian's podman, runc (crun fails on hosts with hybrid cgroups) and mmdebstrap (the
+# base image), for scripts/image-check.sh, which builds the Dockerfile's image and runs it; and
+# uidmap, slirp4netns and fuse-overlayfs, which podman uses when not run as root.
+part_image() {
+  if { ! command -v podman >/dev/null || ! command -v runc >/dev/null || ! command -v mmdebstrap >/dev/null; } && can_apt; then
+    echo "installing podman runc mmdebstrap for the image check"
+    apt_install podman runc mmdebstrap uidmap slirp4netns fuse-overlayfs || true
+  fi
+}
+
 # fuzz: cargo-fuzz, pinned, for scripts/fuzz.sh.
 CARGO_FUZZ_VERSION=0.13.2
 part_fuzz() {
@@ -145,11 +155,11 @@ part_fuzz() {
   fi
 }
 
-ALL=(python redis nginx s3 deploy vulkan contract deploy-check fuzz)
+ALL=(python redis nginx s3 deploy vulkan contract deploy-check image fuzz)
 (($# > 0)) || set -- "${ALL[@]}"
 for part in "$@"; do
   case $part in
-    python | redis | nginx | s3 | deploy | vulkan | contract | fuzz) "part_$part" ;;
+    python | redis | nginx | s3 | deploy | vulkan | contract | image | fuzz) "part_$part" ;;
     deploy-check) part_deploy_check ;;
     *) echo "provision.sh: unknown part '$part' (parts: ${ALL[*]})" >&2; exit 2 ;;
   esac

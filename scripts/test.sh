@@ -39,6 +39,15 @@ else
   echo "NOTICE: no tini, PyYAML, Redis, nginx or SeaweedFS; the deployment test will skip"
 fi
 
+# The image check (scripts/image-check.sh) builds the Dockerfile's image with podman on a base
+# made by mmdebstrap, with the binary `cargo test` built, and runs it on 127.0.0.1. With podman,
+# runc and mmdebstrap it is required (VOXD_REQUIRE_IMAGE=1); elsewhere it skips with a notice.
+if command -v podman >/dev/null && command -v runc >/dev/null && command -v mmdebstrap >/dev/null; then
+  export VOXD_REQUIRE_IMAGE=1
+else
+  echo "NOTICE: no podman, runc or mmdebstrap; the image check will skip"
+fi
+
 # The GPU tests run on lavapipe where no GPU exists; once a driver is there they are required.
 if [[ ${CI:-} == true ]] || { compgen -G "/usr/share/vulkan/icd.d/*.json" >/dev/null && ldconfig -p | grep -q libvulkan.so.1; }; then
   export VOXD_REQUIRE_GPU=1
@@ -64,3 +73,4 @@ cargo test --locked --features fault-injection -- --show-output
 VOXD_CONTRACT_BIN=$TARGET/debug/voxd ./scripts/contract.sh   # openapi.yaml valid, and schemathesis against the running service
 ./scripts/deploy-check.sh  # Dockerfile, compose file and Kubernetes manifests: hadolint, compose config, schemas
 ./scripts/deploy-e2e.sh    # deploy/local.sh up: upload via nginx, download via the other replica, metrics, down
+VOXD_IMAGE_BIN=$TARGET/debug/voxd ./scripts/image-check.sh   # the image built with podman and run: healthz, a voxelization, uid 10001 under tini, restart, graceful stop, lavapipe
