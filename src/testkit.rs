@@ -1,5 +1,5 @@
-//! The one helper module of `src/`'s unit tests: a seeded random generator and scratch
-//! directories. Compiled only under `cfg(test)`.
+//! The one helper module of `src/`'s unit tests: a seeded random generator, scratch
+//! directories and gzip. Compiled only under `cfg(test)`.
 //!
 //! Not here: the integration tests' helpers (`tests/common/`, another crate, which has its own
 //! generator of the same algorithm), nor fixtures of one subsystem (meshes, stores), which stay
@@ -154,4 +154,12 @@ fn the_generator_keeps_its_stream() {
     );
     let u = Rng::new(7).unit();
     assert!((0.0..1.0).contains(&u));
+}
+
+/// `b` gzipped (one member, fast compression).
+pub(crate) fn gz(b: &[u8]) -> Vec<u8> {
+    use std::io::Write;
+    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    e.write_all(b).unwrap();
+    e.finish().unwrap()
 }

@@ -126,13 +126,7 @@ pub fn estimate(upload: &[u8], format: Option<Format>, opts: &LoadOptions) -> Es
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::io::Write;
-
-    fn gz(b: &[u8]) -> Vec<u8> {
-        let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
-        e.write_all(b).unwrap();
-        e.finish().unwrap()
-    }
+    use crate::testkit::gz;
 
     fn stl(n: u32) -> Vec<u8> {
         let mut b = vec![0u8; 80];

@@ -280,13 +280,7 @@ pub(super) fn after_last_newline(b: &[u8]) -> Option<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::io::Write;
-
-    fn gz(b: &[u8]) -> Vec<u8> {
-        let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
-        e.write_all(b).unwrap();
-        e.finish().unwrap()
-    }
+    use crate::testkit::gz;
 
     #[test]
     fn gzip_stream_stops_at_the_limit() {

@@ -10,6 +10,7 @@ use std::sync::OnceLock;
 use super::stream::Stream;
 use super::*;
 use crate::limits::Limits;
+use crate::testkit::gz;
 
 const GIB: u64 = 1 << 30;
 const MIB: u64 = 1 << 20;
@@ -24,12 +25,6 @@ fn gz_run(len: u64, byte: u8) -> Vec<u8> {
         e.write_all(&piece[..n]).unwrap();
         left -= n as u64;
     }
-    e.finish().unwrap()
-}
-
-fn gz(b: &[u8]) -> Vec<u8> {
-    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
-    e.write_all(b).unwrap();
     e.finish().unwrap()
 }
 
