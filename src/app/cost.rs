@@ -32,11 +32,13 @@ pub fn decoded_bytes(kind: VolumeKind, grid: &Grid) -> u64 {
     }
 }
 
-/// Loading a stored volume: its stored bytes and the decoded volume, both alive while it
-/// decodes.
+/// Loading a stored volume: its stored bytes and the decoded volume twice (the `.vxl` payload
+/// is decompressed whole, then copied into the volume's words: both are alive for a moment).
+/// Counted once, 11 slow `.npy` readers of a 108 MB volume peaked 31 MiB over a 1 GiB budget
+/// plus the idle server (bench/hostile, docs/security.md).
 pub fn load(meta: &VolumeMeta) -> u64 {
     meta.bytes
-        .saturating_add(decoded_bytes(meta.kind, &meta.grid))
+        .saturating_add(decoded_bytes(meta.kind, &meta.grid).saturating_mul(2))
 }
 
 /// Runs of set voxels along z that statistics' component labelling is estimated to keep: at

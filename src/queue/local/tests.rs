@@ -416,23 +416,28 @@ async fn kept_jobs_run_again_after_a_crash_up_to_their_attempts() {
     );
     // The process dies with all three queued (the old queue never runs again).
     let q2 = open().await.unwrap();
-    for (id, state) in [
-        ("k1", State::Queued),
-        ("d2", State::Queued),
-        ("w3", State::Failed),
-    ] {
-        assert_eq!(q2.get(id).await.unwrap().unwrap().state, state, "{id}");
+    for id in ["k1", "d2"] {
+        let state = q2.get(id).await.unwrap().unwrap().state;
+        assert_eq!(state, State::Queued, "{id}");
     }
-    // k1 starts, and the process dies during it; d2 runs to its end.
-    let c = q2.next().await.unwrap();
-    assert_eq!(c.id, "k1");
+    // Not kept: failed, or not known at all where its record was never written (its client
+    // never got its id).
+    let w3 = q2.get("w3").await.unwrap();
     assert!(
-        matches!(c.work, Work::Stored { .. }),
-        "prepared from its upload"
+        w3.as_ref().is_none_or(|r| r.state == State::Failed),
+        "{w3:?}"
+    );
+    // Both start (in either order: they wait as long); the process dies during k1, d2 runs
+    // to its end.
+    let (c, d) = (q2.next().await.unwrap(), q2.next().await.unwrap());
+    let mut ids = [c.id.as_str(), d.id.as_str()];
+    ids.sort();
+    assert_eq!(ids, ["d2", "k1"]);
+    assert!(
+        matches!(c.work, Work::Stored { .. }) && matches!(d.work, Work::Stored { .. }),
+        "prepared from their uploads"
     );
     assert_eq!(q2.get("k1").await.unwrap().unwrap().attempts, Some(1));
-    let d = q2.next().await.unwrap();
-    assert_eq!(d.id, "d2");
     q2.finish("d2", Err(Error::internal("ended"))).await;
     assert!(!has_upload("d2").await, "an ended job's upload goes");
     // Started once: queued again. Started twice (the limit): failed, its upload gone.
