@@ -454,6 +454,14 @@ fn preview_pictures() {
         &[],
     );
     assert_eq!(png.header("content-type"), Some("image/png"));
+    // A slice wins over a projection given with it (two plain parameters in the contract).
+    let both = srv.req(
+        "GET",
+        &format!("/v1/volumes/{id}/preview.png?axis=z&slice=2&projection=sum"),
+        &[],
+        &[],
+    );
+    assert_eq!(both.body, png.body);
     let (w, h, px) = decode_png(&png.body);
     assert_eq!((w, h), (12, 10));
     // Row 0 is the top (y = 9): the box covers x 2..6, y 3..9 on slice z = 2.

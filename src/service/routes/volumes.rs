@@ -493,8 +493,8 @@ pub async fn preview(
             .map_err(|_| Problem::invalid(format!("axis={a:?} is not {}", choices::<Axis>())))?,
     };
     let view = match (q.slice, q.projection.as_deref()) {
-        (Some(_), Some(_)) => return Err(Problem::invalid("give slice or projection, not both")),
-        (Some(k), None) => PreviewView::Slice(k),
+        // A slice wins over a projection given with it.
+        (Some(k), _) => PreviewView::Slice(k),
         (None, None) => PreviewView::Projection(Projection::DEFAULT),
         (None, Some(p)) => PreviewView::Projection(p.parse::<Projection>().map_err(|_| {
             Problem::invalid(format!(
