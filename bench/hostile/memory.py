@@ -6,7 +6,7 @@ voxelizing a mesh at --resolution, then for each case reads the server's VmHWM f
 /proc/PID/status after a fresh start: N concurrent GET /v1/volumes/{id}/stats (N = 1, 4, 16),
 and a CSG body of 100 MB and 250 MB sent with Content-Length and chunked. Prints a table.
 
-    python3 bench/hostile/memory.py --voxd target/release/voxd --mesh ../shared/meshes/bunny.obj
+    python3 bench/hostile/memory.py --voxd target/release/voxd --mesh ../shared/meshes/stanford-bunny.obj
 """
 import argparse, concurrent.futures as cf, http.client, os, re, socket, subprocess, tempfile, time
 
@@ -36,14 +36,17 @@ def csg_body(n):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--voxd", default="target/release/voxd")
-    ap.add_argument("--mesh", default="../shared/meshes/bunny.obj")
+    here = os.path.dirname(os.path.abspath(__file__))
+    meshes = [os.path.join(here, "..", "..", "..", "shared", "meshes", "stanford-bunny.obj"),
+              "/work/shared/meshes/stanford-bunny.obj", os.path.join(here, "..", "..", "tests", "data", "spot.obj")]
+    ap.add_argument("--mesh", default=next((os.path.normpath(m) for m in meshes if os.path.exists(m)), meshes[0]))
     ap.add_argument("--resolution", type=int, default=1024)
     ap.add_argument("--max-memory", type=int, default=1 << 30)
     args = ap.parse_args()
     data = tempfile.mkdtemp(prefix="voxd-mem-")
     p, addr = start(args, data)
     fmt = os.path.splitext(args.mesh)[1].lstrip(".")
-    st, b = req(addr, "POST", f"/v1/voxelize?format={fmt}&resolution={args.resolution}&wait=600",
+    st, b = req(addr, "POST", f"/v1/voxelize?format={fmt}&resolution={args.resolution}&wait=300",
                 open(args.mesh, "rb").read())
     assert st == 201, b
     import json
@@ -65,19 +68,22 @@ def main():
         for chunked in (False, True):
             p, addr = start(args, data)
             body = csg_body(size)
-            if chunked:
-                st, _ = req(addr, "POST", "/v1/volumes/csg", iter([body[i:i + (1 << 20)] for i in range(0, len(body), 1 << 20)]),
-                            {"Content-Type": "application/json"}, chunked=True)
-            else:
-                try:
+            try:  # a 413 answered before the body is read may reach us as a broken pipe
+                if chunked:
+                    st, _ = req(addr, "POST", "/v1/volumes/csg",
+                                iter([body[i:i + (1 << 20)] for i in range(0, len(body), 1 << 20)]),
+                                {"Content-Type": "application/json"}, chunked=True)
+                else:
                     st, _ = req(addr, "POST", "/v1/volumes/csg", body, {"Content-Type": "application/json"})
-                except (BrokenPipeError, ConnectionResetError) as e:
-                    st = type(e).__name__
+            except (BrokenPipeError, ConnectionResetError) as e:
+                st = type(e).__name__
             rows.append((f"CSG {size >> 20} MB {'chunked' if chunked else 'Content-Length'}", st, hwm(p.pid)["VmHWM"]))
             p.terminate(); p.wait()
     print(f"{'case':32} {'status':>22} {'peak RSS MB':>12}")
     for c, s, m in rows:
         print(f"{c:32} {str(s):>22} {m / 1e6:12.1f}")
+    import shutil
+    shutil.rmtree(data, ignore_errors=True)
 
 if __name__ == "__main__":
     main()

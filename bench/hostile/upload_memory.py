@@ -73,7 +73,7 @@ def post(addr, body, ctype, out):
     host, port = addr.rsplit(":", 1)
     try:
         c = http.client.HTTPConnection(host, int(port), timeout=600)
-        c.request("POST", "/v1/voxelize?resolution=32&wait=600", body,
+        c.request("POST", "/v1/voxelize?resolution=32&wait=300", body,
                   {"Content-Type": ctype, "Content-Encoding": "gzip"} if body[:2] == b"\x1f\x8b"
                   else {"Content-Type": ctype})
         r = c.getresponse()
