@@ -261,6 +261,19 @@ impl Weed {
         }
     }
 
+    /// SIGSTOP (`true`) or SIGCONT (`false`): a store that takes connections and never answers
+    /// while stopped. Dropping a paused server kills it (SIGKILL works on a stopped process).
+    pub fn pause(&self, stop: bool) {
+        if let Some(c) = &self.child {
+            let sig = if stop { "-STOP" } else { "-CONT" };
+            let ok = Command::new("kill")
+                .args([sig, &c.id().to_string()])
+                .status()
+                .is_ok_and(|s| s.success());
+            assert!(ok, "kill {sig} weed");
+        }
+    }
+
     /// Starts again on the same directory and ports.
     pub fn restart(&mut self) {
         self.kill();

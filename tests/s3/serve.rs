@@ -317,6 +317,45 @@ fn the_store_going_away_is_503_storage_unavailable_and_leaves_no_half_volume() {
 }
 
 #[cfg(feature = "fault-injection")]
+/// A paused store (SIGSTOP: connections are taken, nothing is answered) makes `/readyz` answer
+/// `503 storage-unavailable` once its cached health (30 s after the last good write) runs out,
+/// each probe bounded by its timeout (2 s): every `/readyz` is answered meanwhile, none hangs.
+/// Once the store goes on, `/readyz` is 200 again.
+#[test]
+fn readyz_answers_503_while_the_store_is_paused() {
+    let Some(weed) = Weed::start("paused") else {
+        return;
+    };
+    let srv = Server::start(&weed.vars(), "p", &[]);
+    srv.req("GET", "/readyz", &[], &[]).ok(200);
+    weed.pause(true);
+    // Before, the probe hung with the store: the client's 120 s read timeout ended an
+    // exchange with no answer (a panic in `req`). Now each is answered.
+    let deadline = Instant::now() + Duration::from_secs(90);
+    let (mut answered, mut slowest) = (0, Duration::ZERO);
+    let r = loop {
+        let t = Instant::now();
+        let r = srv.req("GET", "/readyz", &[], &[]);
+        slowest = slowest.max(t.elapsed());
+        answered += 1;
+        if r.status != 200 || Instant::now() > deadline {
+            break r;
+        }
+        std::thread::sleep(Duration::from_millis(500));
+    };
+    weed.pause(false);
+    r.problem(503, "storage-unavailable");
+    eprintln!("readyz with the store paused: {answered} answered, the slowest in {slowest:?}");
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while srv.req("GET", "/readyz", &[], &[]).status != 200 {
+        assert!(
+            Instant::now() < deadline,
+            "/readyz not 200 after the store went on"
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
+
 #[test]
 fn a_replica_killed_between_data_and_commit_leaves_nothing_listed() {
     let Some(weed) = s3::shared() else { return };
