@@ -316,7 +316,6 @@ fn the_store_going_away_is_503_storage_unavailable_and_leaves_no_half_volume() {
     );
 }
 
-#[cfg(feature = "fault-injection")]
 /// A paused store (SIGSTOP: connections are taken, nothing is answered) makes `/readyz` answer
 /// `503 storage-unavailable` once its cached health (30 s after the last good write) runs out,
 /// each probe bounded by its timeout (2 s): every `/readyz` is answered meanwhile, none hangs.
@@ -356,6 +355,7 @@ fn readyz_answers_503_while_the_store_is_paused() {
     }
 }
 
+#[cfg(feature = "fault-injection")]
 #[test]
 fn a_replica_killed_between_data_and_commit_leaves_nothing_listed() {
     let Some(weed) = s3::shared() else { return };
