@@ -182,6 +182,10 @@ fn polling_wait_cancel_and_caching() {
         &[],
     );
     assert_eq!(d.header("content-encoding"), Some("gzip"));
+    assert_eq!(
+        d.header("content-disposition"),
+        Some("attachment; filename=\"spot.npy\"")
+    );
     let etag = d.header("etag").unwrap().to_string();
     let again = srv.req(
         "GET",

@@ -1,6 +1,7 @@
 //! The v1 routes, one file per resource. [`ROUTES`] is the route table `openapi.yaml` is checked
 //! against; a test over the router in-process checks that the router answers exactly it.
 
+mod disposition;
 mod health;
 mod jobs;
 mod volumes;

@@ -249,10 +249,7 @@ pub async fn data(
     };
     let download = ops::download(&*app.store, &meta, format).await?;
     let media = format.media_type();
-    let name = meta.name.clone().unwrap_or_else(|| id.clone()).replace(
-        |c: char| !c.is_ascii_alphanumeric() && c != '-' && c != '_',
-        "_",
-    );
+    let disposition = super::disposition::attachment(meta.name.as_deref(), &id, format.extension());
     // The first chunk before the status line: a volume that fits in it (most `.vxl`s) and is
     // damaged, or a conversion that fails at once, is still a problem document; past it, a
     // failure can only end the transfer early (the client sees a short body).
@@ -275,10 +272,7 @@ pub async fn data(
         header::CACHE_CONTROL,
         HeaderValue::from_static("private, max-age=0, must-revalidate"),
     );
-    if let Ok(v) = HeaderValue::from_str(&format!(
-        "attachment; filename=\"{name}.{}\"",
-        format.extension()
-    )) {
+    if let Ok(v) = HeaderValue::from_str(&disposition) {
         h.insert(header::CONTENT_DISPOSITION, v);
     }
     Ok(r)
