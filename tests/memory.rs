@@ -8,7 +8,7 @@ use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::time::Duration;
 
-use crate::common::{Scratch, request};
+use crate::common::{Resp, Scratch, request};
 use crate::service::{Server, box_obj};
 
 /// Budget of these tests, 6 MiB: a 256³ bit volume's conversion (2 MiB decoded, counted twice
@@ -24,20 +24,24 @@ fn server(name: &str, extra: &[&str]) -> (Scratch, Server) {
     (dir, srv)
 }
 
+/// A unit box voxelized by `srv` at `resolution`, waited for.
+fn voxelize_box(srv: &Server, resolution: u32) -> Resp {
+    request(
+        &srv.addr,
+        "POST",
+        &format!("/v1/voxelize?format=obj&resolution={resolution}&wait=60"),
+        &[],
+        &box_obj([0.0; 3], [1.0; 3]),
+    )
+}
+
 /// A server with the small budget (and `extra`) over a data directory that holds a 256³ box
 /// volume, and that volume's id. The volume is made by a server with the default budget first:
 /// its voxelization (three times its 2 MiB of bits) does not fit the small one.
 fn with_big_volume(name: &str, extra: &[&str]) -> (Scratch, Server, String) {
     let dir = Scratch::new(name);
     let seed = Server::start(&dir, &[]);
-    let r = request(
-        &seed.addr,
-        "POST",
-        "/v1/voxelize?format=obj&resolution=256&wait=60",
-        &[],
-        &box_obj([0.0; 3], [1.0; 3]),
-    )
-    .ok(201);
+    let r = voxelize_box(&seed, 256).ok(201);
     let id = r.json()["id"].as_str().unwrap().to_string();
     drop(seed);
     let mut args = vec!["--max-memory", BUDGET, "--send-timeout", "60"];
@@ -198,25 +202,12 @@ fn an_upload_waiting_for_memory_is_busy_not_a_timeout() {
 #[test]
 fn a_job_over_the_whole_budget_is_refused_when_submitted() {
     let (_dir, srv) = server("mem-job", &[]);
-    let r = request(
-        &srv.addr,
-        "POST",
-        "/v1/voxelize?format=obj&resolution=256&wait=60",
-        &[],
-        &box_obj([0.0; 3], [1.0; 3]),
-    );
+    let r = voxelize_box(&srv, 256);
     let p = r.problem(422, "too-much-memory");
     let detail = p["detail"].as_str().unwrap();
     assert!(
         detail.contains("the voxelization") && detail.contains(BUDGET),
         "{detail}"
     );
-    request(
-        &srv.addr,
-        "POST",
-        "/v1/voxelize?format=obj&resolution=64&wait=60",
-        &[],
-        &box_obj([0.0; 3], [1.0; 3]),
-    )
-    .ok(201);
+    voxelize_box(&srv, 64).ok(201);
 }

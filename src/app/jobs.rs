@@ -36,8 +36,7 @@ pub async fn run(
     claim: &Claim,
 ) -> Result<VolumeMeta> {
     let work = prepared(store, &claim.id, claim.work.clone()).await?;
-    let mut built = build(engine, work, claim).await?;
-    built.meta.owner = claim.owner.clone();
+    let built = build(engine, work, claim).await?;
     keep(
         store,
         claim.volume_id.as_deref(),
@@ -82,7 +81,8 @@ pub async fn prepared(store: &dyn VolumeStore, id: &str, work: Work) -> Result<A
     Ok(Arc::new(p))
 }
 
-/// The engine's part of [`run`]: the volume and its metadata, not yet stored.
+/// The engine's part of [`run`]: the volume and its metadata (owned by the job's owner), not
+/// yet stored.
 async fn build(
     engine: Arc<dyn Engine>,
     work: Arc<Prepared>,
@@ -122,7 +122,11 @@ async fn build(
         Err(Canceled::DeadlinePassed) if built.is_err() => return Err(timed_out(claim.timeout)),
         _ => {}
     }
-    built
+    // The volume is owned by the job's tenant.
+    built.map(|mut b| {
+        b.meta.owner = claim.owner.clone();
+        b
+    })
 }
 
 /// The store's part of [`run`]: the volume under the claim's volume id (if it has one), once
@@ -303,10 +307,6 @@ async fn work_with(
         // no longer holds either) is freed now, before the wait for the byte budget below, not
         // when the store is done with the volume.
         let (id, volume_id, guard) = (claim.id, claim.volume_id, claim.guard);
-        let built = built.map(|mut b| {
-            b.meta.owner = claim.owner;
-            b
-        });
         drop(claim.work);
         // The volume's share of the byte budget (the whole of it for one larger than that),
         // before the next job is taken: this worker's volumes waiting on the store stay within

@@ -89,18 +89,16 @@ impl Registry {
 
     /// Tells the connection idle longest to close; false when none is idle.
     pub(super) fn shed_idle(&self) -> bool {
-        let g = self.lock();
+        let mut g = self.lock();
         let oldest = g
             .conns
-            .values()
+            .values_mut()
             .filter(|e| e.placed && e.busy == 0 && !e.closing)
             .min_by_key(|e| e.idle_since);
         let Some(e) = oldest else { return false };
-        let close = e.close.clone();
-        let ip = e.ip;
-        drop(g);
-        self.mark_closing(&close);
-        tracing::debug!(%ip, "connections at the cap: closing the one idle longest");
+        e.closing = true;
+        e.close.notify_one();
+        tracing::debug!(ip = %e.ip, "connections at the cap: closing the one idle longest");
         true
     }
 
@@ -117,14 +115,6 @@ impl Registry {
             }
         }
         n
-    }
-
-    fn mark_closing(&self, close: &Arc<Notify>) {
-        let mut g = self.lock();
-        if let Some(e) = g.conns.values_mut().find(|e| Arc::ptr_eq(&e.close, close)) {
-            e.closing = true;
-        }
-        close.notify_one();
     }
 }
 
