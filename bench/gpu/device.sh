@@ -4,6 +4,8 @@
 #   1. `voxd bench` (CPU and GPU per method and resolution, with the GPU's upload / dispatch /
 #      readback and whether the bits agree) on igea-subdiv4 and stanford-bunny;
 #   2. the whole `voxd voxelize` command, CPU engine against GPU engine, interleaved, 3 runs each;
+#   0. the GPU tests (tests/gpu.rs: every kernel against the CPU engine, bit for bit) on the
+#      device's adapter, from the integration tests' release binary;
 #   3. small jobs from 1, 4 and 16 threads on one GPU engine (examples/gpu_small_jobs, every
 #      volume checked against the CPU engine's).
 # Every step has its own timeout; a step that fails is reported and the rest go on.
@@ -38,6 +40,14 @@ step() { # TITLE SECONDS COMMAND...
   echo "$(nproc) cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)), $(free -g | awk '/Mem/ {print $2}') GiB; voxd $(sha256sum $d/voxd | cut -c1-12); $(date -u)"
   echo
 } >"$report"
+gputests() { # the GPU tests on this adapter (VOXD_REQUIRE_GPU: no adapter is a failure)
+  local m; m=$(cat $d/manifest_dir 2>/dev/null)
+  [[ -n $m && ! -e $m ]] && mkdir -p "$(dirname "$m")" && ln -s "$PWD" "$m"
+  echo '```'
+  VOXD_SHARED_MESHES=$PWD/$d/meshes VOXD_REQUIRE_GPU=1 $d/integration gpu:: --test-threads 4 2>&1 | grep -E '^(test |GPU tests on|test result|failures|---- )' | tail -80
+  echo '```'
+}
+[[ -x $d/integration ]] && step "GPU tests (tests/gpu.rs) on the device" 150 gputests
 [[ -f $d/meshes/igea-subdiv4.obj.gz && -z ${SKIP_BENCH:-} ]] && step "voxd bench: igea-subdiv4" 150 $d/voxd bench $d/meshes/igea-subdiv4.obj.gz --resolutions 256,512,1024 --methods solid,surface --runs 3
 [[ -f $d/meshes/stanford-bunny.obj && -z ${SKIP_BENCH:-} ]] && step "voxd bench: stanford-bunny" 90 $d/voxd bench $d/meshes/stanford-bunny.obj --resolutions 128,256,512 --runs 3
 whole() { # MESH RES: the whole command, cpu and gpu interleaved, 3 runs each (wall seconds)

@@ -16,10 +16,20 @@ cargo build --release --locked --bin voxd --example gpu_small_jobs
 rm -rf .device && mkdir -p .device/meshes
 strip -o .device/voxd target/release/voxd
 strip -o .device/gpu_small_jobs target/release/examples/gpu_small_jobs
+# The integration tests' binary (release), for its GPU == CPU tests (tests/gpu.rs) on the device.
+tests=$(cargo test --release --locked --test integration --no-run --message-format=json 2>/dev/null \
+  | python3 -c 'import json, sys
+for l in sys.stdin:
+    m = json.loads(l) if l.startswith("{") else {}
+    if m.get("reason") == "compiler-artifact" and m.get("executable") and m["target"]["name"] == "integration":
+        print(m["executable"])' | tail -1)
+strip -o .device/integration "$tests"
 cp tests/data/spot.obj bench/load/cube.obj .device/meshes/
-for m in stanford-bunny.obj igea-subdiv4.obj.gz teapot.obj; do
-  if [[ -f $meshes/$m ]]; then cp "$meshes/$m" .device/meshes/; else echo "NOTICE: no $meshes/$m; device.sh skips it" >&2; fi
-done
+# Every shared mesh (29 MB): the benchmarks' and the GPU tests' (tests/gpu.rs reads the folder
+# through VOXD_SHARED_MESHES there).
+if [[ -f $meshes/README.md ]]; then cp "$meshes"/* .device/meshes/; else echo "NOTICE: no $meshes; device.sh skips the real meshes" >&2; fi
+# The tests find tests/data under the checkout's path here (compiled in): device.sh links it.
+echo "$root" >.device/manifest_dir
 for d in /.device/ /.gl/; do grep -qxF "$d" .git/info/exclude 2>/dev/null || echo "$d" >>.git/info/exclude; done
 if [[ ! -d .gl ]] || ! compgen -G ".gl/*.deb" >/dev/null; then
   mkdir -p .gl /tmp/amd64/partial

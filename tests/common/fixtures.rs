@@ -23,7 +23,11 @@ pub fn repo_file(path: &str) -> PathBuf {
 
 /// `../shared/meshes`, or `None` with a printed notice.
 pub fn shared_meshes() -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes");
+    // VOXD_SHARED_MESHES: the folder elsewhere (a test binary run on another machine).
+    let p = std::env::var_os("VOXD_SHARED_MESHES").map_or_else(
+        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes"),
+        PathBuf::from,
+    );
     if p.join("README.md").exists() {
         Some(p)
     } else {
