@@ -50,7 +50,7 @@ found() {
     read -r st ticks <<<"$(proc_stat "$pid")" || continue
     [[ -n ${ticks:-} && $st != [ZX] ]] || continue
     ((ticks >= VOXD_SUITE_SINCE)) || continue
-    env=$(tr '\0' '\n' <"$p/environ" 2>/dev/null) || env=
+    env=$( { tr "\0" "\n" <"$p/environ"; } 2>/dev/null) || env=
     if grep -qx "VOXD_SUITE_ID=$VOXD_SUITE_ID" <<<"$env" || ! grep -q '^PATH=' <<<"$env"; then
       echo "$pid"
     fi
