@@ -115,11 +115,13 @@ stop_tier() { # NAME... : signal, wait, then SIGKILL the group
   [[ -f $DIR/pids ]] || return 0
   while read -r name pid st; do
     [[ $names == *" $name "* ]] || continue
+    # A program that is already gone is still done below: what is left of its session (nginx's
+    # workers after their master was killed, voxd after its tini) is not.
+    todo+=("$name:$pid:$st")
     if alive "$pid" "$st"; then
       sig=TERM; [[ $name == nginx ]] && sig=QUIT
       t=10; [[ $name == voxd-* ]] && t=65
       kill "-$sig" "$pid" 2>/dev/null || true
-      todo+=("$name:$pid:$st")
       if ((t > deadline)); then deadline=$t; fi
     fi
   done <"$DIR/pids"
@@ -140,8 +142,11 @@ stop_tier() { # NAME... : signal, wait, then SIGKILL the group
       say "$name ($pid) still runs after ${deadline}s: SIGKILL"
       kill -KILL "$pid" 2>/dev/null || true
     fi
-    # What is left of its session (a child that outlived its parent).
-    local rest
+    # What is left of its session (a child that outlived its parent); not when its pid now
+    # belongs to another process (a session of that id may be someone else's).
+    local rest now
+    now=$(starttime "$pid")
+    [[ -z $now || $now == "$st" ]] || continue
     rest=$(session_left "$pid")
     if [[ -n $rest ]]; then
       say "$name: SIGKILL to what is left of its session: $(echo "$rest" | tr '\n' ' ')"
@@ -600,9 +605,10 @@ up() {
     if ((${#asuser[@]})); then chown "$uid:$gid" "$data"; fi
     # The image's WORKDIR is its data directory; Docker's PATH, HOME the user's home (/data).
     # TINI_SUBREAPER: tini is not PID 1 here, so it registers as a subreaper to reap as it would.
+    # VOXD_SUITE_ID (when set) marks them as the test suite's (scripts/leftovers.sh).
     (cd "$data" && start "voxd-$i" "$DIR/logs/voxd-$i.log" \
       "${asuser[@]}" env -i "PATH=$DIR/bin:/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin" \
-      "HOME=$data" TINI_SUBREAPER=1 "${envs[@]}" "${IMAGE_ENTRYPOINT[@]}" "${IMAGE_CMD[@]}")
+      "HOME=$data" TINI_SUBREAPER=1 ${VOXD_SUITE_ID:+"VOXD_SUITE_ID=$VOXD_SUITE_ID"} "${envs[@]}" "${IMAGE_ENTRYPOINT[@]}" "${IMAGE_CMD[@]}")
   done
   for i in 1 2; do
     port=$v1; ((i == 2)) && port=$v2

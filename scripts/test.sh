@@ -8,6 +8,9 @@ cd "$(dirname "$0")/.."
 # what is present: a check whose tools are here is required (VOXD_REQUIRE_*=1), where a missing
 # tool would otherwise make it skip with a NOTICE.
 ./scripts/provision.sh
+# Every process the suite starts from here on carries VOXD_SUITE_ID; at the end
+# scripts/leftovers.sh fails the suite if one of them (voxd, nginx, redis-server, weed, ...) still runs.
+eval "$(./scripts/leftovers.sh snapshot)"
 
 # numpy + zstandard let the tests check that Python reads what voxd writes. Where they can be
 # had, the Python checks are required (VOXD_REQUIRE_PYTHON=1); elsewhere they skip with a notice.
@@ -75,3 +78,4 @@ VOXD_README_BIN=$TARGET/debug/voxd ./scripts/readme-check.sh   # every README se
 ./scripts/deploy-check.sh  # Dockerfile, compose file and Kubernetes manifests: hadolint, compose config, schemas
 ./scripts/deploy-e2e.sh    # deploy/local.sh up: upload via nginx, download via the other replica, metrics, down
 VOXD_IMAGE_BIN=$TARGET/debug/voxd ./scripts/image-check.sh   # the image built with podman and run: healthz, a voxelization, uid 10001 under tini, restart, graceful stop, lavapipe
+./scripts/leftovers.sh check   # no process the suite started is still running

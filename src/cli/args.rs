@@ -145,7 +145,9 @@ pub struct VoxelizeArgs {
     /// Empty voxels added on every side.
     #[arg(long, default_value_t = 0)]
     pub padding: u32,
-    /// auto (the GPU when an adapter exists, else the CPU), gpu or cpu.
+    /// auto (the GPU on a hardware adapter when one exists, else the CPU: a software adapter
+    /// such as lavapipe only when named with --adapter), gpu (any adapter, lavapipe included)
+    /// or cpu.
     #[arg(long, default_value_t = EngineChoice::DEFAULT, value_parser = named::<EngineChoice>())]
     pub engine: EngineChoice,
     /// Use the GPU adapter whose name contains this (e.g. llvmpipe); also VOXD_ADAPTER.
@@ -204,7 +206,8 @@ pub struct ServeArgs {
     /// endpoint from AWS_* variables), file:///PATH or a directory. Default: --data-dir.
     #[arg(long, env = "VOXD_STORE", value_name = "URL", value_parser = StoreSpec::parse)]
     pub store: Option<StoreSpec>,
-    /// auto, gpu or cpu.
+    /// auto (the GPU on a hardware adapter when one exists, else the CPU: a software adapter
+    /// such as lavapipe only when named with --adapter), gpu (any adapter) or cpu.
     #[arg(long, env = "VOXD_ENGINE", default_value_t = EngineChoice::DEFAULT, value_parser = named::<EngineChoice>())]
     pub engine: EngineChoice,
     #[arg(long, env = "VOXD_ADAPTER")]

@@ -62,7 +62,7 @@ impl Nginx {
              \x20     proxy_connect_timeout 2s;\n      proxy_read_timeout 300s;\n    }}\n  }}\n}}\n"
         );
         std::fs::write(dir.join("nginx.conf"), conf).unwrap();
-        let mut child = Command::new(bin)
+        let child = Command::new(bin)
             .args(["-p", &dir.to_string_lossy(), "-c"])
             .arg(dir.join("nginx.conf"))
             .args(["-g", "daemon off;"])
@@ -73,13 +73,18 @@ impl Nginx {
             .stderr(Stdio::inherit())
             .spawn()
             .unwrap();
-        let addr = format!("127.0.0.1:{port}");
+        // Owned from here on, so that a failure below stops it too (Drop).
+        let mut nginx = Nginx {
+            child,
+            addr: format!("127.0.0.1:{port}"),
+            dir,
+        };
         let deadline = Instant::now() + Duration::from_secs(30);
-        while std::net::TcpStream::connect(&addr).is_err() {
-            if let Some(s) = child.try_wait().unwrap() {
+        while std::net::TcpStream::connect(&nginx.addr).is_err() {
+            if let Some(s) = nginx.child.try_wait().unwrap() {
                 panic!(
                     "nginx exited ({s}): {}",
-                    std::fs::read_to_string(dir.join("error.log")).unwrap_or_default()
+                    std::fs::read_to_string(nginx.dir.join("error.log")).unwrap_or_default()
                 );
             }
             assert!(
@@ -88,17 +93,40 @@ impl Nginx {
             );
             std::thread::sleep(Duration::from_millis(20));
         }
-        Some(Nginx { child, addr, dir })
+        Some(nginx)
     }
+}
+
+/// `kill -SIG -- -GROUP` (the whole process group); does a process of the group exist?
+fn signal_group(sig: &str, group: u32) -> bool {
+    Command::new("kill")
+        .args([sig, "--", &format!("-{group}")])
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
 }
 
 impl Drop for Nginx {
     fn drop(&mut self) {
-        // The whole group (master and workers): its id is the master's.
-        let group = format!("-{}", self.child.id());
-        let _ = Command::new("kill").args(["-KILL", "--", &group]).status();
+        // nginx's graceful stop (SIGQUIT, the image's STOPSIGNAL, as deploy/local.sh sends):
+        // the master tells its workers to finish, waits for them and exits.
+        let group = self.child.id(); // the group's id is the master's
+        let _ = Command::new("kill")
+            .args(["-QUIT", &group.to_string()])
+            .status();
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while Instant::now() < deadline && !matches!(self.child.try_wait(), Ok(Some(_))) {
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        // Whatever is left of the group (a master that did not stop, a worker it did not wait
+        // for), SIGKILLed, and waited for until no process of the group exists.
+        let _ = signal_group("-KILL", group);
         let _ = self.child.kill();
         let _ = self.child.wait();
+        let deadline = Instant::now() + Duration::from_secs(5);
+        while signal_group("-0", group) && Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(20));
+        }
         let _ = std::fs::remove_dir_all(&self.dir);
     }
 }
