@@ -4,11 +4,13 @@
 #   docker build -t voxd .
 #   docker run --rm -p 8080:8080 voxd                       # CPU engine (lavapipe with -e VOXD_ENGINE=gpu)
 #   docker run --rm -p 8080:8080 --runtime=nvidia --gpus all \
-#       -e NVIDIA_DRIVER_CAPABILITIES=graphics,compute,utility -e VOXD_ENGINE=gpu voxd
+#       -e NVIDIA_DRIVER_CAPABILITIES=graphics,compute,utility -e VOXD_ENGINE=gpu \
+#       -e VK_DRIVER_FILES=/usr/share/voxd/nvidia_egl_icd.json voxd
 #
 # Configuration comes only from VOXD_* and AWS_* variables (README, "Command line" and
-# "Replicas"). The NVIDIA container toolkit mounts the host's Vulkan ICD (nvidia_icd.json) and
-# driver at run time; none is baked in here.
+# "Replicas"). The NVIDIA container toolkit mounts the host's driver at run time; none is baked
+# in here. Its Vulkan ICD file names the GLX library, which finds no device headless: the GPU
+# overlays point VK_DRIVER_FILES at /usr/share/voxd/nvidia_egl_icd.json (the EGL library) instead.
 #
 # The binary comes from the build stage (Rust, from source) unless VOXD_BIN_STAGE=prebuilt: then
 # it is the file `voxd` at the root of the build context, a binary built outside for Debian 12
@@ -67,10 +69,15 @@ RUN apt-get update \
  && rm -rf /var/lib/apt/lists/*
 
 # A fixed, unprivileged uid/gid, so that volumes and Kubernetes' runAsUser can name it.
+# And an ICD file for NVIDIA's driver through its EGL library, for the GPU overlays'
+# VK_DRIVER_FILES: the toolkit's own nvidia_icd.json names libGLX_nvidia.so.0, which finds no
+# device in a headless container (measured on an H200, docs/benchmarks-history.md 2026-12-04).
 RUN groupadd --system --gid 10001 voxd \
  && useradd --system --uid 10001 --gid voxd --home-dir /data --no-create-home --shell /usr/sbin/nologin voxd \
- && mkdir -p /data \
- && chown voxd:voxd /data
+ && mkdir -p /data /usr/share/voxd \
+ && chown voxd:voxd /data \
+ && printf '{"file_format_version":"1.0.1","ICD":{"library_path":"libEGL_nvidia.so.0","api_version":"1.3.0"}}\n' \
+        > /usr/share/voxd/nvidia_egl_icd.json
 
 COPY --from=bin /out/voxd /usr/local/bin/voxd
 

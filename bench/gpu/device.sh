@@ -19,8 +19,19 @@ ldconfig 2>/dev/null
 if [[ -f /usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json ]] && ! compgen -G "/usr/share/vulkan/icd.d/*.json" >/dev/null; then
   export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
 fi
+# In a headless container NVIDIA's GLX ICD (the nvidia_icd.json the toolkit mounts) fails:
+# "Could not get 'vkCreateInstance' via 'vk_icdGetInstanceProcAddr' for ICD libGLX_nvidia.so.0"
+# and no adapter is found; the same driver's EGL library works without a display (2026-12-04,
+# H200, driver 580.159.04). So the ICD named is the EGL one where it exists.
+if ldconfig -p 2>/dev/null | grep -q 'libEGL_nvidia\.so\.0' || [[ -e /usr/local/nvidia/lib64/libEGL_nvidia.so.0 ]]; then
+  printf '{"file_format_version":"1.0.1","ICD":{"library_path":"libEGL_nvidia.so.0","api_version":"1.3.0"}}\n' >/tmp/voxd_nvidia_egl_icd.json
+  export VK_DRIVER_FILES=/tmp/voxd_nvidia_egl_icd.json VK_ICD_FILENAMES=/tmp/voxd_nvidia_egl_icd.json
+fi
 export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-$(mktemp -d)} VOXD_ADAPTER=${VOXD_ADAPTER:-NVIDIA}
 export d=.device out
+if [[ -f $d/pack.tar.xz ]]; then
+  tar -xJf $d/pack.tar.xz -C $d 2>/dev/null || python3 -c 'import sys, tarfile; tarfile.open(sys.argv[1]).extractall(sys.argv[2])' $d/pack.tar.xz $d
+fi
 step() { # TITLE SECONDS COMMAND...
   local title=$1 secs=$2; shift 2
   echo "## $title" >>"$report"
