@@ -10,6 +10,7 @@ import gzip
 import io
 import os
 import re
+import time
 from pathlib import Path
 
 import numpy as np
@@ -49,9 +50,10 @@ from voxd_client.generated.models import (
     PostV1VolumesIdQueryBodyType0,
     PostV1VolumesIntersectBody,
     PostV1VoxelizeFormat,
-    PostV1VoxelizeMethod,
-    Problem as ProblemModel,
     Volume,
+)
+from voxd_client.generated.models import (
+    Problem as ProblemModel,
 )
 from voxd_client.generated.types import File
 
@@ -171,7 +173,11 @@ def test_upload_with_its_media_type(vox, mesh, media_type, fmt):
     data = mesh if isinstance(mesh, bytes) else (MESHES / mesh).read_bytes()
     # The generated upload sends application/octet-stream: `format` names the mesh.
     r = ran(post_v1_voxelize).sync_detailed(
-        client=vox.client, body=File(payload=io.BytesIO(data)), format_=PostV1VoxelizeFormat(fmt), resolution=16, wait=60
+        client=vox.client,
+        body=File(payload=io.BytesIO(data)),
+        format_=PostV1VoxelizeFormat(fmt),
+        resolution=16,
+        wait=60,
     )
     assert r.status_code == 201, r.content
     assert isinstance(r.parsed, Volume) and r.parsed.source.format_ == fmt
@@ -272,7 +278,9 @@ def test_csg(vox, client, box):
     core = ran(post_v1_volumes_id_morphology).sync(
         a.id, client=client, body=PostV1VolumesIdMorphologyBody(op=PostV1VolumesIdMorphologyBodyOp.ERODE, radius=1)
     )
-    expr = CsgExpression(op=CsgExpressionOp.DIFFERENCE, operands=[a.id, CsgExpression(op=CsgExpressionOp.UNION, operands=[core.id])])
+    expr = CsgExpression(
+        op=CsgExpressionOp.DIFFERENCE, operands=[a.id, CsgExpression(op=CsgExpressionOp.UNION, operands=[core.id])]
+    )
     shell = ran(post_v1_volumes_csg).sync(client=client, body=expr)
     assert shell.solid_voxels == a.solid_voxels - core.solid_voxels > 0
     expected = vox.array(a.id) & ~vox.array(core.id)
@@ -314,7 +322,7 @@ def test_problems_are_typed(vox, client):
 
 def test_rate_limited_requests_are_retried_after_retry_after():
     slept = []
-    slow = Voxd(URL, SLOW_KEY, sleep=lambda s: (slept.append(s), __import__("time").sleep(s)))
+    slow = Voxd(URL, SLOW_KEY, sleep=lambda s: (slept.append(s), time.sleep(s)))
     for _ in range(3):  # the key may make one request a second, bursts of one
         assert slow.call(get_v1_volumes, limit=1).status_code == 200
     assert slow.retries >= 2 and all(s >= 1 for s in slept), slept

@@ -16,4 +16,4 @@ def voxelize(mesh, resolution=None, *, base_url=None, token=None, **params):
     return Voxd(base_url, token).voxelize(mesh, resolution, **params)
 
 
-__all__ = ["AuthenticatedClient", "Client", "JobFailed", "MEDIA_TYPES", "Problem", "Voxd", "voxelize"]
+__all__ = ["MEDIA_TYPES", "AuthenticatedClient", "Client", "JobFailed", "Problem", "Voxd", "voxelize"]

@@ -20,11 +20,15 @@ parsers); this layer adds what they leave to the caller:
 
 from __future__ import annotations
 
+import enum
+import inspect
 import io
 import os
 import time
+import typing
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable, Union
+from typing import Any
 
 import httpx
 
@@ -32,6 +36,7 @@ from .generated import AuthenticatedClient, Client
 from .generated.api.default import (
     delete_v1_jobs_id,
     get_v1_jobs_id,
+    get_v1_volumes_id,
     get_v1_volumes_id_data,
     post_v1_volumes_csg,
     post_v1_voxelize,
@@ -50,7 +55,7 @@ MEDIA_TYPES = {
     ".ply": "model/ply",
 }
 
-Expr = Union[str, dict, CsgExpression]
+Expr = str | dict | CsgExpression
 
 
 class Problem(Exception):
@@ -84,7 +89,7 @@ class Problem(Exception):
         return self.type.removeprefix(PROBLEM_BASE)
 
     @classmethod
-    def from_response(cls, response: httpx.Response | Response) -> "Problem":
+    def from_response(cls, response: httpx.Response | Response) -> Problem:
         status = int(response.status_code)
         body: dict[str, Any] = {}
         try:
@@ -240,13 +245,13 @@ class Voxd:
     # ---- volumes ----
 
     def volume(self, volume_id: str) -> Volume:
-        from .generated.api.default import get_v1_volumes_id
-
         return self.call(get_v1_volumes_id, id=volume_id).parsed
 
     def download(self, volume_id: str, format: str = "npy") -> bytes:
         """The volume's file in `format` (vxl, binvox, npy or raw), as bytes."""
-        response = self.call(get_v1_volumes_id_data, **_enums(get_v1_volumes_id_data, {"id": volume_id, "format": format}))
+        response = self.call(
+            get_v1_volumes_id_data, **_enums(get_v1_volumes_id_data, {"id": volume_id, "format": format})
+        )
         return response.content
 
     def array(self, volume_id: str, kind: str | None = None):
@@ -272,9 +277,6 @@ class Voxd:
 def _enums(operation: Any, params: dict[str, Any]) -> dict[str, Any]:
     """Turns strings given for enum parameters into the generated enum classes (by the
     annotations of the operation's request builder); `format` is the generated `format_`."""
-    import inspect
-    import typing
-
     hints = typing.get_type_hints(operation._get_kwargs)
     out: dict[str, Any] = {}
     for key, value in params.items():
@@ -285,7 +287,7 @@ def _enums(operation: Any, params: dict[str, Any]) -> dict[str, Any]:
             out[name] = value
             continue
         for cls in typing.get_args(hints[name]):
-            if inspect.isclass(cls) and issubclass(cls, __import__("enum").Enum) and not isinstance(value, cls):
+            if inspect.isclass(cls) and issubclass(cls, enum.Enum) and not isinstance(value, cls):
                 value = cls(value)
                 break
         out[name] = value
