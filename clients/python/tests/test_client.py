@@ -13,6 +13,7 @@ import re
 import time
 from pathlib import Path
 
+import httpx
 import numpy as np
 import pytest
 
@@ -204,6 +205,20 @@ def test_voxelize_returns_a_numpy_array(vox, tmp_path):
     assert density.dtype == np.uint8 and density.max() <= 8
 
 
+def test_the_readme_session(monkeypatch):
+    """The Python session of clients/python/README.md (and README.md), as written, from the
+    repository's root, the server's address put in and its key from $VOXD_API_KEY."""
+    readme = (Path(__file__).parent.parent / "README.md").read_text()
+    block = re.search(r"```python\n(.*?)```", readme, re.DOTALL).group(1)
+    assert len(block.strip().splitlines()) == 3
+    monkeypatch.chdir(MESHES.parent.parent)
+    monkeypatch.setenv("VOXD_API_KEY", KEY)
+    session = {}
+    exec(block.replace("http://127.0.0.1:8080", URL), session)  # noqa: S102 (the README's own code)
+    grid = session["grid"]
+    assert grid.dtype == np.bool_ and max(grid.shape) == 128 and grid.any()
+
+
 def test_a_queued_job_is_polled_and_can_be_canceled(vox, client):
     job = vox.submit(OBJ, media_type="model/obj", resolution=20, wait=0)
     assert isinstance(job, Job)
@@ -335,6 +350,31 @@ def test_rate_limited_requests_are_retried_after_retry_after():
     metrics = get_metrics.sync(client=Client(base_url=URL))
     limited = re.search(r'voxd_key_rate_limited_total\{key="slow"\} (\d+)', metrics)
     assert limited and int(limited.group(1)) >= 3
+
+
+def test_busy_is_retried_a_bounded_number_of_times():
+    """503 with Retry-After (busy, storage-unavailable) is retried like 429; after max_retries
+    the problem is raised. (A transport that answers as a busy server would: no server can be
+    made busy on demand.)"""
+    answers = []
+
+    def handler(request):
+        answers.append(request.url.path)
+        if len(answers) <= 2:
+            problem = {"type": "https://voxd.dev/problems/busy", "title": "Busy", "status": 503, "detail": "later"}
+            return httpx.Response(503, json=problem, headers={"Retry-After": "7"})
+        return httpx.Response(200, json={"status": "ok"})
+
+    slept = []
+    v = Voxd("http://voxd.test", sleep=slept.append, max_retries=2, max_retry_wait=5)
+    v.client.set_httpx_client(httpx.Client(base_url="http://voxd.test", transport=httpx.MockTransport(handler)))
+    assert v.call(get_healthz).parsed.status == "ok"
+    assert (len(answers), slept, v.retries) == (3, [5, 5], 2)  # each wait capped at max_retry_wait
+    answers.clear()
+    v.max_retries = 1
+    with pytest.raises(Problem) as e:
+        v.call(get_healthz)
+    assert (e.value.status, e.value.kind, e.value.retry_after, len(answers)) == (503, "busy", 7, 2)
 
 
 # ---- coverage: last, so that it sees what the others ran ----
