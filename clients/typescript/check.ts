@@ -27,7 +27,14 @@ async function expect<T>(op: string, status: number, call: Promise<Answer<T>>): 
 // A binary body: the document types it as a string (format: binary); the bytes go as they are.
 const raw = { bodySerializer: (b: unknown) => b as BodyInit };
 const box = readFileSync(`${meshes}/Box.gltf`);
-const grid = { origin: "-1,-1,-1", voxel_size: 0.25, dims: "8,8,8" };
+// Query objects typed as the document's (annotated, so that a parameter it lacks is an error:
+// openapi-fetch's own argument types let unknown keys through).
+type VoxelizeQuery = NonNullable<paths["/v1/voxelize"]["post"]["parameters"]["query"]>;
+type PreviewQuery = NonNullable<paths["/v1/volumes/{id}/preview.png"]["get"]["parameters"]["query"]>;
+const grid: VoxelizeQuery = { origin: "-1,-1,-1", voxel_size: 0.25, dims: "8,8,8" };
+const shifted: VoxelizeQuery = { origin: "-0.75,-1,-1", dims: "8,8,8", voxel_size: 0.25, wait: 60, format: "gltf" };
+const queued: VoxelizeQuery = { resolution: 12, method: "surface" };
+const slice: PreviewQuery = { axis: "y", slice: 2 };
 
 const ready = await expect("get /readyz", 200, client.GET("/readyz"));
 console.log(`ts-check: ${url} ready (${ready.engine})`);
@@ -44,14 +51,14 @@ const a = await expect("post /v1/voxelize", 201, client.POST("/v1/voxelize", {
   ...raw,
 }));
 const b = await expect("post /v1/voxelize", 201, client.POST("/v1/voxelize", {
-  params: { query: { origin: "-0.75,-1,-1", dims: "8,8,8", voxel_size: 0.25, wait: 60, format: "gltf" } },
+  params: { query: shifted },
   headers: { "Content-Type": "application/octet-stream" },
   body: box as unknown as string,
   ...raw,
 }));
 if (!a || !b || !("source" in a) || a.source.format !== "gltf") throw new Error("the uploads made no volumes");
 const job = await expect("post /v1/voxelize", 202, client.POST("/v1/voxelize", {
-  params: { query: { resolution: 12, method: "surface" } },
+  params: { query: queued },
   headers: { "Content-Type": "model/obj" },
   body: readFileSync(`${meshes}/spot.obj`) as unknown as string,
   ...raw,
@@ -81,7 +88,7 @@ await expect("get /v1/volumes/{id}/normals", 200, client.GET("/v1/volumes/{id}/n
   params: { path: { id: a.id }, query: { points: "0.49,0,0" } },
 }));
 const png = await expect("get /v1/volumes/{id}/preview.png", 200, client.GET("/v1/volumes/{id}/preview.png", {
-  params: { path: { id: a.id }, query: { axis: "y", slice: 2 } }, parseAs: "arrayBuffer",
+  params: { path: { id: a.id }, query: slice }, parseAs: "arrayBuffer",
 }));
 if (new Uint8Array(png as ArrayBuffer)[1] !== 0x50) throw new Error("the preview is no PNG");
 const npy = await expect("get /v1/volumes/{id}/data", 200, client.GET("/v1/volumes/{id}/data", {
