@@ -182,7 +182,8 @@ def test_upload_with_its_media_type(vox, mesh, media_type, fmt):
     )
     assert r.status_code == 201, r.content
     assert isinstance(r.parsed, Volume) and r.parsed.source.format_ == fmt
-    # The convenience layer sends the model/* type itself (no `format`), gzip'd or not.
+    # The convenience layer sends the model/* type itself (no `format`), gzip'd or not, and no
+    # parameter that was not asked for (the server's defaults apply).
     v = vox.submit(data, media_type=media_type, resolution=16, wait=60)
     same = (r.parsed.source.sha256, r.parsed.grid.dims, r.parsed.solid_voxels)
     assert v.source.format_ == fmt and (v.source.sha256, v.grid.dims, v.solid_voxels) == same
@@ -375,6 +376,25 @@ def test_busy_is_retried_a_bounded_number_of_times():
     with pytest.raises(Problem) as e:
         v.call(get_healthz)
     assert (e.value.status, e.value.kind, e.value.retry_after, len(answers)) == (503, "busy", 7, 2)
+
+
+def test_the_layer_sends_only_what_was_asked():
+    """The generated builder sends every parameter the document gives a default; the layer sends
+    only those given, so that the server's defaults apply (and its cross-parameter rules see
+    what the caller meant)."""
+    seen = []
+
+    def handler(request):
+        seen.append((dict(request.url.params), request.headers["content-type"]))
+        return httpx.Response(400, json={"type": "https://voxd.dev/problems/invalid-parameter", "status": 400})
+
+    generated = post_v1_voxelize._get_kwargs(body=File(payload=io.BytesIO(b"")))
+    assert {"method", "fill", "padding", "wait"} <= generated["params"].keys()
+    v = Voxd("http://voxd.test")
+    v.client.set_httpx_client(httpx.Client(base_url="http://voxd.test", transport=httpx.MockTransport(handler)))
+    with pytest.raises(Problem):
+        v.submit(b"v 0 0 0", media_type="model/obj", resolution=8)
+    assert seen == [({"resolution": "8"}, "model/obj")]
 
 
 # ---- coverage: last, so that it sees what the others ran ----

@@ -158,7 +158,12 @@ class Voxd:
     def call(self, operation: Any, *, headers: dict[str, str] | None = None, **kwargs: Any) -> Response:
         """Runs a generated operation module (e.g. ``get_v1_volumes_id_stats``) with `kwargs`,
         retrying 429 and 503 answers that carry Retry-After; raises `Problem` on any 4xx/5xx.
-        `headers` replace the generated request's (a Content-Type, say)."""
+        `headers` replace the generated request's (a Content-Type, say). Parameters not given
+        are not sent (the generated builders would send the document's defaults): the server
+        applies its own."""
+        for name, p in inspect.signature(operation._get_kwargs).parameters.items():
+            if name not in kwargs and p.default is not inspect.Parameter.empty:
+                kwargs[name] = UNSET
         request = operation._get_kwargs(**kwargs)
         if headers:
             request.setdefault("headers", {}).update(headers)
