@@ -5,7 +5,7 @@
 # fuzz.sh) run it for that part, so each still runs alone on a fresh machine.
 #   ./scripts/provision.sh               # every part
 #   ./scripts/provision.sh s3 contract   # only these parts
-# Parts: python redis nginx s3 deploy vulkan contract deploy-check image readme fuzz (described below).
+# Parts: python redis nginx s3 deploy vulkan contract client deploy-check image readme fuzz (described below).
 # Idempotent: each part checks first and installs only what is missing, so a provisioned machine
 # costs a few probes. Debian packages need root and apt-get; without them a part prints what it
 # could not do and the tests that need it skip with a NOTICE (unless a VOXD_REQUIRE_* says
@@ -146,6 +146,16 @@ part_image() {
   fi
 }
 
+# client: node and npm for scripts/client-check.sh's TypeScript client (its packages, and the
+# Python client's tools, are pinned and installed by that script under ~/.cache/voxd).
+part_client() {
+  if ! { command -v node >/dev/null && command -v npm >/dev/null; } && can_apt; then
+    echo "installing nodejs npm for the generated-client check"
+    apt_install nodejs npm || true
+  fi
+  need_venv_support
+}
+
 # readme: what README.md's sessions use (scripts/readme-check.sh runs them): curl, jq, python3's
 # venv (the sessions make their own venv and take numpy from PyPI).
 part_readme() {
@@ -165,11 +175,11 @@ part_fuzz() {
   fi
 }
 
-ALL=(python redis nginx s3 deploy vulkan contract deploy-check image readme fuzz)
+ALL=(python redis nginx s3 deploy vulkan contract client deploy-check image readme fuzz)
 (($# > 0)) || set -- "${ALL[@]}"
 for part in "$@"; do
   case $part in
-    python | redis | nginx | s3 | deploy | vulkan | contract | image | readme | fuzz) "part_$part" ;;
+    python | redis | nginx | s3 | deploy | vulkan | contract | client | image | readme | fuzz) "part_$part" ;;
     deploy-check) part_deploy_check ;;
     *) echo "provision.sh: unknown part '$part' (parts: ${ALL[*]})" >&2; exit 2 ;;
   esac

@@ -75,6 +75,7 @@ cargo test --locked --features fault-injection -- --show-output
 # VOXD_FAULT), instead of building voxd a second time without the feature.
 VOXD_CONTRACT_BIN=$TARGET/debug/voxd ./scripts/contract.sh   # openapi.yaml valid, and schemathesis against the running service
 VOXD_README_BIN=$TARGET/debug/voxd ./scripts/readme-check.sh   # every README session as written, its output as shown
+VOXD_CLIENT_BIN=$TARGET/debug/voxd ./scripts/client-check.sh   # clients/python regenerates unchanged; it and a TypeScript client work against the running service
 ./scripts/deploy-check.sh  # Dockerfile, compose file and Kubernetes manifests: hadolint, compose config, schemas
 ./scripts/deploy-e2e.sh    # deploy/local.sh up: upload via nginx, download via the other replica, metrics, down
 VOXD_IMAGE_BIN=$TARGET/debug/voxd ./scripts/image-check.sh   # the image built with podman and run: healthz, a voxelization, uid 10001 under tini, restart, graceful stop, lavapipe

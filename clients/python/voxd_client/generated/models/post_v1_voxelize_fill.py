@@ -1,0 +1,12 @@
+from enum import StrEnum
+
+
+class PostV1VoxelizeFill(StrEnum):
+    AUTO = "auto"
+    FLOOD = "flood"
+    PARITY = "parity"
+    VOTE = "vote"
+    WINDING = "winding"
+
+    def __str__(self) -> str:
+        return str(self.value)

@@ -1,0 +1,77 @@
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, Self, TypeVar
+
+from attrs import define as _attrs_define
+from attrs import field as _attrs_field
+
+T = TypeVar("T", bound="VolumeSource")
+
+
+@_attrs_define
+class VolumeSource:
+    """
+    Attributes:
+        format_ (str):
+        sha256 (str):
+        triangles (int):
+    """
+
+    format_: str
+    sha256: str
+    triangles: int
+    additional_properties: dict[str, Any] = _attrs_field(init=False, factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        format_ = self.format_
+
+        sha256 = self.sha256
+
+        triangles = self.triangles
+
+        field_dict: dict[str, Any] = {}
+        field_dict.update(self.additional_properties)
+        field_dict.update(
+            {
+                "format": format_,
+                "sha256": sha256,
+                "triangles": triangles,
+            }
+        )
+
+        return field_dict
+
+    @classmethod
+    def from_dict(cls, src_dict: Mapping[str, Any]) -> Self:
+        d = dict(src_dict)
+        format_ = d.pop("format")
+
+        sha256 = d.pop("sha256")
+
+        triangles = d.pop("triangles")
+
+        volume_source = cls(
+            format_=format_,
+            sha256=sha256,
+            triangles=triangles,
+        )
+
+        volume_source.additional_properties = d
+        return volume_source
+
+    @property
+    def additional_keys(self) -> list[str]:
+        return list(self.additional_properties.keys())
+
+    def __getitem__(self, key: str) -> Any:
+        return self.additional_properties[key]
+
+    def __setitem__(self, key: str, value: Any) -> None:
+        self.additional_properties[key] = value
+
+    def __delitem__(self, key: str) -> None:
+        del self.additional_properties[key]
+
+    def __contains__(self, key: str) -> bool:
+        return key in self.additional_properties
