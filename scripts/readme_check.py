@@ -89,6 +89,13 @@ def steps(body):
             while cmd.endswith("\\") and i + 1 < len(body):
                 i += 1
                 cmd = cmd + "\n" + body[i]
+            here = re.search(r"<<-?\s*'?\"?(\w+)'?\"?", cmd)
+            if here:  # a here-document: its lines up to the terminator belong to the command
+                while i + 1 < len(body):
+                    i += 1
+                    cmd = cmd + "\n" + body[i]
+                    if body[i].strip() == here.group(1):
+                        break
             out.append([cmd, []])
         elif out:
             out[-1][1].append(body[i])
