@@ -64,6 +64,7 @@ fn job(id: &str, resolution: u32, cubic: bool) -> NewJob {
         spec: JobSpec::of(&req),
         name: Some(format!("job {id}")),
         owner: None,
+        request_id: None,
         created: "2026-01-01T00:00:00Z".into(),
     }
 }
