@@ -312,3 +312,47 @@ impl Metrics {
         s
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Buckets are cumulative, a job past the last bucket counts in `+Inf` only, and methods a
+    /// caller makes up share one label value.
+    #[test]
+    fn histograms_are_cumulative_and_labels_bounded() {
+        let m = Metrics::new("cpu");
+        m.job_done("solid", Outcome::Succeeded, 0.2, Some(8));
+        m.job_done("solid", Outcome::TimedOut, 599.0, None);
+        m.job_done("solid", Outcome::Failed, 7200.0, None);
+        for method in ["BREW", "PROPFIND", "GET"] {
+            m.http_request("unmatched", &method.parse().unwrap(), 404, 0.001);
+        }
+        let s = m.render(&QueueStats::default(), None, None);
+        let has = |l: &str| s.lines().any(|x| x == l);
+        assert!(
+            has("voxd_job_duration_seconds_bucket{le=\"0.25\"} 1"),
+            "{s}"
+        );
+        assert!(has("voxd_job_duration_seconds_bucket{le=\"600\"} 2"), "{s}");
+        assert!(
+            has("voxd_job_duration_seconds_bucket{le=\"3600\"} 2"),
+            "{s}"
+        );
+        assert!(
+            has("voxd_job_duration_seconds_bucket{le=\"+Inf\"} 3"),
+            "{s}"
+        );
+        assert!(has("voxd_job_duration_seconds_count 3"), "{s}");
+        assert!(has(
+            "voxd_jobs_finished_total{method=\"solid\",outcome=\"timed_out\"} 1"
+        ));
+        assert!(has(
+            "voxd_http_requests_total{route=\"unmatched\",method=\"other\",status=\"404\"} 2"
+        ));
+        assert!(has(
+            "voxd_http_request_duration_seconds_count{route=\"unmatched\"} 3"
+        ));
+        assert!(!s.contains("BREW") && !s.contains("voxd_store_"), "{s}");
+    }
+}
