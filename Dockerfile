@@ -82,10 +82,12 @@ RUN groupadd --system --gid 10001 voxd \
 COPY --from=bin /out/voxd /usr/local/bin/voxd
 
 # The default 127.0.0.1 is unreachable from outside the container. /data holds volumes and job
-# records unless VOXD_STORE=s3://… puts them in a bucket.
+# records unless VOXD_STORE=s3://… puts them in a bucket. Logs: one JSON object per line, for
+# the container runtime's log shipper (VOXD_LOG_FORMAT=text for people).
 ENV VOXD_ADDR=0.0.0.0:8080 \
     VOXD_DATA_DIR=/data \
-    VOXD_LOG=info
+    VOXD_LOG=info \
+    VOXD_LOG_FORMAT=json
 
 USER 10001:10001
 VOLUME ["/data"]

@@ -3,7 +3,8 @@
 # docker-compose config and the compose spec's schema on deploy/docker-compose.yml, the
 # rendered kustomizations against Kubernetes' schemas (kubernetes-validate --strict), the KEDA
 # ScaledObject against KEDA's CRD schema, yamllint, nginx -t and promtool check config on
-# deploy/nginx.conf and deploy/prometheus.yml (where installed), and shellcheck. The Python tools are pinned
+# deploy/nginx.conf and deploy/prometheus.yml and promtool check/test rules on
+# deploy/prometheus-alerts.yml (where installed), and shellcheck. The Python tools are pinned
 # (scripts/deploy-requirements.txt) in a venv under ~/.cache that scripts/provision.sh makes once
 # and reuses; it also installs docker-compose and shellcheck where it can.
 set -euo pipefail
@@ -94,8 +95,11 @@ fi
 if command -v promtool >/dev/null; then
   promtool check config deploy/prometheus.yml
   promtool check config "$TMP/local/prometheus.yml"
+  # The example alerting rules, and their unit tests.
+  promtool check rules deploy/prometheus-alerts.yml
+  promtool test rules deploy/prometheus-alerts.test.yml
 else
-  echo "NOTICE: no promtool (apt-get install prometheus); skipping promtool check config"
+  echo "NOTICE: no promtool (apt-get install prometheus); skipping promtool check config and rules"
 fi
 
 echo "== shellcheck (deploy/local.sh, scripts/*.sh)"

@@ -17,16 +17,9 @@ fn main() -> ExitCode {
         // SAFETY: single-threaded at this point, before any thread or engine is started.
         unsafe { std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir()) };
     }
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_env("VOXD_LOG")
-                .unwrap_or_else(|_| "warn".into()),
-        )
-        .with_writer(std::io::stderr)
-        // Colours only on a terminal: logs to a file, a pipe or a container runtime stay plain.
-        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
-        .init();
-    let result = match Cli::parse().command {
+    let cli = Cli::parse();
+    init_logging(&cli);
+    let result = match cli.command {
         Command::Voxelize(a) => commands::voxelize(&a),
         Command::Info { file } => commands::info(&file),
         Command::Convert { input, output } => commands::convert(&input, &output),
@@ -52,6 +45,35 @@ fn main() -> ExitCode {
             eprintln!("voxd: error: {e}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// Log lines on stderr, as `--log-format` says. `VOXD_LOG` (an env filter) chooses which; by
+/// default `serve` logs info and above from voxd (its start, the access log at target
+/// `voxd::access`, one line per request, and its jobs' lines), other commands warnings only.
+fn init_logging(cli: &Cli) {
+    let default = match cli.command {
+        Command::Serve(_) => "warn,voxd=info",
+        _ => "warn",
+    };
+    let filter =
+        tracing_subscriber::EnvFilter::try_from_env("VOXD_LOG").unwrap_or_else(|_| default.into());
+    let builder = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr);
+    match cli.log_format {
+        // One JSON object per line: the event's fields at the top level (`flatten_event`), the
+        // span it is in (`span`: a request's or a job's ids) and the spans around it.
+        cli::args::LogFormat::Json => builder
+            .json()
+            .flatten_event(true)
+            .with_current_span(true)
+            .with_span_list(true)
+            .init(),
+        // Colours only on a terminal: logs to a file, a pipe or a container runtime stay plain.
+        cli::args::LogFormat::Text => builder
+            .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+            .init(),
     }
 }
 

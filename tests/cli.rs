@@ -755,6 +755,8 @@ fn fill_options() {
         assert!(err.contains(&format!("fill {used}")), "{err}");
         assert!(err.contains("odd-parity columns"), "{err}");
         assert_eq!(err.contains("WARNING"), used == "parity", "{err}");
+        // Once, not also as a log line (` WARN voxd::app::voxelize: fill …`).
+        assert!(!err.contains(" WARN "), "{err}");
         assert_eq!(fill == "auto", err.contains("(asked for auto)"), "{err}");
         let Volume::Bits(got) = read(&out) else {
             panic!()

@@ -64,6 +64,7 @@ fn job(id: &str, resolution: u32, cubic: bool) -> NewJob {
         spec: JobSpec::of(&req),
         name: Some(format!("job {id}")),
         owner: None,
+        request_id: Some(format!("req-{id}")),
         created: "2026-01-01T00:00:00Z".into(),
     }
 }
@@ -313,6 +314,8 @@ async fn a_job_run_elsewhere_is_decoded_not_parsed_and_an_older_upload_still_run
     for _ in 0..2 {
         let claim = b.next().await.unwrap();
         assert!(matches!(claim.work, voxd::app::queue::Work::Stored { .. }));
+        // The request that submitted it, for the job's log lines on this replica.
+        assert_eq!(claim.request_id, Some(format!("req-{}", claim.id)));
         let meta = voxd::app::jobs::run(Arc::new(CpuEngine), &*store, &claim)
             .await
             .unwrap();

@@ -19,6 +19,7 @@ mod gpu;
 mod loaders;
 mod memory;
 mod morph;
+mod observability;
 mod openapi_enums;
 mod oracles;
 mod props;

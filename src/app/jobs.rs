@@ -161,9 +161,33 @@ pub fn timed_out(timeout: Option<Duration>) -> Error {
     )
 }
 
-/// What a worker reports after each job, for metrics.
+/// What a worker reports after each job, for metrics: its method (`unknown` for a job that
+/// could not be prepared), how it ended, its time from being taken to being stored, and its
+/// result.
 pub trait JobObserver: Send + Sync {
-    fn job_done(&self, secs: f64, result: &Result<VolumeMeta>);
+    fn job_done(&self, method: &str, outcome: Outcome, secs: f64, result: &Result<VolumeMeta>);
+}
+
+crate::named_enum! {
+    /// How a job a worker took ended (its metrics' `outcome`).
+    pub enum Outcome: "job outcome" {
+        Succeeded = "succeeded",
+        Failed = "failed",
+        Canceled = "canceled",
+        TimedOut = "timed_out",
+    }
+}
+
+impl Outcome {
+    /// How a job whose control is `control` ended with `result`.
+    pub fn of<T>(control: &crate::cancel::Control, result: &Result<T>) -> Outcome {
+        match result {
+            Ok(_) => Outcome::Succeeded,
+            Err(_) if control.is_canceled() => Outcome::Canceled,
+            Err(e) if e.kind == ErrorKind::Timeout => Outcome::TimedOut,
+            Err(_) => Outcome::Failed,
+        }
+    }
 }
 
 /// Jobs a worker may have between its engine and the store: the one it is building and up to
@@ -266,12 +290,16 @@ async fn work_with(
         let Some(claim) = queue.next().await else {
             break;
         };
+        // Every line of the job carries its id and the id of the request that submitted it.
         let span = tracing::info_span!(
             "job",
-            id = %claim.id,
+            job = claim.id.as_str(),
+            request_id = claim.request_id.as_deref(),
             method = tracing::field::Empty,
             dims = tracing::field::Empty
         );
+        let control = claim.control.clone();
+        let mut method = "unknown";
         let t = Instant::now();
         // Prepared here (once) when it was submitted elsewhere; a job that cannot be fails.
         let work = prepared(&*store, &claim.id, claim.work.clone())
@@ -279,7 +307,8 @@ async fn work_with(
             .await;
         let built = match work {
             Ok(work) => {
-                span.record("method", work.method.name());
+                method = work.method.name();
+                span.record("method", method);
                 span.record("dims", tracing::field::debug(work.grid.dims));
                 // Its memory first (held until its volume is built and encoded).
                 let permit = match &memory {
@@ -330,11 +359,18 @@ async fn work_with(
                 Err(e) => Err(e),
             };
             let secs = t.elapsed().as_secs_f64();
-            match &result {
-                Ok(m) => tracing::info!(volume = %m.id, secs, "job succeeded"),
-                Err(e) => tracing::warn!(problem = %e.detail, secs, "job failed"),
+            let outcome = Outcome::of(&control, &result);
+            // A cancel is the client's decision and a timeout the server's limit: neither is a
+            // fault of the service (info); a failure is (warn).
+            match (&result, outcome) {
+                (Ok(m), _) => tracing::info!(volume = m.id.as_str(), secs, "job succeeded"),
+                (Err(_), Outcome::Canceled) => tracing::info!(secs, "job canceled"),
+                (Err(e), Outcome::TimedOut) => {
+                    tracing::info!(problem = e.detail.as_str(), secs, "job timed out")
+                }
+                (Err(e), _) => tracing::warn!(problem = e.detail.as_str(), secs, "job failed"),
             }
-            observer.job_done(secs, &result);
+            observer.job_done(method, outcome, secs, &result);
             queue.finish(&id, result.map(|m| m.id)).await;
             drop((place, bytes));
         };
@@ -555,7 +591,7 @@ mod tests {
 
     struct Quiet;
     impl JobObserver for Quiet {
-        fn job_done(&self, _: f64, _: &Result<VolumeMeta>) {}
+        fn job_done(&self, _: &str, _: Outcome, _: f64, _: &Result<VolumeMeta>) {}
     }
 
     /// A worker keeps at most `jobs` jobs between its engine and the store, and at most the

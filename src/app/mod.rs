@@ -133,6 +133,7 @@ pub(crate) mod testing {
             spec: super::JobSpec::of(&req),
             name: None,
             owner: None,
+            request_id: None,
             created: String::new(),
         }
     }

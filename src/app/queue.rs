@@ -72,6 +72,10 @@ pub struct JobRecord {
     /// The tenant that owns the job, and the volume it makes (the key's tenant).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub owner: Option<String>,
+    /// The id of the request that submitted the job (its `X-Request-Id`): what ties the job's
+    /// log lines to the request's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub request_id: Option<String>,
     pub created: String,
     pub timings: Timings,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -105,6 +109,8 @@ pub struct NewJob {
     /// The API key that submitted it, and how many jobs that key may have queued or running
     /// at once (`None`: the service needs no keys).
     pub owner: Option<Owner>,
+    /// The request that submitted it (for its record and log lines).
+    pub request_id: Option<String>,
     /// RFC 3339.
     pub created: String,
 }
@@ -205,6 +211,7 @@ impl NewJob {
             name: self.name.clone(),
             key_name: self.owner.as_ref().map(|o| o.name.clone()),
             owner: self.owner.as_ref().map(|o| o.tenant.clone()),
+            request_id: self.request_id.clone(),
             created: self.created.clone(),
             timings: Timings::default(),
             volume_id: None,
@@ -233,6 +240,8 @@ pub struct Claim {
     pub name: Option<String>,
     /// The tenant that owns the job: its volume's owner.
     pub owner: Option<String>,
+    /// The request that submitted it (its record's), for the job's log lines.
+    pub request_id: Option<String>,
     /// The job's control: canceled when the job is canceled while it runs (the work stops at
     /// its next check point and its result is discarded), with the job's deadline when the
     /// queue has a job timeout; the job's record shows its progress while it runs.

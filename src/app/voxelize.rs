@@ -190,8 +190,11 @@ pub fn run(p: &Prepared, engine: &dyn Engine, ctl: &Control) -> Result<Voxelized
         }
     };
     ctl.complete();
+    // The warning is the result's (the CLI prints it, the service puts it in the volume's
+    // metadata): logged at info for the service's job lines, not at warn, which the CLI shows
+    // by default and would print it twice.
     if let Some(w) = &fill.warning {
-        tracing::warn!(warning = %w, "fill");
+        tracing::info!(warning = w.as_str(), "fill");
     }
     Ok(Voxelized {
         volume,

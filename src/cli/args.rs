@@ -56,6 +56,24 @@ fn parse_format(s: &str) -> Result<Format, String> {
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
+    /// How log lines (stderr) are written: `text` for people, `json` (one object per line)
+    /// for log shippers. Which lines: `VOXD_LOG` (an env filter; `serve` shows info, the
+    /// access log and job lines, by default; other commands warnings).
+    #[arg(
+        long,
+        global = true,
+        env = "VOXD_LOG_FORMAT",
+        value_enum,
+        default_value_t = LogFormat::Text
+    )]
+    pub log_format: LogFormat,
+}
+
+/// `--log-format`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum LogFormat {
+    Text,
+    Json,
 }
 
 #[derive(Subcommand)]

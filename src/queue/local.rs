@@ -601,6 +601,7 @@ impl JobQueue for LocalQueue {
                         work: job.work.take().expect("queued work"),
                         name: job.record.name.clone(),
                         owner: job.record.owner.clone(),
+                        request_id: job.record.request_id.clone(),
                         control: job.control.clone(),
                         timeout: self.job_timeout,
                         volume_id: None,

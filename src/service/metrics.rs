@@ -1,55 +1,151 @@
-//! Prometheus text exposition of the service's counters, written by hand (a few lines each).
+//! Prometheus text exposition of the service's counters, written by hand (a few lines each):
+//! requests by route, method and status and their latency; jobs by outcome and their duration;
+//! the queue; the store's usage against its quota; the build; the process (from `/proc`).
 
+use std::collections::BTreeMap;
 use std::fmt::Write;
 use std::sync::Mutex;
 
+use crate::app::jobs::Outcome;
 use crate::app::queue::QueueStats;
+use crate::app::store::Usage;
 use crate::engine::gpu::GpuStats;
 
-const BUCKETS: [f64; 9] = [0.01, 0.05, 0.1, 0.25, 0.5, 1.0, 5.0, 10.0, 60.0];
+/// Job durations: up to an hour, past the default `--job-timeout` (600 s) and well beyond.
+const JOB_BUCKETS: [f64; 16] = [
+    0.01, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0, 60.0, 120.0, 300.0, 600.0, 1800.0,
+    3600.0,
+];
+
+/// Request durations: a probe's milliseconds to a waited-for job's or a large download's
+/// minutes.
+const HTTP_BUCKETS: [f64; 15] = [
+    0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0, 60.0, 120.0, 300.0,
+];
+
+/// The methods a request's `method` label takes; any other is `other` (labels stay few).
+const METHODS: [&str; 7] = ["GET", "HEAD", "POST", "PUT", "DELETE", "PATCH", "OPTIONS"];
+
+/// A histogram over fixed buckets (cumulative counts are computed when rendered).
+#[derive(Clone, Debug)]
+struct Histogram {
+    counts: Vec<u64>,
+    count: u64,
+    sum: f64,
+}
+
+impl Histogram {
+    fn new(buckets: &[f64]) -> Histogram {
+        Histogram {
+            counts: vec![0; buckets.len()],
+            count: 0,
+            sum: 0.0,
+        }
+    }
+
+    fn observe(&mut self, buckets: &[f64], v: f64) {
+        if let Some(i) = buckets.iter().position(|le| v <= *le) {
+            self.counts[i] += 1;
+        }
+        self.count += 1;
+        self.sum += v;
+    }
+
+    /// The series of `name` with `labels` (`key="value",` each, or empty).
+    fn render(&self, s: &mut String, name: &str, labels: &str, buckets: &[f64]) {
+        let mut cum = 0;
+        for (n, le) in self.counts.iter().zip(buckets) {
+            cum += n;
+            let _ = writeln!(s, "{name}_bucket{{{labels}le=\"{le}\"}} {cum}");
+        }
+        let _ = writeln!(s, "{name}_bucket{{{labels}le=\"+Inf\"}} {}", self.count);
+        let labels = match labels.trim_end_matches(',') {
+            "" => String::new(),
+            l => format!("{{{l}}}"),
+        };
+        let _ = writeln!(s, "{name}_sum{labels} {}", self.sum);
+        let _ = writeln!(s, "{name}_count{labels} {}", self.count);
+    }
+}
+
+/// The optional features this build has.
+const FEATURES: &[&str] = &[
+    #[cfg(feature = "gpu")]
+    "gpu",
+    #[cfg(feature = "s3")]
+    "s3",
+    #[cfg(feature = "redis")]
+    "redis",
+];
 
 pub struct Metrics {
     engine: String,
     inner: Mutex<Inner>,
 }
 
-#[derive(Default)]
 struct Inner {
-    buckets: [u64; BUCKETS.len()],
-    count: u64,
-    sum: f64,
+    jobs: Histogram,
+    /// Jobs finished, by method and outcome.
+    outcomes: BTreeMap<(String, &'static str), u64>,
     voxels: u64,
-    voxel_seconds: f64,
     last_rate: f64,
+    /// Requests by route template, method and status.
+    requests: BTreeMap<(String, &'static str, u16), u64>,
+    /// Request durations by route template.
+    latency: BTreeMap<String, Histogram>,
 }
 
 impl Metrics {
     pub fn new(engine: &str) -> Metrics {
         Metrics {
-            engine: engine.replace('"', "'"),
-            inner: Mutex::new(Inner::default()),
+            engine: engine.replace(['"', '\\', '\n'], "'"),
+            inner: Mutex::new(Inner {
+                jobs: Histogram::new(&JOB_BUCKETS),
+                outcomes: BTreeMap::new(),
+                voxels: 0,
+                last_rate: 0.0,
+                requests: BTreeMap::new(),
+                latency: BTreeMap::new(),
+            }),
         }
     }
 
-    pub fn job_done(&self, secs: f64, voxels: Option<u64>) {
+    /// A job finished: its method, how, in `secs`, with `voxels` when it succeeded.
+    pub fn job_done(&self, method: &str, outcome: Outcome, secs: f64, voxels: Option<u64>) {
         let mut m = self.inner.lock().unwrap();
-        for (b, le) in m.buckets.iter_mut().zip(BUCKETS) {
-            if secs <= le {
-                *b += 1;
-            }
-        }
-        m.count += 1;
-        m.sum += secs;
+        m.jobs.observe(&JOB_BUCKETS, secs);
+        *m.outcomes
+            .entry((method.to_string(), outcome.name()))
+            .or_default() += 1;
         if let Some(v) = voxels {
             m.voxels += v;
-            m.voxel_seconds += secs;
             m.last_rate = v as f64 / secs.max(1e-9);
         }
     }
 
-    /// The text of `/metrics`: the queue's counts `q`, this process's jobs, and the GPU
-    /// engine's submissions and buffers when it runs one (`gpu`).
-    pub fn render(&self, q: &QueueStats, gpu: Option<GpuStats>) -> String {
+    /// A request answered: its route template (`unmatched` for none), method, status and time.
+    pub fn http_request(&self, route: &str, method: &axum::http::Method, status: u16, secs: f64) {
+        let method = METHODS
+            .into_iter()
+            .find(|m| *m == method.as_str())
+            .unwrap_or("other");
+        let mut m = self.inner.lock().unwrap();
+        *m.requests
+            .entry((route.to_string(), method, status))
+            .or_default() += 1;
+        if let Some(h) = m.latency.get_mut(route) {
+            h.observe(&HTTP_BUCKETS, secs);
+        } else {
+            let mut h = Histogram::new(&HTTP_BUCKETS);
+            h.observe(&HTTP_BUCKETS, secs);
+            m.latency.insert(route.to_string(), h);
+        }
+    }
+
+    /// The text of `/metrics`: the queue's counts `q`, the store's `usage` (when it answered),
+    /// this process's requests and jobs, and the GPU engine's submissions and buffers when it
+    /// runs one (`gpu`).
+    pub fn render(&self, q: &QueueStats, usage: Option<&Usage>, gpu: Option<GpuStats>) -> String {
         let mut s = String::new();
         let _ = writeln!(
             s,
@@ -94,21 +190,59 @@ impl Metrics {
         let m = self.inner.lock().unwrap();
         let _ = writeln!(
             s,
-            "# HELP voxd_job_duration_seconds Time jobs spent running.\n# TYPE voxd_job_duration_seconds histogram"
+            "# HELP voxd_job_duration_seconds Time jobs took, from a worker taking them to their volume stored (or their end), whatever their outcome.\n# TYPE voxd_job_duration_seconds histogram"
         );
-        for (b, le) in m.buckets.iter().zip(BUCKETS) {
-            let _ = writeln!(s, "voxd_job_duration_seconds_bucket{{le=\"{le}\"}} {b}");
+        m.jobs
+            .render(&mut s, "voxd_job_duration_seconds", "", &JOB_BUCKETS);
+        let _ = writeln!(
+            s,
+            "# HELP voxd_jobs_finished_total Jobs this process's workers finished, by method and outcome (succeeded, failed, canceled, timed_out).\n# TYPE voxd_jobs_finished_total counter"
+        );
+        for ((method, outcome), n) in &m.outcomes {
+            let _ = writeln!(
+                s,
+                "voxd_jobs_finished_total{{method=\"{method}\",outcome=\"{outcome}\"}} {n}"
+            );
         }
         let _ = writeln!(
             s,
-            "voxd_job_duration_seconds_bucket{{le=\"+Inf\"}} {}",
-            m.count
+            "# HELP voxd_http_requests_total Requests answered, by route template (unmatched: no route), method and status.\n# TYPE voxd_http_requests_total counter"
         );
+        for ((route, method, status), n) in &m.requests {
+            let _ = writeln!(
+                s,
+                "voxd_http_requests_total{{route=\"{route}\",method=\"{method}\",status=\"{status}\"}} {n}"
+            );
+        }
         let _ = writeln!(
             s,
-            "voxd_job_duration_seconds_sum {}\nvoxd_job_duration_seconds_count {}",
-            m.sum, m.count
+            "# HELP voxd_http_request_duration_seconds Time from a request's head read to its response's head ready, by route template.\n# TYPE voxd_http_request_duration_seconds histogram"
         );
+        for (route, h) in &m.latency {
+            h.render(
+                &mut s,
+                "voxd_http_request_duration_seconds",
+                &format!("route=\"{route}\","),
+                &HTTP_BUCKETS,
+            );
+        }
+        if let Some(u) = usage {
+            let _ = writeln!(
+                s,
+                "# HELP voxd_store_used_bytes Bytes of stored volumes, data and metadata (what the quota counts).\n# TYPE voxd_store_used_bytes gauge\nvoxd_store_used_bytes {}",
+                u.bytes
+            );
+            let _ = writeln!(
+                s,
+                "# HELP voxd_store_quota_bytes The store's quota (--max-store-bytes); past it writes get 507.\n# TYPE voxd_store_quota_bytes gauge\nvoxd_store_quota_bytes {}",
+                u.limit
+            );
+            let _ = writeln!(
+                s,
+                "# HELP voxd_store_volumes Volumes stored.\n# TYPE voxd_store_volumes gauge\nvoxd_store_volumes {}",
+                u.volumes
+            );
+        }
         let _ = writeln!(
             s,
             "# HELP voxd_voxels_total Voxels produced by succeeded jobs.\n# TYPE voxd_voxels_total counter\nvoxd_voxels_total {}",
@@ -124,6 +258,13 @@ impl Metrics {
             "# HELP voxd_engine_info The engine this process runs.\n# TYPE voxd_engine_info gauge\nvoxd_engine_info{{engine=\"{}\"}} 1",
             self.engine
         );
+        let _ = writeln!(
+            s,
+            "# HELP voxd_build_info The running build: its version and the optional features it was built with.\n# TYPE voxd_build_info gauge\nvoxd_build_info{{version=\"{}\",features=\"{}\"}} 1",
+            env!("CARGO_PKG_VERSION"),
+            FEATURES.join(",")
+        );
+        super::process_metrics::render(&mut s);
         if let Some(g) = gpu {
             // Counted since the device was opened (again, after a loss: a counter reset).
             let b = g.submissions;
@@ -169,5 +310,49 @@ impl Metrics {
             }
         }
         s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Buckets are cumulative, a job past the last bucket counts in `+Inf` only, and methods a
+    /// caller makes up share one label value.
+    #[test]
+    fn histograms_are_cumulative_and_labels_bounded() {
+        let m = Metrics::new("cpu");
+        m.job_done("solid", Outcome::Succeeded, 0.2, Some(8));
+        m.job_done("solid", Outcome::TimedOut, 599.0, None);
+        m.job_done("solid", Outcome::Failed, 7200.0, None);
+        for method in ["BREW", "PROPFIND", "GET"] {
+            m.http_request("unmatched", &method.parse().unwrap(), 404, 0.001);
+        }
+        let s = m.render(&QueueStats::default(), None, None);
+        let has = |l: &str| s.lines().any(|x| x == l);
+        assert!(
+            has("voxd_job_duration_seconds_bucket{le=\"0.25\"} 1"),
+            "{s}"
+        );
+        assert!(has("voxd_job_duration_seconds_bucket{le=\"600\"} 2"), "{s}");
+        assert!(
+            has("voxd_job_duration_seconds_bucket{le=\"3600\"} 2"),
+            "{s}"
+        );
+        assert!(
+            has("voxd_job_duration_seconds_bucket{le=\"+Inf\"} 3"),
+            "{s}"
+        );
+        assert!(has("voxd_job_duration_seconds_count 3"), "{s}");
+        assert!(has(
+            "voxd_jobs_finished_total{method=\"solid\",outcome=\"timed_out\"} 1"
+        ));
+        assert!(has(
+            "voxd_http_requests_total{route=\"unmatched\",method=\"other\",status=\"404\"} 2"
+        ));
+        assert!(has(
+            "voxd_http_request_duration_seconds_count{route=\"unmatched\"} 3"
+        ));
+        assert!(!s.contains("BREW") && !s.contains("voxd_store_"), "{s}");
     }
 }

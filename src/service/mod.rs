@@ -8,6 +8,7 @@ pub mod auth;
 mod extract;
 mod metrics;
 pub mod problem;
+mod process_metrics;
 pub mod routes;
 pub mod server;
 
@@ -145,9 +146,19 @@ impl App {
 pub const MEMORY_WAIT: std::time::Duration = std::time::Duration::from_secs(5);
 
 impl app::jobs::JobObserver for App {
-    fn job_done(&self, secs: f64, result: &app::Result<crate::app::store::VolumeMeta>) {
-        self.metrics
-            .job_done(secs, result.as_ref().ok().map(|m| m.grid.voxel_count()));
+    fn job_done(
+        &self,
+        method: &str,
+        outcome: app::jobs::Outcome,
+        secs: f64,
+        result: &app::Result<crate::app::store::VolumeMeta>,
+    ) {
+        self.metrics.job_done(
+            method,
+            outcome,
+            secs,
+            result.as_ref().ok().map(|m| m.grid.voxel_count()),
+        );
     }
 }
 

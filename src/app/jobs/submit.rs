@@ -34,6 +34,8 @@ pub struct Submission {
     pub owner: Option<Owner>,
     /// How long to wait for the job before answering with it unfinished (zero: not at all).
     pub wait: Duration,
+    /// The id of the request that submits it (kept in the job's record, on its log lines).
+    pub request_id: Option<String>,
 }
 
 impl Submission {
@@ -57,7 +59,7 @@ impl Submission {
 #[derive(Debug)]
 pub enum Submitted {
     /// It succeeded within the wait: its volume.
-    Done(Box<VolumeMeta>),
+    Done { id: String, meta: Box<VolumeMeta> },
     /// It failed within the wait: job `id`, and why.
     Failed { id: String, error: Error },
     /// Queued or running (its record is durable).
@@ -121,14 +123,18 @@ pub async fn submit<G: Send>(
         m.check_fits(super::job_bytes(&work), "the voxelization")?;
     }
     let id = super::super::new_id();
+    // The request's span (when a request submits it) names the job it made.
+    tracing::Span::current().record("job", id.as_str());
     let job = NewJob {
         id: id.clone(),
         work,
         spec,
         name: sub.name,
         owner: sub.owner,
+        request_id: sub.request_id,
         created: super::super::rfc3339(std::time::SystemTime::now()),
     };
+    let (method, request_id) = (job.method(), job.request_id.clone());
     let wait = !sub.wait.is_zero();
     // With a wait, the answer comes once the job is final (its final record durable), or else
     // after `persist` below: the queued record need not be synced first.
@@ -137,6 +143,12 @@ pub async fn submit<G: Send>(
     } else {
         jobs.queue.submit(job).await?
     };
+    tracing::info!(
+        job = id.as_str(),
+        request_id = request_id.as_deref(),
+        method,
+        "job queued"
+    );
     // The upload's budget is given back once the job is queued (a shared queue has stored
     // the prepared job by then, which the budget stood for meanwhile).
     drop(guard);
@@ -148,7 +160,10 @@ pub async fn submit<G: Send>(
     match (r.state, &r.volume_id, &r.error) {
         (State::Succeeded, Some(v), _) => {
             if let Some(meta) = jobs.store.get(v).await? {
-                return Ok(Submitted::Done(Box::new(meta)));
+                return Ok(Submitted::Done {
+                    id,
+                    meta: Box::new(meta),
+                });
             }
         }
         (State::Failed, _, Some(e)) => {

@@ -413,14 +413,15 @@ impl Inner {
         {
             control.set_deadline(at);
         }
-        let (name, owner) = serde_json::from_str::<JobRecord>(&run.record)
+        let (name, owner, request_id) = serde_json::from_str::<JobRecord>(&run.record)
             .ok()
-            .map_or((None, None), |r| (r.name, r.owner));
+            .map_or((None, None, None), |r| (r.name, r.owner, r.request_id));
         Some(Claim {
             id: run.id.clone(),
             work,
             name,
             owner,
+            request_id,
             control: control.clone(),
             timeout: self.opts.job_timeout,
             volume_id: Some(volume_id_for(&run.id)),

@@ -75,7 +75,15 @@ pub async fn readyz(axum::extract::State(app): AppState) -> Result<Response, Pro
 
 pub async fn metrics(axum::extract::State(app): AppState) -> Response {
     let q = app.queue.stats().await;
-    let mut text = app.metrics.render(&q, app.engine.gpu_stats());
+    // The store's usage as the quota counts it; left out when the store does not answer in
+    // time (a scrape must not hang on it).
+    let usage = tokio::time::timeout(PROBE_TIMEOUT, app.store.usage())
+        .await
+        .ok()
+        .and_then(Result::ok);
+    let mut text = app
+        .metrics
+        .render(&q, usage.as_ref(), app.engine.gpu_stats());
     if let Some(keys) = &app.keys {
         keys.render_metrics(&mut text);
     }

@@ -188,23 +188,58 @@ fn is_probe(path: &str) -> bool {
     matches!(path, "/healthz" | "/readyz" | "/metrics")
 }
 
+/// A request's id, in its extensions for the handlers (a job records the request that made it).
+#[derive(Clone, Debug)]
+pub struct RequestId(pub String);
+
+/// The job a request made, in its response's extensions for the access log.
+#[derive(Clone, Debug)]
+pub struct JobId(pub String);
+
+/// Whether a caller's `X-Request-Id` is used as it is: 1 to 128 characters of
+/// `A-Z a-z 0-9 . _ : -`. Any other is replaced by a fresh id (the response's `X-Request-Id`
+/// says which id the request has), so an id can never carry a space, a quote, `=` or a line
+/// break into a log line.
+pub fn valid_request_id(v: &str) -> bool {
+    (1..=128).contains(&v.len())
+        && v.bytes()
+            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'.' | b'_' | b':' | b'-'))
+}
+
+/// The route label of a request (metrics, the access log): the route's template
+/// (`/v1/volumes/{id}`), never the path a caller sent, so that labels stay few.
+fn route_of(req: &Request) -> String {
+    req.extensions()
+        .get::<axum::extract::MatchedPath>()
+        .map_or_else(|| "unmatched".to_string(), |m| m.as_str().to_string())
+}
+
 async fn request_context(State(app): AppState, mut req: Request, next: Next) -> Response {
     let rid = req
         .headers()
         .get("x-request-id")
         .and_then(|v| v.to_str().ok())
-        .filter(|v| !v.is_empty() && v.len() <= 128)
+        .filter(|v| valid_request_id(v))
         .map(str::to_string)
         .unwrap_or_else(crate::app::new_id);
+    req.extensions_mut().insert(RequestId(rid.clone()));
     let path = req.uri().path().to_string();
-    // `key`: the API key's name (never the key), once the request is authenticated.
+    let route = route_of(&req);
+    let method = req.method().clone();
+    // `key`: the API key's name (never the key), once the request is authenticated. Strings
+    // (the path a caller sent) are recorded as strings: quoted and escaped in a text line,
+    // JSON strings in a JSON one, so that they cannot forge a field. The request id is
+    // checked above; the route is a template of ours.
     let span = tracing::info_span!(
         "request",
-        id = %rid,
-        method = %req.method(),
-        path = %path,
-        key = tracing::field::Empty
+        request_id = %rid,
+        method = %method,
+        route = %route,
+        path = path.as_str(),
+        key = tracing::field::Empty,
+        job = tracing::field::Empty,
     );
+    let mut key_name = None;
     let started = std::time::Instant::now();
     // A request with a body: refused, its body may be left unread, after which hyper cannot
     // reuse the connection and closes it. Say so (`Connection: close`), so that a client does
@@ -220,7 +255,8 @@ async fn request_context(State(app): AppState, mut req: Request, next: Next) -> 
             let keys = app.keys.as_ref().filter(|k| k.guards(&path))?;
             match keys.authenticate(req.headers()) {
                 Ok(owner) => {
-                    span.record("key", tracing::field::display(&owner.name));
+                    span.record("key", owner.name.as_str());
+                    key_name = Some(owner.name.clone());
                     if owner.role == Role::ReadOnly && writes(req.method(), &path) {
                         let e = crate::app::Error::new(
                             ErrorKind::Forbidden,
@@ -248,16 +284,6 @@ async fn request_context(State(app): AppState, mut req: Request, next: Next) -> 
         Some(r) => r,
         None => next.run(req).instrument(span.clone()).await,
     };
-    if !is_probe(&path) {
-        span.in_scope(|| {
-            tracing::info!(
-                target: "voxd::access",
-                status = res.status().as_u16(),
-                ms = started.elapsed().as_millis() as u64,
-                "request"
-            )
-        });
-    }
     let is_problem = res
         .headers()
         .get(header::CONTENT_TYPE)
@@ -270,7 +296,7 @@ async fn request_context(State(app): AppState, mut req: Request, next: Next) -> 
         let body = match serde_json::from_slice::<Problem>(&bytes) {
             Ok(mut p) => {
                 p.request_id = Some(rid.clone());
-                p.instance.get_or_insert(path);
+                p.instance.get_or_insert(path.clone());
                 serde_json::to_vec(&p).unwrap_or_default()
             }
             Err(_) => bytes.to_vec(),
@@ -284,6 +310,39 @@ async fn request_context(State(app): AppState, mut req: Request, next: Next) -> 
     if has_body && (res.status().is_client_error() || res.status().is_server_error()) {
         res.headers_mut()
             .insert(header::CONNECTION, HeaderValue::from_static("close"));
+    }
+    let secs = started.elapsed().as_secs_f64();
+    let status = res.status().as_u16();
+    app.metrics.http_request(&route, &method, status, secs);
+    if !is_probe(&path) {
+        // The body's size where it is known before it is sent (a streamed or compressed body's
+        // is not: then its Content-Length if it has one, else no `bytes`).
+        let bytes = axum::body::HttpBody::size_hint(res.body())
+            .exact()
+            .or_else(|| {
+                res.headers()
+                    .get(header::CONTENT_LENGTH)?
+                    .to_str()
+                    .ok()?
+                    .parse()
+                    .ok()
+            });
+        let job = res.extensions().get::<JobId>().map(|j| j.0.clone());
+        // Every field on the line itself (a log shipper needs no span to read it).
+        tracing::info!(
+            target: "voxd::access",
+            parent: None,
+            method = %method,
+            route = %route,
+            path = path.as_str(),
+            status,
+            bytes,
+            duration_ms = (secs * 1e3 * 1e3).round() / 1e3,
+            request_id = %rid,
+            key = key_name.as_deref(),
+            job = job.as_deref(),
+            "request"
+        );
     }
     res
 }

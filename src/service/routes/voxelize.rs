@@ -122,6 +122,7 @@ pub async fn submit(
     axum::extract::State(app): AppState,
     Query(q): Query<VoxelizeQuery>,
     owner: Option<axum::Extension<Owner>>,
+    request_id: Option<axum::Extension<super::RequestId>>,
     headers: HeaderMap,
     body: Body,
 ) -> Result<Response, Problem> {
@@ -162,6 +163,7 @@ pub async fn submit(
         name: q.name,
         owner,
         wait: Duration::from_secs_f64(q.wait),
+        request_id: request_id.map(|axum::Extension(r)| r.0),
     };
     // Read once the queue has said it would take the job; held in the in-flight budget until
     // queued.
@@ -183,18 +185,23 @@ pub async fn submit(
         pool: Some(&app.ingest),
         memory: Some(&app.memory),
     };
-    let record = match jobs::submit(jobs, sub, upload).await? {
-        Submitted::Done(meta) => return Ok(created(&meta)),
+    // The response names the job it made (`JobId`) for the access log.
+    let (id, mut r) = match jobs::submit(jobs, sub, upload).await? {
+        Submitted::Done { id, meta } => (id, created(&meta)),
         Submitted::Failed { id, error } => {
             let mut p = Problem::from(error);
             p.instance = Some(format!("/v1/jobs/{id}"));
-            return Err(p);
+            (id, p.into_response())
         }
-        Submitted::Pending(record) => *record,
+        Submitted::Pending(record) => {
+            let (id, location) = (record.id.clone(), format!("/v1/jobs/{}", record.id));
+            let mut r =
+                (StatusCode::ACCEPTED, axum::Json(super::jobs::view(*record))).into_response();
+            set_location(&mut r, &location);
+            (id, r)
+        }
     };
-    let location = format!("/v1/jobs/{}", record.id);
-    let mut r = (StatusCode::ACCEPTED, axum::Json(super::jobs::view(record))).into_response();
-    set_location(&mut r, &location);
+    r.extensions_mut().insert(super::JobId(id));
     Ok(r)
 }
 
