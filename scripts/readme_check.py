@@ -51,7 +51,7 @@ MASKS = [
 ]
 # JSON members whose values differ between runs (masked wherever they are).
 VOLATILE = {"created", "timings", "request_id", "position", "progress", "engine_s", "ms",
-            "duration_s", "elapsed_s", "timestamp", "span", "time"}
+            "duration_s", "duration_ms", "secs", "elapsed_s", "timestamp", "time"}
 
 
 def blocks(text):
