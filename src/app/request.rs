@@ -473,6 +473,18 @@ mod tests {
             MethodSpec::Density { factor: 2 }
         );
         assert_eq!(MethodSpec::Density { factor: 4 }.name(), "density");
+        // density_factor only with density; fill not with surface; auto by default.
+        let e = MethodSpec::new("solid", Some(2)).unwrap_err();
+        assert!(
+            e.detail
+                .contains("density_factor=2 is given with method=solid")
+        );
+        let surface = MethodSpec::new("surface", None).unwrap();
+        assert!(surface.fill(Some(Fill::Winding)).is_err());
+        assert_eq!(surface.fill(None).unwrap(), Fill::Auto);
+        let solid = MethodSpec::new("solid", None).unwrap();
+        assert_eq!(solid.fill(None).unwrap(), Fill::Auto);
+        assert_eq!(solid.fill(Some(Fill::Parity)).unwrap(), Fill::Parity);
         assert_eq!(MethodName::DEFAULT.to_string(), "solid");
     }
 

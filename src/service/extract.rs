@@ -27,17 +27,19 @@ impl<T: DeserializeOwned, S: Send + Sync> FromRequestParts<S> for Query<T> {
     type Rejection = Problem;
 
     async fn from_request_parts(parts: &mut Parts, _: &S) -> Result<Self, Problem> {
-        parse_query(parts.uri.query().unwrap_or("")).map(Query)
+        parse_query(parts.uri.query().unwrap_or(""))
+            .map(Query)
+            .map_err(Problem::from)
     }
 }
 
 /// Deserializes a query string into `T`; an error names the parameter it is in, with the value
 /// given, and says what is accepted.
-pub fn parse_query<T: DeserializeOwned>(q: &str) -> Result<T, Problem> {
+pub fn parse_query<T: DeserializeOwned>(q: &str) -> Result<T> {
     let de = serde_urlencoded::Deserializer::new(form_urlencoded::parse(q.as_bytes()));
     serde_path_to_error::deserialize(de).map_err(|e| {
         let param = e.path().to_string();
-        Problem::invalid(query_error(q, &param, &e.into_inner().to_string()))
+        Error::invalid(query_error(q, &param, &e.into_inner().to_string()))
     })
 }
 
@@ -277,5 +279,63 @@ pub mod flag {
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<bool, D::Error> {
         let s = <std::borrow::Cow<'de, str>>::deserialize(d)?;
         parse(&s).ok_or_else(|| serde::de::Error::custom(ACCEPTED))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    #[allow(dead_code)]
+    struct Q {
+        #[serde(default, deserialize_with = "flag::deserialize")]
+        cubic: bool,
+        n: Option<u32>,
+        x: Option<f64>,
+    }
+
+    fn detail(q: &str) -> String {
+        parse_query::<Q>(q).unwrap_err().detail
+    }
+
+    #[test]
+    fn booleans_take_true_false_1_0_in_any_case() {
+        for (s, want) in [
+            ("True", true),
+            ("TRUE", true),
+            ("1", true),
+            ("fAlse", false),
+            ("0", false),
+        ] {
+            assert_eq!(
+                parse_query::<Q>(&format!("cubic={s}")).unwrap().cubic,
+                want,
+                "{s}"
+            );
+        }
+        assert!(!parse_query::<Q>("").unwrap().cubic);
+        assert_eq!(
+            detail("cubic=yes"),
+            "query parameter cubic=\"yes\": expected true, false, 1 or 0 (in any case)"
+        );
+    }
+
+    #[test]
+    fn parse_errors_name_the_parameter_and_the_value() {
+        assert_eq!(
+            detail("n=4&x=big"),
+            "query parameter x=\"big\": expected a number"
+        );
+        assert_eq!(
+            detail("n=-1"),
+            "query parameter n=\"-1\": expected a whole number of at least 0 (invalid digit found in string)"
+        );
+        let d = detail("m=1");
+        assert!(
+            d.contains("unknown field `m`") && d.contains("`cubic`"),
+            "{d}"
+        );
     }
 }
