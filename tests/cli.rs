@@ -53,6 +53,8 @@ fn voxelize_writes_every_format_with_the_engine_bits() {
             "--resolution",
             "40",
             "--cubic",
+            "--fill",
+            "parity",
         ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let line = String::from_utf8(o.stdout).unwrap();
@@ -90,6 +92,8 @@ fn gpu_and_cpu_engines_write_the_same_file() {
         "100",
         "--method",
         "conservative",
+        "--fill",
+        "parity",
         "--engine",
         "gpu",
     ]);
@@ -112,6 +116,8 @@ fn gpu_and_cpu_engines_write_the_same_file() {
         "100",
         "--method",
         "conservative",
+        "--fill",
+        "parity",
         "--engine",
         "cpu",
     ]);
@@ -757,7 +763,11 @@ fn fill_options() {
         assert_eq!(err.contains("WARNING"), used == "parity", "{err}");
         // Once, not also as a log line (` WARN voxd::app::voxelize: fill …`).
         assert!(!err.contains(" WARN "), "{err}");
-        assert_eq!(fill == "auto", err.contains("(asked for auto)"), "{err}");
+        assert_eq!(
+            fill == "auto",
+            err.contains("(auto: the mesh is not watertight (") && err.contains("so winding)"),
+            "{err}"
+        );
         let Volume::Bits(got) = read(&out) else {
             panic!()
         };

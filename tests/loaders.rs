@@ -294,6 +294,12 @@ fn gltf_modes_transforms_and_glb() {
     let m = load(&glb(&json, &quad_buffer()), None).unwrap();
     assert_eq!(m.bounds(), ([0.0; 3], [1.0, 1.0, 0.0]));
     assert_eq!(load(&gz(&glb(&json, &quad_buffer())), None).unwrap(), m);
+    // Attributes of semantics that are not read: application-specific (`_s`, legal per the
+    // spec) and unknown ones (`FOO`, `TEXCOORD_x`) are ignored, gzip'd or not.
+    let extra = r#"[{"attributes":{"POSITION":0,"_s":2,"FOO":2,"TEXCOORD_x":2},"indices":1}]"#;
+    let json = gltf_json("", extra, plain).replace(r#""uri":"","#, "");
+    assert_eq!(load(&glb(&json, &quad_buffer()), None).unwrap(), m);
+    assert_eq!(load(&gz(&glb(&json, &quad_buffer())), None).unwrap(), m);
     // Real files: Box.gltf (embedded, rotated node) and Fox.glb (skinned; bind pose).
     let b = mesh::load_file(&data("Box.gltf"), usize::MAX).unwrap();
     assert_eq!(

@@ -143,7 +143,7 @@ fn two_replicas_on_s3_and_redis_behind_nginx() {
     let r = req(
         &lb.addr,
         "POST",
-        "/v1/voxelize?resolution=96&name=fox",
+        "/v1/voxelize?resolution=96&fill=parity&name=fox",
         "model/gltf-binary",
         &fox,
     );

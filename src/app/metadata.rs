@@ -36,7 +36,8 @@ impl Origin<'_> {
 }
 
 /// The `.vxl` header's `meta` (docs/format.md): `method`, and for a mesh `fill`, `source` (the
-/// file's name or `upload`), `source_format`, `source_sha256` (uploads), `triangles`, `job`;
+/// file's name or `upload`), `source_format` (of the mesh inside a gzip'd file),
+/// `source_compression` (`gzip`, when it was), `source_sha256` (uploads), `triangles`, `job`;
 /// for a derived volume its `provenance`.
 pub fn vxl_header(origin: &Origin) -> Map<String, Value> {
     let mut m = Map::new();
@@ -50,6 +51,9 @@ pub fn vxl_header(origin: &Origin) -> Map<String, Value> {
             m.insert("fill".into(), fill.used.name().into());
             m.insert("source".into(), p.source.name.clone().into());
             m.insert("source_format".into(), p.source.format.clone().into());
+            if let Some(c) = &p.source.compression {
+                m.insert("source_compression".into(), c.clone().into());
+            }
             if let Some(sha) = &p.source.sha256 {
                 m.insert("source_sha256".into(), sha.clone().into());
             }
@@ -102,6 +106,7 @@ pub fn build(
         } => (
             SourceInfo {
                 format: p.source.format.clone(),
+                compression: p.source.compression.clone(),
                 sha256: p.source.sha256.clone().unwrap_or_default(),
                 triangles: p.mesh.triangles().len(),
             },
@@ -111,6 +116,7 @@ pub fn build(
         Origin::Derived { method, provenance } => (
             SourceInfo {
                 format: (*method).into(),
+                compression: None,
                 sha256: super::sha256_hex(&serde_json::to_vec(provenance).unwrap_or_default()),
                 triangles: 0,
             },

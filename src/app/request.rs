@@ -27,10 +27,17 @@ pub enum MethodSpec {
 impl MethodSpec {
     pub const DEFAULT_DENSITY_FACTOR: u32 = 2;
 
-    /// The method named `name`, with `density_factor` for density (2 when not given).
+    /// The method named `name`, with `density_factor` for density (2 when not given); a
+    /// `density_factor` given with another method is refused (it applies only to density).
     pub fn new(name: &str, density_factor: Option<u32>) -> Result<MethodSpec> {
         match crate::names::parse::<MethodName>(name).map_err(Error::invalid)? {
-            MethodName::Bits(m) => Ok(MethodSpec::Bits(m)),
+            MethodName::Bits(m) => match density_factor {
+                None => Ok(MethodSpec::Bits(m)),
+                Some(f) => Err(Error::invalid(format!(
+                    "density_factor={f} is given with method={}: density_factor applies only to method=density",
+                    m.name()
+                ))),
+            },
             MethodName::Density => {
                 match density_factor.unwrap_or(MethodSpec::DEFAULT_DENSITY_FACTOR) {
                     f @ (2 | 4) => Ok(MethodSpec::Density { factor: f }),
@@ -39,6 +46,17 @@ impl MethodSpec {
                     ))),
                 }
             }
+        }
+    }
+
+    /// The fill for this method: `fill`, else [`Fill::DEFAULT`]. `surface` has no inside, so a
+    /// fill given with it is refused.
+    pub fn fill(self, fill: Option<Fill>) -> Result<Fill> {
+        match (self, fill) {
+            (MethodSpec::Bits(Method::Surface), Some(f)) => Err(Error::invalid(format!(
+                "fill={f} is given with method=surface, which has no inside: fill applies only to method=solid, conservative, interior or density"
+            ))),
+            (_, f) => Ok(f.unwrap_or(Fill::DEFAULT)),
         }
     }
 
@@ -455,6 +473,18 @@ mod tests {
             MethodSpec::Density { factor: 2 }
         );
         assert_eq!(MethodSpec::Density { factor: 4 }.name(), "density");
+        // density_factor only with density; fill not with surface; auto by default.
+        let e = MethodSpec::new("solid", Some(2)).unwrap_err();
+        assert!(
+            e.detail
+                .contains("density_factor=2 is given with method=solid")
+        );
+        let surface = MethodSpec::new("surface", None).unwrap();
+        assert!(surface.fill(Some(Fill::Winding)).is_err());
+        assert_eq!(surface.fill(None).unwrap(), Fill::Auto);
+        let solid = MethodSpec::new("solid", None).unwrap();
+        assert_eq!(solid.fill(None).unwrap(), Fill::Auto);
+        assert_eq!(solid.fill(Some(Fill::Parity)).unwrap(), Fill::Parity);
         assert_eq!(MethodName::DEFAULT.to_string(), "solid");
     }
 

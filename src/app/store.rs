@@ -55,7 +55,11 @@ pub struct VolumeMeta {
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct SourceInfo {
+    /// The mesh's format (of the mesh inside a gzip'd file).
     pub format: String,
+    /// `gzip` when the file or upload was gzip'd.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub compression: Option<String>,
     pub sha256: String,
     pub triangles: usize,
 }

@@ -36,8 +36,10 @@ pub struct Prepared {
 pub struct Source {
     /// The file's name, or `upload`.
     pub name: String,
-    /// The format given or sniffed (`gzip` for a gzip'd upload of undeclared format).
+    /// The format given or sniffed (of the mesh inside, for a gzip'd file).
     pub format: String,
+    /// `gzip` for a gzip'd file or upload.
+    pub compression: Option<String>,
     /// sha256 of the uploaded bytes (uploads only: files are not hashed).
     pub sha256: Option<String>,
 }
@@ -78,13 +80,13 @@ pub fn load(req: &VoxelizeRequest) -> Result<Loaded> {
         max_triangles: req.limits.max_triangles,
         max_decompressed_bytes: req.limits.max_decompressed_bytes,
     };
-    let (mesh, format, sha256) = match &req.source {
+    let (mesh, format, gzip, sha256) = match &req.source {
         MeshSource::File { path, format } => {
             let bytes = std::fs::read(path)
                 .map_err(|e| MeshError::Io(format!("{}: {e}", path.display())))?;
             let format = format.or_else(|| Format::from_path(path));
-            let m = mesh::load_bytes(&bytes, format, &opts)?;
-            (m, format_name(format, &bytes), None)
+            let (m, format) = mesh::load_bytes_as(&bytes, format, &opts)?;
+            (m, format, mesh::is_gzip(&bytes), None)
         }
         MeshSource::Bytes { bytes, format } => {
             if bytes.is_empty() {
@@ -93,10 +95,11 @@ pub fn load(req: &VoxelizeRequest) -> Result<Loaded> {
                     "the request body is empty; send the mesh file as the body",
                 ));
             }
-            let m = mesh::load_bytes(bytes, *format, &opts)?;
+            let (m, format) = mesh::load_bytes_as(bytes, *format, &opts)?;
             (
                 m,
-                format_name(*format, bytes),
+                format,
+                mesh::is_gzip(bytes),
                 Some(super::sha256_hex(bytes)),
             )
         }
@@ -109,7 +112,8 @@ pub fn load(req: &VoxelizeRequest) -> Result<Loaded> {
         diagnostics,
         source: Source {
             name: req.source.display_name(),
-            format: format.to_string(),
+            format: format.name().to_string(),
+            compression: gzip.then(|| "gzip".to_string()),
             sha256,
         },
         load_s,
@@ -153,12 +157,6 @@ impl Loaded {
 /// Blocking.
 pub fn prepare(req: &VoxelizeRequest) -> Result<Prepared> {
     load(req)?.fit(req)
-}
-
-fn format_name(format: Option<Format>, bytes: &[u8]) -> &'static str {
-    format
-        .or_else(|| Format::sniff(bytes))
-        .map_or("gzip", Format::name)
 }
 
 /// Runs a prepared voxelization on `engine`: the method, with its solid part under the fill.

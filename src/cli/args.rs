@@ -139,12 +139,12 @@ pub struct VoxelizeArgs {
     /// How solid-based methods (solid, conservative, interior, density) decide inside: parity
     /// (exact for watertight meshes), vote (parity along x, y and z, majority), winding
     /// (generalised winding number ≥ ½), flood (exterior flood fill outside the surface) or auto
-    /// (parity when the mesh is watertight, else winding).
-    #[arg(long, default_value_t = Fill::DEFAULT, value_parser = named::<Fill>())]
-    pub fill: Fill,
-    /// Sub-voxels per axis for density: 2 (values 0..8) or 4 (0..64).
-    #[arg(long, default_value_t = MethodSpec::DEFAULT_DENSITY_FACTOR, value_parser = clap::value_parser!(u32).range(2..=4))]
-    pub density_factor: u32,
+    /// (parity when the mesh is watertight, else winding; the default). Not with surface.
+    #[arg(long, value_parser = named::<Fill>())]
+    pub fill: Option<Fill>,
+    /// Sub-voxels per axis for density only: 2 (values 0..8; the default) or 4 (0..64).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(2..=4))]
+    pub density_factor: Option<u32>,
     /// Voxels along the mesh's longest axis (default 256 when no other grid option is given).
     #[arg(long, conflicts_with = "voxel_size")]
     pub resolution: Option<u32>,
@@ -186,6 +186,7 @@ impl VoxelizeArgs {
             max_voxels: self.max_voxels,
             ..Limits::LOCAL
         };
+        let method = MethodSpec::new(self.method.name(), self.density_factor)?;
         Ok(VoxelizeRequest {
             source: MeshSource::File {
                 path: self.mesh.clone(),
@@ -200,8 +201,8 @@ impl VoxelizeArgs {
             }
             .spec(limits.default_resolution)?,
             padding: self.padding,
-            method: MethodSpec::new(self.method.name(), Some(self.density_factor))?,
-            fill: self.fill,
+            method,
+            fill: method.fill(self.fill)?,
             limits,
         })
     }

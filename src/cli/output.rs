@@ -21,8 +21,10 @@ pub(crate) use outln;
 
 pub fn describe_fill(name: &str, f: &FillReport) -> String {
     let mut s = format!("{name}: fill {}", f.used);
-    if f.requested != f.used {
-        s += &format!(" (asked for {})", f.requested);
+    match &f.reason {
+        Some(r) => s += &format!(" ({r})"),
+        None if f.requested != f.used => s += &format!(" (asked for {})", f.requested),
+        None => {}
     }
     s += &format!(", {} odd-parity columns", f.odd_parity_columns);
     if let Some(w) = &f.winding {

@@ -33,9 +33,9 @@ crate::named_enum! {
 }
 
 impl Fill {
-    /// The fill when none is asked for: exact for watertight meshes, and what the solid method
-    /// has always done.
-    pub const DEFAULT: Fill = Fill::Parity;
+    /// The fill when none is asked for: parity (exact) for a watertight mesh, winding for one
+    /// that is not (parity was the default before: an open mesh streaked).
+    pub const DEFAULT: Fill = Fill::Auto;
 
     /// The fill `auto` resolves to for a mesh (others are themselves).
     pub fn resolve(self, diagnostics: &MeshDiagnostics) -> Fill {
@@ -58,6 +58,9 @@ pub struct FillReport {
     /// Set when parity was used on a mesh that is not watertight.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub warning: Option<String>,
+    /// For `auto`: why it resolved to the fill used.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
     /// For `winding`: how many voxels the exact count and the hierarchy decided.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub winding: Option<WindingStats>,
@@ -85,11 +88,22 @@ impl FillReport {
                 diagnostics.boundary_edges, diagnostics.non_manifold_edges
             )
         });
+        let reason = (fill == Fill::Auto).then(|| {
+            if diagnostics.watertight {
+                "auto: the mesh is watertight, so parity (exact for a closed mesh)".to_string()
+            } else {
+                format!(
+                    "auto: the mesh is not watertight ({} boundary and {} non-manifold edges), so winding",
+                    diagnostics.boundary_edges, diagnostics.non_manifold_edges
+                )
+            }
+        });
         FillReport {
             requested: fill,
             used,
             odd_parity_columns: odd,
             warning,
+            reason,
             winding: None,
         }
     }
@@ -129,6 +143,10 @@ pub fn voxelize_with(
 ) -> Result<(BitVolume, FillReport), EngineError> {
     ctl.check()?;
     let mut report = FillReport::new(fill, mesh, grid, diagnostics);
+    if method == Method::Surface {
+        report.warning = None;
+        report.reason = Some("method=surface has no inside: no fill is used".into());
+    }
     if report.used == Fill::Parity || method == Method::Surface {
         return Ok((
             engine.voxelize_with(&GridMesh::new(mesh, grid)?, method, ctl)?,

@@ -118,8 +118,17 @@ fn document_from_stream(s: &mut Stream) -> Result<gltf::Gltf, MeshError> {
 
 /// The spec's validation of a document (gltf's own), except that POSITION min/max may be
 /// missing: required by the spec but often missing in real files, and nothing here needs them.
-fn validated(root: gltf::json::Root, blob: Option<Vec<u8>>) -> Result<gltf::Gltf, MeshError> {
-    use gltf::json::validation::Validate;
+/// Vertex attributes of a semantic gltf-json does not know are dropped first: application-specific
+/// ones (`_s`, `_t`: names starting with `_` are legal, and trimesh writes them) and any other
+/// (only POSITION is read; gltf-json without its `extras` feature calls them all invalid).
+fn validated(mut root: gltf::json::Root, blob: Option<Vec<u8>>) -> Result<gltf::Gltf, MeshError> {
+    use gltf::json::validation::{Checked, Validate};
+    for mesh in &mut root.meshes {
+        for prim in &mut mesh.primitives {
+            prim.attributes
+                .retain(|k, _| matches!(k, Checked::Valid(_)));
+        }
+    }
     // gltf-json 1.4's validation indexes the accessors by each POSITION attribute unchecked
     // (and panics on a bad index): those indices are checked first.
     for (m, mesh) in root.meshes.iter().enumerate() {

@@ -210,6 +210,16 @@ pub fn load_bytes(
     format: Option<Format>,
     opts: &LoadOptions,
 ) -> Result<Mesh, MeshError> {
+    load_bytes_as(bytes, format, opts).map(|(m, _)| m)
+}
+
+/// [`load_bytes`], with the format the mesh was read as (`format`, else sniffed: of the mesh
+/// inside a gzip'd file, not `gzip`).
+pub fn load_bytes_as(
+    bytes: &[u8],
+    format: Option<Format>,
+    opts: &LoadOptions,
+) -> Result<(Mesh, Format), MeshError> {
     load_stream(
         &mut Stream::of(bytes, opts.max_decompressed_bytes),
         format,
@@ -217,11 +227,16 @@ pub fn load_bytes(
     )
 }
 
+/// Whether mesh bytes are gzip'd (the loaders inflate them).
+pub fn is_gzip(bytes: &[u8]) -> bool {
+    bytes.starts_with(&[0x1f, 0x8b])
+}
+
 fn load_stream(
     s: &mut Stream,
     format: Option<Format>,
     opts: &LoadOptions,
-) -> Result<Mesh, MeshError> {
+) -> Result<(Mesh, Format), MeshError> {
     let format = match format {
         Some(f) => f,
         None => sniff_stream(s)?.ok_or(MeshError::UnknownFormat)?,
@@ -243,7 +258,7 @@ fn load_stream(
             limit: opts.max_triangles,
         });
     }
-    Ok(mesh)
+    Ok((mesh, format))
 }
 
 /// How much of a compressed file is decoded to sniff its format and read its header.

@@ -53,7 +53,7 @@ fn service(max_triangles: usize) -> LoadOptions {
 /// Loads a gzip stream; the result and how many bytes were decoded.
 fn load_gz(z: &[u8], format: Option<Format>, opts: &LoadOptions) -> (Result<Mesh, MeshError>, u64) {
     let mut s = Stream::gzip(z, opts.max_decompressed_bytes);
-    let r = load_stream(&mut s, format, opts);
+    let r = load_stream(&mut s, format, opts).map(|(m, _)| m);
     (r, s.decoded())
 }
 
@@ -288,7 +288,7 @@ fn whole_and_blocks(text: &[u8], format: Format, block: usize) -> [Result<Mesh, 
     let mut s = Stream::gzip(&z, u64::MAX).with_blocks(block);
     [
         load_bytes(text, Some(format), &opts),
-        load_stream(&mut s, Some(format), &opts),
+        load_stream(&mut s, Some(format), &opts).map(|(m, _)| m),
     ]
 }
 

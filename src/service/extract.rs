@@ -19,20 +19,56 @@ use crate::app::memory::MemoryPermit;
 use crate::app::{Error, ErrorKind, Result};
 
 /// A query string deserialized into `T` (`#[serde(deny_unknown_fields)]` types refuse unknown
-/// parameters); a malformed one is an `invalid-parameter` problem naming the parameter.
+/// parameters); a malformed one is an `invalid-parameter` problem naming the parameter, the
+/// value given and what is accepted ([`parse_query`]).
 pub struct Query<T>(pub T);
 
 impl<T: DeserializeOwned, S: Send + Sync> FromRequestParts<S> for Query<T> {
     type Rejection = Problem;
 
     async fn from_request_parts(parts: &mut Parts, _: &S) -> Result<Self, Problem> {
-        let q = parts.uri.query().unwrap_or("");
-        serde_urlencoded::from_str(q)
+        parse_query(parts.uri.query().unwrap_or(""))
             .map(Query)
-            .map_err(|e| Problem::invalid(format!("query string: {e}")))
+            .map_err(Problem::from)
     }
 }
 
+/// Deserializes a query string into `T`; an error names the parameter it is in, with the value
+/// given, and says what is accepted.
+pub fn parse_query<T: DeserializeOwned>(q: &str) -> Result<T> {
+    let de = serde_urlencoded::Deserializer::new(form_urlencoded::parse(q.as_bytes()));
+    serde_path_to_error::deserialize(de).map_err(|e| {
+        let param = e.path().to_string();
+        Error::invalid(query_error(q, &param, &e.into_inner().to_string()))
+    })
+}
+
+/// The detail of a query parse error `inner` in parameter `param` (`.` when the error is not in
+/// one parameter: an unknown or missing one, which serde's message names).
+fn query_error(q: &str, param: &str, inner: &str) -> String {
+    let given = form_urlencoded::parse(q.as_bytes())
+        .filter(|(k, _)| k == param)
+        .last()
+        .map(|(_, v)| v.into_owned());
+    let Some(given) = given else {
+        return format!("query string: {inner}");
+    };
+    // serde_urlencoded parses numbers with `FromStr`: its messages say neither the parameter
+    // nor what is expected.
+    let expected = match inner {
+        "invalid digit found in string"
+        | "cannot parse integer from empty string"
+        | "number too large to fit in target type"
+        | "number too small to fit in target type" => {
+            format!("expected a whole number of at least 0 ({inner})")
+        }
+        "invalid float literal" | "cannot parse float from empty string" => {
+            "expected a number".to_string()
+        }
+        other => other.to_string(),
+    };
+    format!("query parameter {param}={given:?}: {expected}")
+}
 /// A request body in memory, with its share of the process-wide memory budget (released on
 /// drop).
 pub struct BodyBytes {
@@ -189,9 +225,19 @@ impl<T: DeserializeOwned> FromRequest<Arc<App>> for Json<T> {
                 "parsing this JSON body",
             )
             .await?;
-        serde_json::from_slice(&body.bytes)
+        let mut de = serde_json::Deserializer::from_slice(&body.bytes);
+        serde_path_to_error::deserialize(&mut de)
             .map(Json)
-            .map_err(|e| Problem::invalid(format!("the body is not the JSON expected: {e}")))
+            .map_err(|e| {
+                let at = match e.path().to_string() {
+                    p if p == "." => String::new(),
+                    p => format!(" (at {p})"),
+                };
+                Problem::invalid(format!(
+                    "the body is not the JSON expected{at}: {}",
+                    e.into_inner()
+                ))
+            })
     }
 }
 
@@ -211,5 +257,85 @@ pub mod triple {
         let s = Option::<String>::deserialize(d)?;
         s.map(|s| crate::names::parse_triple(&s).map_err(serde::de::Error::custom))
             .transpose()
+    }
+}
+
+/// Deserializes a boolean query value: `true`, `false`, `1` or `0` in any case (Python's
+/// requests sends `True`). Use with `#[serde(default, deserialize_with = "flag::deserialize")]`.
+pub mod flag {
+    use serde::{Deserialize, Deserializer};
+
+    /// What a boolean query value may be.
+    pub const ACCEPTED: &str = "expected true, false, 1 or 0 (in any case)";
+
+    pub fn parse(s: &str) -> Option<bool> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "true" | "1" => Some(true),
+            "false" | "0" => Some(false),
+            _ => None,
+        }
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<bool, D::Error> {
+        let s = <std::borrow::Cow<'de, str>>::deserialize(d)?;
+        parse(&s).ok_or_else(|| serde::de::Error::custom(ACCEPTED))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    #[allow(dead_code)]
+    struct Q {
+        #[serde(default, deserialize_with = "flag::deserialize")]
+        cubic: bool,
+        n: Option<u32>,
+        x: Option<f64>,
+    }
+
+    fn detail(q: &str) -> String {
+        parse_query::<Q>(q).unwrap_err().detail
+    }
+
+    #[test]
+    fn booleans_take_true_false_1_0_in_any_case() {
+        for (s, want) in [
+            ("True", true),
+            ("TRUE", true),
+            ("1", true),
+            ("fAlse", false),
+            ("0", false),
+        ] {
+            assert_eq!(
+                parse_query::<Q>(&format!("cubic={s}")).unwrap().cubic,
+                want,
+                "{s}"
+            );
+        }
+        assert!(!parse_query::<Q>("").unwrap().cubic);
+        assert_eq!(
+            detail("cubic=yes"),
+            "query parameter cubic=\"yes\": expected true, false, 1 or 0 (in any case)"
+        );
+    }
+
+    #[test]
+    fn parse_errors_name_the_parameter_and_the_value() {
+        assert_eq!(
+            detail("n=4&x=big"),
+            "query parameter x=\"big\": expected a number"
+        );
+        assert_eq!(
+            detail("n=-1"),
+            "query parameter n=\"-1\": expected a whole number of at least 0 (invalid digit found in string)"
+        );
+        let d = detail("m=1");
+        assert!(
+            d.contains("unknown field `m`") && d.contains("`cubic`"),
+            "{d}"
+        );
     }
 }

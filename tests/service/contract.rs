@@ -300,7 +300,12 @@ fn real_responses_match_the_openapi_schemas() {
     );
     assert!(r.json()["fill"]["winding"].is_object());
     check("/v1/voxelize", "post", &r);
-    let r = srv.req("POST", "/v1/voxelize?resolution=20&wait=60", obj, &bowl);
+    let r = srv.req(
+        "POST",
+        "/v1/voxelize?resolution=20&wait=60&fill=parity",
+        obj,
+        &bowl,
+    );
     assert!(r.json()["fill"]["warning"].is_string());
     check("/v1/voxelize", "post", &r);
     let r = srv.req("POST", "/v1/voxelize?resolution=31", obj, &spot);

@@ -34,6 +34,8 @@ const MAX_HEADER: usize = 64 << 10;
 struct Header {
     source: String,
     format: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    compression: Option<String>,
     sha256: Option<String>,
     diagnostics: MeshDiagnostics,
     load_s: f64,
@@ -50,6 +52,7 @@ pub fn encode(p: &Prepared) -> Vec<u8> {
     let header = serde_json::to_vec(&Header {
         source: p.source.name.clone(),
         format: p.source.format.clone(),
+        compression: p.source.compression.clone(),
         sha256: p.source.sha256.clone(),
         diagnostics: p.diagnostics.clone(),
         load_s: p.load_s,
@@ -114,6 +117,7 @@ pub fn decode(bytes: &[u8], req: &VoxelizeRequest) -> Result<Prepared> {
         source: Source {
             name: h.source,
             format: h.format,
+            compression: h.compression,
             sha256: h.sha256,
         },
         load_s: h.load_s,

@@ -446,7 +446,9 @@ pub async fn normals(
             crate::names::parse_triple::<f64>(p)
                 .ok()
                 .filter(|t| t.iter().all(|c| c.is_finite()))
-                .ok_or_else(|| Error::invalid(format!("{p:?} is not x,y,z")))
+                .ok_or_else(|| {
+                    Error::invalid(format!("points: {p:?} is not x,y,z (three numbers)"))
+                })
         })
         .collect::<Result<_, _>>()?;
     let limits = app.limits;

@@ -9,7 +9,7 @@ use axum::http::{HeaderMap, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde::Deserialize;
 
-use super::super::extract::{Query, check_content_encoding, read_body, triple};
+use super::super::extract::{Query, check_content_encoding, flag, read_body, triple};
 use super::super::problem::Problem;
 use super::{AppState, check_name, created, set_location};
 use crate::app::jobs::{self, Jobs, Submission, Submitted};
@@ -32,7 +32,7 @@ pub struct VoxelizeQuery {
     origin: Option<[f64; 3]>,
     #[serde(default, deserialize_with = "triple::deserialize")]
     dims: Option<[u32; 3]>,
-    #[serde(default)]
+    #[serde(default, deserialize_with = "flag::deserialize")]
     cubic: bool,
     #[serde(default)]
     padding: u32,
@@ -158,7 +158,7 @@ pub async fn submit(
         grid,
         padding: q.padding,
         method,
-        fill: q.fill.unwrap_or(Fill::DEFAULT),
+        fill: method.fill(q.fill)?,
         limits,
         name: q.name,
         owner,

@@ -22,6 +22,7 @@ pub(crate) fn meta(id: &str, data: &[u8]) -> VolumeMeta {
         volume: 0.0,
         source: SourceInfo {
             format: "obj".into(),
+            compression: None,
             sha256: String::new(),
             triangles: 1,
         },
