@@ -89,6 +89,9 @@ error_kinds! {
     HeadersTooLarge = "headers-too-large", 431, "Request header fields too large";
     /// An `Expect` header other than `100-continue` (the only expectation HTTP/1.1 defines).
     ExpectationFailed = "expectation-failed", 417, "Expectation failed";
+    /// A `Range` no byte of the representation is in (`Content-Range: bytes */length` says
+    /// its length).
+    RangeNotSatisfiable = "range-not-satisfiable", 416, "Range not satisfiable";
     /// No API key, or not a valid one, where the service requires one (`--api-keys-file`).
     Unauthorized = "unauthorized", 401, "Authentication required";
     /// The API key's role does not allow the request (a `read-only` key asking to write).

@@ -190,7 +190,7 @@ fn polling_wait_cancel_and_caching() {
     let again = srv.req(
         "GET",
         &format!("/v1/volumes/{vid}/data?format=npy"),
-        &[("If-None-Match", &etag)],
+        &[("Accept-Encoding", "gzip"), ("If-None-Match", &etag)],
         &[],
     );
     assert_eq!(again.status, 304);

@@ -1,7 +1,9 @@
 //! The v1 routes, one file per resource. [`ROUTES`] is the route table `openapi.yaml` is checked
 //! against; a test over the router in-process checks that the router answers exactly it.
 
+mod conditional;
 mod disposition;
+mod download;
 mod health;
 mod jobs;
 mod volumes;
@@ -52,7 +54,11 @@ pub fn router(app: Arc<App>) -> Router {
     let compress = CompressionLayer::new().gzip(true).zstd(true).compress_when(
         SizeAbove::new(256)
             .and(NotForContentType::const_new(VXL_MEDIA_TYPE))
-            .and(NotForContentType::const_new("application/problem+json")),
+            .and(NotForContentType::const_new("application/problem+json"))
+            // Volume metadata and downloads: the handler chose their coding (`conditional`).
+            .and(|_, _, _: &_, x: &axum::http::Extensions| {
+                x.get::<conditional::Negotiated>().is_none()
+            }),
     );
     Router::new()
         .route(
@@ -68,7 +74,7 @@ pub fn router(app: Arc<App>) -> Router {
             "/v1/volumes/{id}",
             get(volumes::get).delete(volumes::delete),
         )
-        .route("/v1/volumes/{id}/data", get(volumes::data))
+        .route("/v1/volumes/{id}/data", get(download::data))
         .route("/v1/volumes/{id}/morphology", post(volumes::morphology))
         .route("/v1/volumes/{id}/stats", get(volumes::stats))
         .route("/v1/volumes/{id}/query", post(volumes::query))
@@ -81,7 +87,6 @@ pub fn router(app: Arc<App>) -> Router {
         })
         .method_not_allowed_fallback(method_not_allowed)
         .layer(compress)
-        .layer(middleware::map_response(volumes::etag_per_coding))
         .layer(middleware::from_fn_with_state(app.clone(), request_context))
         .with_state(app)
 }

@@ -6,12 +6,12 @@ use axum::body::Body;
 use axum::extract::Path;
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
-use futures_util::StreamExt;
 use serde::Deserialize;
 use serde_json::{Value, json};
 
 use super::super::extract::{Json, Query};
 use super::super::problem::Problem;
+use super::conditional::{self, Coding};
 use super::{AppState, created};
 use crate::app::queue::Owner;
 use crate::app::store::VolumeMeta;
@@ -19,7 +19,6 @@ use crate::app::{
     CsgExpr, Error, ErrorKind, MorphologyRequest, PreviewRequest, PreviewView, QueryRequest, cost,
     ops,
 };
-use crate::codec::VolumeFormat;
 use crate::names::choices;
 use crate::volume::preview::{Axis, Projection};
 
@@ -112,9 +111,67 @@ pub async fn get(
     axum::extract::State(app): AppState,
     caller: Caller,
     Path(id): Path<String>,
+    headers: HeaderMap,
 ) -> Result<Response, Problem> {
     let meta = meta_of(&app, &caller, &id).await?;
-    Ok(axum::Json(meta).into_response())
+    let json = serde_json::to_vec(&meta).map_err(|e| Error::internal(e.to_string()))?;
+    // The same rule as on downloads (`conditional`): the handler picks the coding, so a 304
+    // carries the ETag the 200 would. Small documents are sent as they are.
+    let coding = conditional::negotiate(&headers, json.len() > 256);
+    let etag = conditional::coded_etag(&meta_etag(&json), coding);
+    if !conditional::if_match(&headers, std::slice::from_ref(&etag)) {
+        return Err(Error::new(
+            ErrorKind::PreconditionFailed,
+            format!("volume {id}'s metadata is {etag}, not If-Match"),
+        )
+        .into());
+    }
+    let mut r = if conditional::none_match_hits(&headers, std::slice::from_ref(&etag)) {
+        StatusCode::NOT_MODIFIED.into_response()
+    } else {
+        let once =
+            futures_util::stream::once(
+                async move { Ok::<_, std::io::Error>(bytes::Bytes::from(json)) },
+            );
+        let (body, encoding) = conditional::encode(once, coding);
+        let mut r = body.into_response();
+        let h = r.headers_mut();
+        h.insert(
+            header::CONTENT_TYPE,
+            HeaderValue::from_static("application/json"),
+        );
+        if let Some(e) = encoding {
+            h.insert(header::CONTENT_ENCODING, e);
+        }
+        r
+    };
+    conditional::representation_headers(&mut r, &etag);
+    Ok(r)
+}
+
+/// The identity ETag of a volume's metadata document `json` (a digest of it: whatever the
+/// document holds, a change is a new tag).
+fn meta_etag(json: &[u8]) -> String {
+    use sha2::Digest;
+    let sha = crate::app::store::hex(&sha2::Sha256::digest(json));
+    format!("\"{}-meta\"", etag_sha(&sha))
+}
+
+/// Every ETag a representation of volume `meta` may have been sent with: its metadata and its
+/// downloads in every format, in every content coding. `If-Match` on DELETE compares with
+/// these (strongly), `If-None-Match` (weakly).
+fn volume_etags(meta: &VolumeMeta) -> Result<Vec<String>, Error> {
+    let json = serde_json::to_vec(meta).map_err(|e| Error::internal(e.to_string()))?;
+    let identity = std::iter::once(meta_etag(&json)).chain(
+        crate::codec::FORMATS
+            .iter()
+            .map(|f| super::download::data_etag(&meta.sha256, f.format)),
+    );
+    Ok(identity
+        .flat_map(|t| {
+            [Coding::Identity, Coding::Gzip, Coding::Zstd].map(|c| conditional::coded_etag(&t, c))
+        })
+        .collect())
 }
 
 /// The API key a request was made with (`None`: the service needs no keys).
@@ -134,7 +191,7 @@ pub fn tenant(caller: &Caller) -> Option<String> {
 
 /// A stored volume's catalogue entry (read before any work, for its cost), if `caller` may see
 /// it: another tenant's volume is `not-found`, as one that does not exist.
-async fn meta_of(
+pub(super) async fn meta_of(
     app: &crate::service::App,
     caller: &Caller,
     id: &str,
@@ -154,22 +211,16 @@ pub async fn delete(
     headers: HeaderMap,
 ) -> Result<Response, Problem> {
     // Only a volume the caller may see may be deleted (with keys, its owner is read first).
-    let meta = match (&caller, headers.get(header::IF_MATCH)) {
-        (None, None) => None,
-        _ => Some(meta_of(&app, &caller, &id).await?),
-    };
-    if let (Some(want), Some(meta)) = (headers.get(header::IF_MATCH), &meta) {
-        let want = want.to_str().unwrap_or("");
-        // Strong comparison: the ETag of any download of this volume's current content.
-        let prefix = format!("\"{}-", etag_sha(&meta.sha256));
-        let matches = want
-            .split(',')
-            .map(str::trim)
-            .any(|t| t == "*" || (t.starts_with(&prefix) && t.ends_with('"')));
-        if !matches {
+    let conditional_request =
+        headers.contains_key(header::IF_MATCH) || headers.contains_key(header::IF_NONE_MATCH);
+    if caller.is_some() || conditional_request {
+        let meta = meta_of(&app, &caller, &id).await?;
+        let tags = volume_etags(&meta)?;
+        if !conditional::if_match(&headers, &tags) || conditional::none_match_hits(&headers, &tags)
+        {
             return Err(Error::new(
                 ErrorKind::PreconditionFailed,
-                format!("volume {id} does not match If-Match {want:?}"),
+                format!("volume {id} does not meet the request's If-Match / If-None-Match"),
             )
             .into());
         }
@@ -182,123 +233,8 @@ pub async fn delete(
 }
 
 /// The part of a volume's sha256 its ETags carry.
-fn etag_sha(sha256: &str) -> &str {
+pub(super) fn etag_sha(sha256: &str) -> &str {
     &sha256[..16.min(sha256.len())]
-}
-
-/// Does `If-None-Match` hold one of `tags` (weak comparison: `W/` is ignored), or `*`?
-fn none_match_hits(headers: &HeaderMap, tags: &[String]) -> bool {
-    headers
-        .get_all(header::IF_NONE_MATCH)
-        .iter()
-        .filter_map(|v| v.to_str().ok())
-        .flat_map(|v| v.split(','))
-        .map(|t| t.trim())
-        .any(|t| t == "*" || tags.iter().any(|e| t.strip_prefix("W/").unwrap_or(t) == e))
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct DataQuery {
-    format: Option<String>,
-}
-
-pub async fn data(
-    axum::extract::State(app): AppState,
-    caller: Caller,
-    Path(id): Path<String>,
-    Query(q): Query<DataQuery>,
-    headers: HeaderMap,
-) -> Result<Response, Problem> {
-    let format = match &q.format {
-        None => VolumeFormat::Vxl,
-        Some(f) => VolumeFormat::from_name(f).ok_or_else(|| {
-            Problem::invalid(format!(
-                "format={f:?} is not one of {}",
-                VolumeFormat::names()
-            ))
-        })?,
-    };
-    let meta = meta_of(&app, &caller, &id).await?;
-    let kind = meta.kind;
-    ops::check_format(kind, format)?;
-    ops::check_conversion(&meta.grid, format, &app.limits)?;
-    // One ETag per representation: the identity body's, and (set on the way out, see
-    // `etag_per_coding`) one per content coding; a cached copy of any of them is fresh.
-    let etag = format!("\"{}-{}\"", etag_sha(&meta.sha256), format.name());
-    let etag_value = HeaderValue::from_str(&etag).map_err(|e| Error::internal(e.to_string()))?;
-    let tags: Vec<String> = std::iter::once(etag.clone())
-        .chain(CODINGS.iter().map(|c| coded_etag(&etag, c)))
-        .collect();
-    if none_match_hits(&headers, &tags) {
-        let mut r = StatusCode::NOT_MODIFIED.into_response();
-        r.headers_mut().insert(header::ETAG, etag_value);
-        return Ok(r);
-    }
-    // A conversion holds the decoded volume while it streams: that memory comes out of the
-    // process-wide budget, for as long as the download lasts.
-    let hold = match format {
-        VolumeFormat::Vxl => None,
-        _ => Some(
-            app.admit(
-                cost::conversion(&meta),
-                &format!("converting volume {id} to {}", format.name()),
-            )
-            .await?,
-        ),
-    };
-    let download = ops::download(&*app.store, &meta, format).await?;
-    let media = format.media_type();
-    let disposition = super::disposition::attachment(meta.name.as_deref(), &id, format.extension());
-    // The first chunk before the status line: a volume that fits in it (most `.vxl`s) and is
-    // damaged, or a conversion that fails at once, is still a problem document; past it, a
-    // failure can only end the transfer early (the client sees a short body).
-    let mut rest = download.body.fuse();
-    let first = rest.next().await.transpose().map_err(Error::from)?;
-    let body = futures_util::stream::iter(first.map(Ok))
-        .chain(rest)
-        .map(move |c| {
-            let _hold = &hold;
-            c
-        });
-    let mut r = Body::from_stream(body).into_response();
-    let h = r.headers_mut();
-    if let Some(n) = download.len {
-        h.insert(header::CONTENT_LENGTH, HeaderValue::from(n));
-    }
-    h.insert(header::CONTENT_TYPE, HeaderValue::from_static(media));
-    h.insert(header::ETAG, etag_value);
-    h.insert(
-        header::CACHE_CONTROL,
-        HeaderValue::from_static("private, max-age=0, must-revalidate"),
-    );
-    if let Ok(v) = HeaderValue::from_str(&disposition) {
-        h.insert(header::CONTENT_DISPOSITION, v);
-    }
-    Ok(r)
-}
-
-/// Content codings the compression layer may apply.
-const CODINGS: [&str; 2] = ["gzip", "zstd"];
-
-/// The ETag of `etag`'s representation under a content coding.
-fn coded_etag(etag: &str, coding: &str) -> String {
-    format!("{}+{coding}\"", etag.trim_end_matches('"'))
-}
-
-/// Gives a compressed response its own ETag (RFC 9110: one per content coding).
-pub async fn etag_per_coding(mut r: Response) -> Response {
-    let coding = r
-        .headers()
-        .get(header::CONTENT_ENCODING)
-        .and_then(|v| v.to_str().ok())
-        .map(str::to_string);
-    if let (Some(c), Some(tag)) = (coding, r.headers().get(header::ETAG))
-        && let Ok(v) = HeaderValue::from_str(&coded_etag(tag.to_str().unwrap_or(""), &c))
-    {
-        r.headers_mut().insert(header::ETAG, v);
-    }
-    r
 }
 
 #[derive(Debug, Deserialize)]
