@@ -44,6 +44,7 @@ from .volume_fill_used import VolumeFillUsed
 from .volume_fill_winding import VolumeFillWinding
 from .volume_kind import VolumeKind
 from .volume_source import VolumeSource
+from .volume_source_compression import VolumeSourceCompression
 
 __all__ = (
     "CsgExpression",
@@ -84,4 +85,5 @@ __all__ = (
     "VolumeFillWinding",
     "VolumeKind",
     "VolumeSource",
+    "VolumeSourceCompression",
 )

@@ -34,6 +34,8 @@ class Job:
         name (None | str | Unset):
         key_name (str | Unset): with API keys: the name of the key that submitted the job (never the key)
         owner (str | Unset): with API keys: the tenant that owns the job and its volume (the key's tenant)
+        request_id (str | Unset): the id of the request that submitted the job (its X-Request-Id, or the id the server
+            gave it): on the job's log lines too
         volume_id (str | Unset):
         attempts (int | Unset): times the job was started, on either queue (more than one: its process or replica died
             during a start and it ran again; at --max-attempts it fails)
@@ -48,6 +50,7 @@ class Job:
             busy (503), method-not-allowed (405), precondition-failed (412), uri-too-long (414),
             headers-too-large (431),
             expectation-failed (417),
+            range-not-satisfiable (416),
             unauthorized (401), forbidden (403), rate-limited (429), too-many-jobs (429),
             internal (500).
     """
@@ -63,6 +66,7 @@ class Job:
     name: None | str | Unset = UNSET
     key_name: str | Unset = UNSET
     owner: str | Unset = UNSET
+    request_id: str | Unset = UNSET
     volume_id: str | Unset = UNSET
     attempts: int | Unset = UNSET
     problem: Problem | Unset = UNSET
@@ -95,6 +99,8 @@ class Job:
 
         owner = self.owner
 
+        request_id = self.request_id
+
         volume_id = self.volume_id
 
         attempts = self.attempts
@@ -124,6 +130,8 @@ class Job:
             field_dict["key_name"] = key_name
         if owner is not UNSET:
             field_dict["owner"] = owner
+        if request_id is not UNSET:
+            field_dict["request_id"] = request_id
         if volume_id is not UNSET:
             field_dict["volume_id"] = volume_id
         if attempts is not UNSET:
@@ -169,6 +177,8 @@ class Job:
 
         owner = d.pop("owner", UNSET)
 
+        request_id = d.pop("request_id", UNSET)
+
         volume_id = d.pop("volume_id", UNSET)
 
         attempts = d.pop("attempts", UNSET)
@@ -192,6 +202,7 @@ class Job:
             name=name,
             key_name=key_name,
             owner=owner,
+            request_id=request_id,
             volume_id=volume_id,
             attempts=attempts,
             problem=problem,

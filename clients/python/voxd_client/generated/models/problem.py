@@ -23,6 +23,7 @@ class Problem:
     busy (503), method-not-allowed (405), precondition-failed (412), uri-too-long (414),
     headers-too-large (431),
     expectation-failed (417),
+    range-not-satisfiable (416),
     unauthorized (401), forbidden (403), rate-limited (429), too-many-jobs (429),
     internal (500).
 

@@ -27,6 +27,7 @@ class VolumeFill:
         odd_parity_columns (int): grid columns the mesh covers an odd number of times (holes along z); for density,
             columns of the finer grid
         warning (str | Unset): set when parity was used on a mesh that is not watertight
+        reason (str | Unset): for auto: why it resolved to the fill used (the mesh watertight or not)
         winding (VolumeFillWinding | Unset): for the winding fill, how its voxels were decided
     """
 
@@ -34,6 +35,7 @@ class VolumeFill:
     used: VolumeFillUsed
     odd_parity_columns: int
     warning: str | Unset = UNSET
+    reason: str | Unset = UNSET
     winding: VolumeFillWinding | Unset = UNSET
     additional_properties: dict[str, Any] = _attrs_field(init=False, factory=dict)
 
@@ -45,6 +47,8 @@ class VolumeFill:
         odd_parity_columns = self.odd_parity_columns
 
         warning = self.warning
+
+        reason = self.reason
 
         winding: dict[str, Any] | Unset = UNSET
         if not isinstance(self.winding, Unset):
@@ -61,6 +65,8 @@ class VolumeFill:
         )
         if warning is not UNSET:
             field_dict["warning"] = warning
+        if reason is not UNSET:
+            field_dict["reason"] = reason
         if winding is not UNSET:
             field_dict["winding"] = winding
 
@@ -79,6 +85,8 @@ class VolumeFill:
 
         warning = d.pop("warning", UNSET)
 
+        reason = d.pop("reason", UNSET)
+
         _winding = d.pop("winding", UNSET)
         winding: VolumeFillWinding | Unset
         if isinstance(_winding, Unset):
@@ -91,6 +99,7 @@ class VolumeFill:
             used=used,
             odd_parity_columns=odd_parity_columns,
             warning=warning,
+            reason=reason,
             winding=winding,
         )
 

@@ -6,6 +6,9 @@ from typing import Any, Self, TypeVar
 from attrs import define as _attrs_define
 from attrs import field as _attrs_field
 
+from ..models.volume_source_compression import VolumeSourceCompression
+from ..types import UNSET, Unset
+
 T = TypeVar("T", bound="VolumeSource")
 
 
@@ -13,14 +16,17 @@ T = TypeVar("T", bound="VolumeSource")
 class VolumeSource:
     """
     Attributes:
-        format_ (str):
+        format_ (str): the mesh's format (obj, glb, gltf, stl, ply; of the mesh inside a gzip'd upload); for a derived
+            volume, how it was made
         sha256 (str):
         triangles (int):
+        compression (VolumeSourceCompression | Unset): set when the upload was gzip'd
     """
 
     format_: str
     sha256: str
     triangles: int
+    compression: VolumeSourceCompression | Unset = UNSET
     additional_properties: dict[str, Any] = _attrs_field(init=False, factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
@@ -29,6 +35,10 @@ class VolumeSource:
         sha256 = self.sha256
 
         triangles = self.triangles
+
+        compression: str | Unset = UNSET
+        if not isinstance(self.compression, Unset):
+            compression = self.compression.value
 
         field_dict: dict[str, Any] = {}
         field_dict.update(self.additional_properties)
@@ -39,6 +49,8 @@ class VolumeSource:
                 "triangles": triangles,
             }
         )
+        if compression is not UNSET:
+            field_dict["compression"] = compression
 
         return field_dict
 
@@ -51,10 +63,18 @@ class VolumeSource:
 
         triangles = d.pop("triangles")
 
+        _compression = d.pop("compression", UNSET)
+        compression: VolumeSourceCompression | Unset
+        if isinstance(_compression, Unset):
+            compression = UNSET
+        else:
+            compression = VolumeSourceCompression(_compression)
+
         volume_source = cls(
             format_=format_,
             sha256=sha256,
             triangles=triangles,
+            compression=compression,
         )
 
         volume_source.additional_properties = d

@@ -17,14 +17,26 @@ def _get_kwargs(
     *,
     format_: GetV1VolumesIdDataFormat | Unset = GetV1VolumesIdDataFormat.VXL,
     if_none_match: str | Unset = UNSET,
+    if_match: str | Unset = UNSET,
     accept_encoding: str | Unset = UNSET,
+    range_: str | Unset = UNSET,
+    if_range: str | Unset = UNSET,
 ) -> dict[str, Any]:
     headers: dict[str, Any] = {}
     if not isinstance(if_none_match, Unset):
         headers["If-None-Match"] = if_none_match
 
+    if not isinstance(if_match, Unset):
+        headers["If-Match"] = if_match
+
     if not isinstance(accept_encoding, Unset):
         headers["Accept-Encoding"] = accept_encoding
+
+    if not isinstance(range_, Unset):
+        headers["Range"] = range_
+
+    if not isinstance(if_range, Unset):
+        headers["If-Range"] = if_range
 
     params: dict[str, Any] = {}
 
@@ -56,6 +68,11 @@ def _parse_response(
 
         return response_200
 
+    if response.status_code == 206:
+        response_206 = File(payload=BytesIO(response.content))
+
+        return response_206
+
     if response.status_code == 304:
         response_304 = cast(Any, None)
         return response_304
@@ -74,6 +91,16 @@ def _parse_response(
         response_404 = Problem.from_dict(response.json())
 
         return response_404
+
+    if response.status_code == 412:
+        response_412 = Problem.from_dict(response.json())
+
+        return response_412
+
+    if response.status_code == 416:
+        response_416 = Problem.from_dict(response.json())
+
+        return response_416
 
     if response.status_code == 429:
         response_429 = Problem.from_dict(response.json())
@@ -103,7 +130,10 @@ def sync_detailed(
     client: AuthenticatedClient | Client,
     format_: GetV1VolumesIdDataFormat | Unset = GetV1VolumesIdDataFormat.VXL,
     if_none_match: str | Unset = UNSET,
+    if_match: str | Unset = UNSET,
     accept_encoding: str | Unset = UNSET,
+    range_: str | Unset = UNSET,
+    if_range: str | Unset = UNSET,
 ) -> Response[Any | File | Problem]:
     """Download the volume (vxl is zstd-compressed already; see docs/format.md)
 
@@ -111,7 +141,10 @@ def sync_detailed(
         id (str):
         format_ (GetV1VolumesIdDataFormat | Unset):  Default: GetV1VolumesIdDataFormat.VXL.
         if_none_match (str | Unset):
+        if_match (str | Unset):
         accept_encoding (str | Unset):
+        range_ (str | Unset):
+        if_range (str | Unset):
 
     Raises:
         errors.UnexpectedStatus: If the server returns an undocumented status code and Client.raise_on_unexpected_status is True.
@@ -125,7 +158,10 @@ def sync_detailed(
         id=id,
         format_=format_,
         if_none_match=if_none_match,
+        if_match=if_match,
         accept_encoding=accept_encoding,
+        range_=range_,
+        if_range=if_range,
     )
 
     response = client.get_httpx_client().request(
@@ -141,7 +177,10 @@ def sync(
     client: AuthenticatedClient | Client,
     format_: GetV1VolumesIdDataFormat | Unset = GetV1VolumesIdDataFormat.VXL,
     if_none_match: str | Unset = UNSET,
+    if_match: str | Unset = UNSET,
     accept_encoding: str | Unset = UNSET,
+    range_: str | Unset = UNSET,
+    if_range: str | Unset = UNSET,
 ) -> Any | File | Problem | None:
     """Download the volume (vxl is zstd-compressed already; see docs/format.md)
 
@@ -149,7 +188,10 @@ def sync(
         id (str):
         format_ (GetV1VolumesIdDataFormat | Unset):  Default: GetV1VolumesIdDataFormat.VXL.
         if_none_match (str | Unset):
+        if_match (str | Unset):
         accept_encoding (str | Unset):
+        range_ (str | Unset):
+        if_range (str | Unset):
 
     Raises:
         errors.UnexpectedStatus: If the server returns an undocumented status code and Client.raise_on_unexpected_status is True.
@@ -164,7 +206,10 @@ def sync(
         client=client,
         format_=format_,
         if_none_match=if_none_match,
+        if_match=if_match,
         accept_encoding=accept_encoding,
+        range_=range_,
+        if_range=if_range,
     ).parsed
 
 
@@ -174,7 +219,10 @@ async def asyncio_detailed(
     client: AuthenticatedClient | Client,
     format_: GetV1VolumesIdDataFormat | Unset = GetV1VolumesIdDataFormat.VXL,
     if_none_match: str | Unset = UNSET,
+    if_match: str | Unset = UNSET,
     accept_encoding: str | Unset = UNSET,
+    range_: str | Unset = UNSET,
+    if_range: str | Unset = UNSET,
 ) -> Response[Any | File | Problem]:
     """Download the volume (vxl is zstd-compressed already; see docs/format.md)
 
@@ -182,7 +230,10 @@ async def asyncio_detailed(
         id (str):
         format_ (GetV1VolumesIdDataFormat | Unset):  Default: GetV1VolumesIdDataFormat.VXL.
         if_none_match (str | Unset):
+        if_match (str | Unset):
         accept_encoding (str | Unset):
+        range_ (str | Unset):
+        if_range (str | Unset):
 
     Raises:
         errors.UnexpectedStatus: If the server returns an undocumented status code and Client.raise_on_unexpected_status is True.
@@ -196,7 +247,10 @@ async def asyncio_detailed(
         id=id,
         format_=format_,
         if_none_match=if_none_match,
+        if_match=if_match,
         accept_encoding=accept_encoding,
+        range_=range_,
+        if_range=if_range,
     )
 
     response = await client.get_async_httpx_client().request(**kwargs)
@@ -210,7 +264,10 @@ async def asyncio(
     client: AuthenticatedClient | Client,
     format_: GetV1VolumesIdDataFormat | Unset = GetV1VolumesIdDataFormat.VXL,
     if_none_match: str | Unset = UNSET,
+    if_match: str | Unset = UNSET,
     accept_encoding: str | Unset = UNSET,
+    range_: str | Unset = UNSET,
+    if_range: str | Unset = UNSET,
 ) -> Any | File | Problem | None:
     """Download the volume (vxl is zstd-compressed already; see docs/format.md)
 
@@ -218,7 +275,10 @@ async def asyncio(
         id (str):
         format_ (GetV1VolumesIdDataFormat | Unset):  Default: GetV1VolumesIdDataFormat.VXL.
         if_none_match (str | Unset):
+        if_match (str | Unset):
         accept_encoding (str | Unset):
+        range_ (str | Unset):
+        if_range (str | Unset):
 
     Raises:
         errors.UnexpectedStatus: If the server returns an undocumented status code and Client.raise_on_unexpected_status is True.
@@ -234,6 +294,9 @@ async def asyncio(
             client=client,
             format_=format_,
             if_none_match=if_none_match,
+            if_match=if_match,
             accept_encoding=accept_encoding,
+            range_=range_,
+            if_range=if_range,
         )
     ).parsed

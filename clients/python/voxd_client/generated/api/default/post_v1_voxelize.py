@@ -27,7 +27,7 @@ def _get_kwargs(
     dims: str | Unset = UNSET,
     cubic: bool | Unset = UNSET,
     padding: int | Unset = 0,
-    fill: PostV1VoxelizeFill | Unset = PostV1VoxelizeFill.PARITY,
+    fill: PostV1VoxelizeFill | Unset = UNSET,
     name: str | Unset = UNSET,
     wait: float | Unset = 0.0,
     format_: PostV1VoxelizeFormat | Unset = UNSET,
@@ -189,7 +189,7 @@ def sync_detailed(
     dims: str | Unset = UNSET,
     cubic: bool | Unset = UNSET,
     padding: int | Unset = 0,
-    fill: PostV1VoxelizeFill | Unset = PostV1VoxelizeFill.PARITY,
+    fill: PostV1VoxelizeFill | Unset = UNSET,
     name: str | Unset = UNSET,
     wait: float | Unset = 0.0,
     format_: PostV1VoxelizeFormat | Unset = UNSET,
@@ -207,7 +207,7 @@ def sync_detailed(
         dims (str | Unset):  Example: 64,64,64.
         cubic (bool | Unset):
         padding (int | Unset):  Default: 0.
-        fill (PostV1VoxelizeFill | Unset):  Default: PostV1VoxelizeFill.PARITY.
+        fill (PostV1VoxelizeFill | Unset):
         name (str | Unset): at most 256 characters, none of them control characters
         wait (float | Unset):  Default: 0.0.
         format_ (PostV1VoxelizeFormat | Unset):
@@ -260,7 +260,7 @@ def sync(
     dims: str | Unset = UNSET,
     cubic: bool | Unset = UNSET,
     padding: int | Unset = 0,
-    fill: PostV1VoxelizeFill | Unset = PostV1VoxelizeFill.PARITY,
+    fill: PostV1VoxelizeFill | Unset = UNSET,
     name: str | Unset = UNSET,
     wait: float | Unset = 0.0,
     format_: PostV1VoxelizeFormat | Unset = UNSET,
@@ -278,7 +278,7 @@ def sync(
         dims (str | Unset):  Example: 64,64,64.
         cubic (bool | Unset):
         padding (int | Unset):  Default: 0.
-        fill (PostV1VoxelizeFill | Unset):  Default: PostV1VoxelizeFill.PARITY.
+        fill (PostV1VoxelizeFill | Unset):
         name (str | Unset): at most 256 characters, none of them control characters
         wait (float | Unset):  Default: 0.0.
         format_ (PostV1VoxelizeFormat | Unset):
@@ -326,7 +326,7 @@ async def asyncio_detailed(
     dims: str | Unset = UNSET,
     cubic: bool | Unset = UNSET,
     padding: int | Unset = 0,
-    fill: PostV1VoxelizeFill | Unset = PostV1VoxelizeFill.PARITY,
+    fill: PostV1VoxelizeFill | Unset = UNSET,
     name: str | Unset = UNSET,
     wait: float | Unset = 0.0,
     format_: PostV1VoxelizeFormat | Unset = UNSET,
@@ -344,7 +344,7 @@ async def asyncio_detailed(
         dims (str | Unset):  Example: 64,64,64.
         cubic (bool | Unset):
         padding (int | Unset):  Default: 0.
-        fill (PostV1VoxelizeFill | Unset):  Default: PostV1VoxelizeFill.PARITY.
+        fill (PostV1VoxelizeFill | Unset):
         name (str | Unset): at most 256 characters, none of them control characters
         wait (float | Unset):  Default: 0.0.
         format_ (PostV1VoxelizeFormat | Unset):
@@ -395,7 +395,7 @@ async def asyncio(
     dims: str | Unset = UNSET,
     cubic: bool | Unset = UNSET,
     padding: int | Unset = 0,
-    fill: PostV1VoxelizeFill | Unset = PostV1VoxelizeFill.PARITY,
+    fill: PostV1VoxelizeFill | Unset = UNSET,
     name: str | Unset = UNSET,
     wait: float | Unset = 0.0,
     format_: PostV1VoxelizeFormat | Unset = UNSET,
@@ -413,7 +413,7 @@ async def asyncio(
         dims (str | Unset):  Example: 64,64,64.
         cubic (bool | Unset):
         padding (int | Unset):  Default: 0.
-        fill (PostV1VoxelizeFill | Unset):  Default: PostV1VoxelizeFill.PARITY.
+        fill (PostV1VoxelizeFill | Unset):
         name (str | Unset): at most 256 characters, none of them control characters
         wait (float | Unset):  Default: 0.0.
         format_ (PostV1VoxelizeFormat | Unset):

@@ -1,0 +1,8 @@
+from enum import StrEnum
+
+
+class VolumeSourceCompression(StrEnum):
+    GZIP = "gzip"
+
+    def __str__(self) -> str:
+        return str(self.value)
