@@ -142,7 +142,7 @@ fn serve_with_api_keys_guards_v1_and_logs_key_names_only() {
     child.wait().unwrap();
     let text = std::fs::read_to_string(&log).unwrap();
     assert!(
-        text.contains("key=team-a"),
+        text.contains("key=\"team-a\""),
         "the key's name is not in the log:\n{text}"
     );
     assert!(
