@@ -78,6 +78,10 @@ PY
 #   404       a volume or job id that names nothing stored, or a preview slice the volume's grid
 #             does not have (the document cannot know stored ids or dims);
 #   409       a job that has already finished cannot be canceled;
+#   412       an If-Match the stored volume's ETags do not meet (an empty or made-up list of
+#             entity tags: the document cannot know the stored ETags), or an If-None-Match on
+#             DELETE that names one;
+#   416       a Range past the end of the stored volume's bytes (the document cannot know them);
 #   422       well formed but not workable with what is stored: grids that do not line up, a
 #             density volume where bits are needed, an empty intersection, a grid or picture over
 #             the server's voxel or pixel budget, and for uploads a body that is no usable mesh
@@ -102,7 +106,7 @@ hooks = "$ROOT/scripts/contract_hooks.py"
 [checks]
 ignored_auth.enabled = false
 object_level_authorization.enabled = false
-positive_data_acceptance.expected-statuses = ["2xx", "304", "404", "409", "422", "429", "5xx"]
+positive_data_acceptance.expected-statuses = ["2xx", "304", "404", "409", "412", "416", "422", "429", "5xx"]
 
 [parameters]
 "path.id" = "$VOL"
