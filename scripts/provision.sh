@@ -157,11 +157,12 @@ part_client() {
 }
 
 # readme: what README.md's sessions use (scripts/readme-check.sh runs them): curl, jq, python3's
-# venv (the sessions make their own venv and take numpy from PyPI).
+# venv (the sessions make their own venv and take numpy from PyPI); and wget, which
+# tests/service/http.rs resumes a download with beside curl.
 part_readme() {
-  if { ! command -v curl >/dev/null || ! command -v jq >/dev/null; } && can_apt; then
-    echo "installing curl jq for the README's sessions"
-    apt_install curl jq || true
+  if { ! command -v curl >/dev/null || ! command -v jq >/dev/null || ! command -v wget >/dev/null; } && can_apt; then
+    echo "installing curl jq wget for the README's sessions and the download-resume test"
+    apt_install curl jq wget || true
   fi
   need_venv_support
 }
