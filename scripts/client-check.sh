@@ -18,13 +18,10 @@ cd "$(dirname "$0")/.."
 ROOT=$PWD
 CACHE=${XDG_CACHE_HOME:-$HOME/.cache}/voxd
 WORK=$(mktemp -d)
-PGID=
+# shellcheck source=scripts/serve-lib.sh
+. scripts/serve-lib.sh
 cleanup() {
-  if [[ -n $PGID ]]; then
-    kill -TERM -- "-$PGID" 2>/dev/null || true
-    for _ in $(seq 100); do kill -0 -- "-$PGID" 2>/dev/null || break; sleep 0.1; done
-    kill -KILL -- "-$PGID" 2>/dev/null || true
-  fi
+  voxd_stop
   rm -rf "$WORK"
 }
 trap cleanup EXIT
@@ -80,16 +77,8 @@ SLOW_KEY=client-check-slow-key
 sha() { printf %s "$1" | sha256sum | cut -d' ' -f1; }
 printf 'user:%s:rate=0,jobs=0\nslow:%s:rate=1,burst=1\n' "$(sha "$KEY")" "$(sha "$SLOW_KEY")" >"$WORK/keys"
 # Its own process group (setsid), stopped whole on exit.
-VOXD_LOG=error setsid "$BIN" serve --addr 127.0.0.1:0 --data-dir "$WORK/data" --engine cpu --workers 1 \
-  --api-keys-file "$WORK/keys" --max-voxels 16777216 >"$WORK/out" 2>"$WORK/err" &
-PGID=$!
-for _ in $(seq 300); do
-  grep -q '^voxd listening on ' "$WORK/out" 2>/dev/null && break
-  kill -0 "$PGID" 2>/dev/null || { cat "$WORK/err" >&2; echo "client-check: voxd did not start" >&2; exit 1; }
-  sleep 0.1
-done
-URL=$(sed -n 's/^voxd listening on //p' "$WORK/out" | head -1)
-[[ -n $URL ]] || { echo "client-check: voxd printed no address" >&2; exit 1; }
+voxd_start client-check "$BIN" "$WORK" --engine cpu --workers 1 --api-keys-file "$WORK/keys" --max-voxels 16777216
+URL=$VOXD_URL
 
 # ---- 2. the Python client's tests ----
 (cd "$WORK" && VOXD_URL=$URL VOXD_KEY=$KEY VOXD_SLOW_KEY=$SLOW_KEY VOXD_MESHES=$ROOT/tests/data \
@@ -103,5 +92,5 @@ cp clients/typescript/check.ts clients/typescript/tsconfig.json clients/typescri
   node_modules/.bin/tsc -p . &&
   VOXD_URL=$URL VOXD_KEY=$KEY VOXD_MESHES=$ROOT/tests/data node check.js)
 
-kill -0 "$PGID" 2>/dev/null || { cat "$WORK/err" >&2; echo "client-check: voxd died during the run" >&2; exit 1; }
+voxd_alive client-check
 echo "client-check: the generated clients are current and work against the service"

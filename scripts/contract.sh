@@ -35,24 +35,17 @@ if [[ -z $BIN ]]; then
   BIN=${CARGO_TARGET_DIR:-target}/debug/voxd
 fi
 WORK=$(mktemp -d)
-PID=
+# shellcheck source=scripts/serve-lib.sh
+. scripts/serve-lib.sh
 cleanup() {
-  if [[ -n $PID ]]; then kill "$PID" 2>/dev/null || true; wait "$PID" 2>/dev/null || true; fi
+  voxd_stop
   rm -rf "$WORK"
 }
 trap cleanup EXIT
 # A voxel budget of 128³: the document's example mesh makes real jobs, and at the default budget
 # (1024³) one of them could keep the two cores busy for minutes.
-VOXD_LOG=error "$BIN" serve --addr 127.0.0.1:0 --data-dir "$WORK/data" --engine cpu \
-  --max-voxels 2097152 >"$WORK/out" 2>"$WORK/err" &
-PID=$!
-for _ in $(seq 300); do
-  grep -q '^voxd listening on ' "$WORK/out" 2>/dev/null && break
-  kill -0 "$PID" 2>/dev/null || { cat "$WORK/err" >&2; echo "contract: voxd did not start" >&2; exit 1; }
-  sleep 0.1
-done
-URL=$(sed -n 's/^voxd listening on //p' "$WORK/out" | head -1)
-[[ -n $URL ]] || { echo "contract: voxd printed no address" >&2; exit 1; }
+voxd_start contract "$BIN" "$WORK" --engine cpu --max-voxels 2097152
+URL=$VOXD_URL
 
 # Real resources, so that the generated requests reach more than 404s: two aligned volumes (for
 # CSG and intersect), one to delete, one job.
@@ -158,7 +151,7 @@ if [[ -n ${VOXD_CONTRACT_REPORT:-} ]]; then # a folder for a HAR of every exchan
 fi
 status=0
 st "$WORK/gate.toml" "${report[@]}" || status=$?
-kill -0 "$PID" 2>/dev/null || { cat "$WORK/err" >&2; echo "contract: voxd died during the run" >&2; exit 1; }
+voxd_alive contract
 
 if [[ $status != 0 ]]; then
   echo "contract: schemathesis found responses that break openapi.yaml (above)" >&2
