@@ -1,7 +1,7 @@
 //! The `voxd` binary: voxelize, info, convert, and its errors.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 use std::sync::OnceLock;
 
 use crate::common::*;
@@ -11,13 +11,7 @@ use voxd::engine::{Engine, GridMesh, Method};
 use voxd::grid::{Grid, GridSpec};
 use voxd::volume::Volume;
 
-fn voxd(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_voxd"))
-        .args(args)
-        .env("VOXD_LOG", "error")
-        .output()
-        .unwrap()
-}
+use crate::common::run_voxd as voxd;
 
 /// A file in the scratch directory all the CLI tests share (emptied once, on first use).
 fn tmp(name: &str) -> PathBuf {

@@ -1,6 +1,7 @@
 //! The standard `process_*` metrics (as Prometheus' client libraries name them), read from
-//! `/proc/self` on each scrape: resident and virtual memory, CPU seconds, open and allowed file
-//! descriptors, start time, threads. Elsewhere than Linux, nothing.
+//! `/proc/self` on each scrape: resident and virtual memory, CPU seconds, open file descriptors,
+//! start time, threads (elsewhere than Linux, none of these); and the allowed file descriptors,
+//! the soft limit the server's connection cap is derived from (`server::fd_limit`).
 
 use std::fmt::Write;
 
@@ -75,12 +76,12 @@ fn read() -> Vec<(&'static str, &'static str, &'static str, f64)> {
             fds.count() as f64,
         ));
     }
-    if let Some(max) = max_fds() {
+    if let Some(max) = super::server::fd_limit() {
         out.push((
             "process_max_fds",
             "gauge",
             "Maximum number of open file descriptors.",
-            max,
+            max as f64,
         ));
     }
     out
@@ -99,17 +100,6 @@ fn boot_time() -> Option<f64> {
         .ok()?
         .lines()
         .find_map(|l| l.strip_prefix("btime ")?.trim().parse().ok())
-}
-
-/// The soft limit of open files (`/proc/self/limits`).
-fn max_fds() -> Option<f64> {
-    std::fs::read_to_string("/proc/self/limits")
-        .ok()?
-        .lines()
-        .find_map(|l| {
-            let rest = l.strip_prefix("Max open files")?;
-            rest.split_whitespace().next()?.parse().ok()
-        })
 }
 
 #[cfg(test)]

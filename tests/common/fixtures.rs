@@ -21,6 +21,15 @@ pub fn repo_file(path: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(path)
 }
 
+/// The `voxd` command line with `args` (its log quiet but for errors): its output.
+pub fn run_voxd(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_voxd"))
+        .args(args)
+        .env("VOXD_LOG", "error")
+        .output()
+        .unwrap()
+}
+
 /// `../shared/meshes`, or `None` with a printed notice.
 pub fn shared_meshes() -> Option<PathBuf> {
     // VOXD_SHARED_MESHES: the folder elsewhere (a test binary run on another machine).

@@ -5,15 +5,6 @@
 
 use super::*;
 
-/// The `voxd` binary with `args`; its output.
-fn cli(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_voxd"))
-        .args(args)
-        .env("VOXD_LOG", "error")
-        .output()
-        .unwrap()
-}
-
 /// A glTF written by trimesh with the attributes `_s` and `_t` (legal per the glTF spec) loads:
 /// the attributes are ignored, on both fronts.
 #[test]
@@ -33,7 +24,7 @@ fn gltf_with_application_specific_attributes_loads() {
     assert_eq!(meta["solid_voxels"], 512);
     drop(srv);
     let out = dir.join("attrs.npy");
-    let o = cli(&[
+    let o = run_voxd(&[
         "voxelize",
         data("trimesh-attrs.glb").to_str().unwrap(),
         "-o",
@@ -188,7 +179,7 @@ fn cross_parameter_rules_are_enforced() {
         ];
         args.extend_from_slice(&["--resolution", "6", "--engine", "cpu"]);
         args.extend_from_slice(extra);
-        cli(&args)
+        run_voxd(&args)
     };
     for (extra, names) in [
         (
@@ -298,7 +289,7 @@ fn fill_auto_is_the_default_and_says_why() {
     let mesh = dir.join("bowl.obj");
     std::fs::write(&mesh, &bowl).unwrap();
     let out = dir.join("bowl.vxl");
-    let o = cli(&[
+    let o = run_voxd(&[
         "voxelize",
         mesh.to_str().unwrap(),
         "-o",

@@ -10,10 +10,12 @@
 //! marked on the response ([`Negotiated`]) so that the layer leaves it alone, is one.
 
 use axum::body::Body;
-use axum::http::{HeaderMap, HeaderValue, header};
-use axum::response::Response;
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::response::{IntoResponse, Response};
 use bytes::Bytes;
 use futures_util::{Stream, StreamExt, TryStreamExt};
+
+use crate::app::{Error, ErrorKind};
 
 /// A content coding the service sends.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -24,8 +26,8 @@ pub enum Coding {
 }
 
 impl Coding {
-    /// Preferred first where `Accept-Encoding` ranks codings equally.
-    const BY_PREFERENCE: [Coding; 3] = [Coding::Zstd, Coding::Gzip, Coding::Identity];
+    /// Every coding, preferred first where `Accept-Encoding` ranks codings equally.
+    pub const BY_PREFERENCE: [Coding; 3] = [Coding::Zstd, Coding::Gzip, Coding::Identity];
 
     fn token(self) -> &'static str {
         match self {
@@ -243,31 +245,55 @@ pub fn slice<E: Send + 'static>(
     .try_filter(|b| std::future::ready(!b.is_empty()))
 }
 
-/// `body` sent in `coding`: the response body, and the `Content-Encoding` to send with it.
+/// A response whose body is `body` sent in `coding`, with its `Content-Encoding`.
 pub fn encode<E>(
     body: impl Stream<Item = Result<Bytes, E>> + Send + 'static,
     coding: Coding,
-) -> (Body, Option<HeaderValue>)
+) -> Response
 where
     E: std::error::Error + Send + Sync + 'static,
 {
     use async_compression::tokio::bufread::{GzipEncoder, ZstdEncoder};
     use tokio_util::io::{ReaderStream, StreamReader};
     if coding == Coding::Identity {
-        return (Body::from_stream(body), None);
+        return Body::from_stream(body).into_response();
     }
     let reader = || StreamReader::new(body.map_err(std::io::Error::other));
-    match coding {
+    let mut r = match coding {
         Coding::Identity => unreachable!("sent as it is above"),
-        Coding::Gzip => (
-            Body::from_stream(ReaderStream::new(GzipEncoder::new(reader()))),
-            Some(HeaderValue::from_static("gzip")),
-        ),
-        Coding::Zstd => (
-            Body::from_stream(ReaderStream::new(ZstdEncoder::new(reader()))),
-            Some(HeaderValue::from_static("zstd")),
-        ),
+        Coding::Gzip => Body::from_stream(ReaderStream::new(GzipEncoder::new(reader()))),
+        Coding::Zstd => Body::from_stream(ReaderStream::new(ZstdEncoder::new(reader()))),
     }
+    .into_response();
+    r.headers_mut().insert(
+        header::CONTENT_ENCODING,
+        HeaderValue::from_static(coding.token()),
+    );
+    r
+}
+
+/// A request's `If-Match` (strong) and `If-None-Match` (weak) against the representation tagged
+/// `etag` of `what` (e.g. "volume ID as npy"): `412 precondition-failed` when `If-Match` fails,
+/// a `304` with the representation's headers when `If-None-Match` names it, else `None` (answer
+/// with the representation).
+pub fn preconditions(
+    headers: &HeaderMap,
+    etag: &str,
+    what: impl FnOnce() -> String,
+) -> Result<Option<Response>, Error> {
+    let tags = [etag.to_string()];
+    if !if_match(headers, &tags) {
+        return Err(Error::new(
+            ErrorKind::PreconditionFailed,
+            format!("{} is {etag}, not If-Match", what()),
+        ));
+    }
+    if none_match_hits(headers, &tags) {
+        let mut r = StatusCode::NOT_MODIFIED.into_response();
+        representation_headers(&mut r, etag);
+        return Ok(Some(r));
+    }
+    Ok(None)
 }
 
 /// The headers every representation of a volume route carries, on `200`, `206` and `304`

@@ -57,17 +57,10 @@ pub async fn data(
         conditional::negotiate(&headers, format != VolumeFormat::Vxl)
     };
     let etag = conditional::coded_etag(&data_etag(&meta.sha256, format), coding);
-    if !conditional::if_match(&headers, std::slice::from_ref(&etag)) {
-        return Err(Error::new(
-            ErrorKind::PreconditionFailed,
-            format!("volume {id} as {} is {etag}, not If-Match", format.name()),
-        )
-        .into());
-    }
-    if conditional::none_match_hits(&headers, std::slice::from_ref(&etag)) {
-        let mut r = StatusCode::NOT_MODIFIED.into_response();
-        conditional::representation_headers(&mut r, &etag);
-        return Ok(r);
+    if let Some(not_modified) = conditional::preconditions(&headers, &etag, || {
+        format!("volume {id} as {}", format.name())
+    })? {
+        return Ok(not_modified);
     }
     // A conversion holds the decoded volume while it streams: that memory comes out of the
     // process-wide budget, for as long as the download lasts. A range streams the whole
@@ -128,14 +121,10 @@ pub async fn data(
             }
             (r, Some(end - start + 1))
         }
-        _ => {
-            let (body, encoding) = conditional::encode(whole, coding);
-            let mut r = body.into_response();
-            if let Some(e) = encoding {
-                r.headers_mut().insert(header::CONTENT_ENCODING, e);
-            }
-            (r, download.len.filter(|_| coding == Coding::Identity))
-        }
+        _ => (
+            conditional::encode(whole, coding),
+            download.len.filter(|_| coding == Coding::Identity),
+        ),
     };
     conditional::representation_headers(&mut r, &etag);
     let h = r.headers_mut();

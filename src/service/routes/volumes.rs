@@ -119,32 +119,20 @@ pub async fn get(
     // carries the ETag the 200 would. Small documents are sent as they are.
     let coding = conditional::negotiate(&headers, json.len() > 256);
     let etag = conditional::coded_etag(&meta_etag(&json), coding);
-    if !conditional::if_match(&headers, std::slice::from_ref(&etag)) {
-        return Err(Error::new(
-            ErrorKind::PreconditionFailed,
-            format!("volume {id}'s metadata is {etag}, not If-Match"),
-        )
-        .into());
+    if let Some(not_modified) =
+        conditional::preconditions(&headers, &etag, || format!("volume {id}'s metadata"))?
+    {
+        return Ok(not_modified);
     }
-    let mut r = if conditional::none_match_hits(&headers, std::slice::from_ref(&etag)) {
-        StatusCode::NOT_MODIFIED.into_response()
-    } else {
-        let once =
-            futures_util::stream::once(
-                async move { Ok::<_, std::io::Error>(bytes::Bytes::from(json)) },
-            );
-        let (body, encoding) = conditional::encode(once, coding);
-        let mut r = body.into_response();
-        let h = r.headers_mut();
-        h.insert(
-            header::CONTENT_TYPE,
-            HeaderValue::from_static("application/json"),
+    let once =
+        futures_util::stream::once(
+            async move { Ok::<_, std::io::Error>(bytes::Bytes::from(json)) },
         );
-        if let Some(e) = encoding {
-            h.insert(header::CONTENT_ENCODING, e);
-        }
-        r
-    };
+    let mut r = conditional::encode(once, coding);
+    r.headers_mut().insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("application/json"),
+    );
     conditional::representation_headers(&mut r, &etag);
     Ok(r)
 }
@@ -168,9 +156,7 @@ fn volume_etags(meta: &VolumeMeta) -> Result<Vec<String>, Error> {
             .map(|f| super::download::data_etag(&meta.sha256, f.format)),
     );
     Ok(identity
-        .flat_map(|t| {
-            [Coding::Identity, Coding::Gzip, Coding::Zstd].map(|c| conditional::coded_etag(&t, c))
-        })
+        .flat_map(|t| Coding::BY_PREFERENCE.map(|c| conditional::coded_etag(&t, c)))
         .collect())
 }
 

@@ -102,19 +102,37 @@ pub fn bind(addr: SocketAddr) -> std::io::Result<TcpListener> {
     socket.listen(BACKLOG)
 }
 
+/// The limits on open files (soft and hard), or `None` where they cannot be read.
+#[cfg(unix)]
+fn nofile() -> Option<libc::rlimit> {
+    let mut lim = libc::rlimit {
+        rlim_cur: 0,
+        rlim_max: 0,
+    };
+    // SAFETY: `lim` is a valid, writable rlimit for the call's duration.
+    (unsafe { libc::getrlimit(libc::RLIMIT_NOFILE, &mut lim) } == 0).then_some(lim)
+}
+
+/// The soft limit on open files now in force (`None`: unlimited, or it cannot be read).
+pub fn fd_limit() -> Option<u64> {
+    #[cfg(unix)]
+    {
+        nofile()
+            .map(|l| l.rlim_cur)
+            .filter(|n| *n != libc::RLIM_INFINITY)
+    }
+    #[cfg(not(unix))]
+    {
+        None
+    }
+}
+
 /// Raises the soft limit on open files to the hard one (once; later calls only read it);
 /// returns the soft limit now in force, or `None` where it cannot be read.
 pub fn raise_fd_limit() -> Option<u64> {
     #[cfg(unix)]
     {
-        let mut lim = libc::rlimit {
-            rlim_cur: 0,
-            rlim_max: 0,
-        };
-        // SAFETY: `lim` is a valid, writable rlimit for the call's duration.
-        if unsafe { libc::getrlimit(libc::RLIMIT_NOFILE, &mut lim) } != 0 {
-            return None;
-        }
+        let mut lim = nofile()?;
         if lim.rlim_cur < lim.rlim_max {
             let raised = libc::rlimit {
                 rlim_cur: lim.rlim_max,
