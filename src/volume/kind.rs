@@ -171,8 +171,9 @@ pub trait Voxel: Copy + PartialEq + std::fmt::Debug + Send + Sync + 'static {
     fn write_le(self, out: &mut Vec<u8>);
     /// From exactly `TYPE.bytes()` bytes.
     fn read_le(b: &[u8]) -> Self;
-    /// Occupied: non-zero ids and densities, alpha above zero, distances at or below zero (the
-    /// inside of a signed distance field).
+    /// Occupied: non-zero ids and densities, alpha above zero, distances with the sign bit set
+    /// (the inside of a signed distance field: −0.0 is a centre on the surface that is inside,
+    /// +0.0 one that is outside).
     fn occupied(self) -> bool;
     fn value(self) -> VoxelValue;
     /// Can a volume hold this value? Every value but a NaN distance (which equals nothing, so a
@@ -227,7 +228,7 @@ impl Voxel for f32 {
         f32::from_le_bytes([b[0], b[1], b[2], b[3]])
     }
     fn occupied(self) -> bool {
-        self <= 0.0
+        self.is_sign_negative() && !self.is_nan()
     }
     fn is_valid(self) -> bool {
         !self.is_nan()

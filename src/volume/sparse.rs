@@ -2,8 +2,8 @@
 //! them: a background value, and a table of the occupied bricks, each holding its 512 values.
 //! Voxel (x, y, z) lies in brick (x/8, y/8, z/8) at offset `((x%8)·8 + y%8)·8 + z%8` (OpenVDB's
 //! leaf order, so a `.vdb` leaf is one brick). Bricks at the grid's high faces extend past it;
-//! their voxels outside the grid always hold the background. A voxel in no brick is the
-//! background. Meant for narrow-band distance fields (`Sparse<f32>`, background +∞ or the band's
+//! their voxels outside the grid always hold the background. A voxel in no brick is the tile
+//! value when its brick is a tile, else the background. Meant for narrow-band distance fields (`Sparse<f32>`, background +∞ or the band's
 //! width) and other mostly-uniform volumes. Not here: the `.vxl` layout (`codec::vxl`).
 
 use std::collections::BTreeMap;
@@ -24,6 +24,11 @@ pub struct Sparse<T> {
     background: T,
     /// Keyed by brick coordinates, in (x, y, z) order: the order `.vxl` stores them in.
     bricks: BTreeMap<[u32; 3], Box<[T; BRICK_VOXELS]>>,
+    /// The value of every voxel (inside the grid) of a tile.
+    tile_value: T,
+    /// One bit per brick position, `(bx · BY + by) · BZ + bz`: set where the position is a tile.
+    /// Empty when there are no tiles. A stored brick is never a tile.
+    tiles: Vec<u64>,
 }
 
 /// The offset of voxel (x, y, z) in its brick.
@@ -38,7 +43,69 @@ impl<T: Voxel> Sparse<T> {
             grid,
             background,
             bricks: BTreeMap::new(),
+            tile_value: background,
+            tiles: Vec::new(),
         }
+    }
+    /// No bricks; the tiles (none yet) will hold `tile_value`.
+    pub fn with_tile_value(grid: Grid, background: T, tile_value: T) -> Sparse<T> {
+        Sparse {
+            tile_value,
+            ..Sparse::new(grid, background)
+        }
+    }
+    pub fn tile_value(&self) -> T {
+        self.tile_value
+    }
+
+    fn tile_bit(&self, at: [u32; 3]) -> usize {
+        let bd = self.brick_dims();
+        ((at[0] as usize * bd[1] as usize) + at[1] as usize) * bd[2] as usize + at[2] as usize
+    }
+
+    /// Is brick position `at` a tile?
+    pub fn is_tile(&self, at: [u32; 3]) -> bool {
+        let i = self.tile_bit(at);
+        self.tiles.get(i / 64).is_some_and(|w| w >> (i % 64) & 1 == 1)
+    }
+
+    /// Makes brick position `at` a tile (dropping its brick) or not. Fails when `at` is outside
+    /// the brick grid.
+    pub fn set_tile(&mut self, at: [u32; 3], tile: bool) -> Result<(), String> {
+        let bd = self.brick_dims();
+        if (0..3).any(|a| at[a] >= bd[a]) {
+            return Err(format!("tile {at:?} is outside the brick grid {bd:?}"));
+        }
+        let i = self.tile_bit(at);
+        if tile {
+            if self.tiles.is_empty() {
+                let n = bd.iter().map(|&d| d as usize).product::<usize>();
+                self.tiles = vec![0; n.div_ceil(64)];
+            }
+            self.tiles[i / 64] |= 1 << (i % 64);
+            self.bricks.remove(&at);
+        } else if let Some(w) = self.tiles.get_mut(i / 64) {
+            *w &= !(1 << (i % 64));
+        }
+        Ok(())
+    }
+
+    /// The tiles' brick coordinates, in (x, y, z) order.
+    pub fn tiles(&self) -> impl Iterator<Item = [u32; 3]> + '_ {
+        let [_, by, bz] = self.brick_dims().map(|d| d as usize);
+        self.tiles
+            .iter()
+            .enumerate()
+            .filter(|(_, w)| **w != 0)
+            .flat_map(move |(wi, &w)| {
+                (0..64).filter(move |b| w >> b & 1 == 1).map(move |b| {
+                    let i = wi * 64 + b;
+                    [(i / (by * bz)) as u32, (i / bz % by) as u32, (i % bz) as u32]
+                })
+            })
+    }
+    pub fn tile_count(&self) -> usize {
+        self.tiles.iter().map(|w| w.count_ones() as usize).sum()
     }
     pub fn grid(&self) -> &Grid {
         &self.grid
@@ -75,6 +142,9 @@ impl<T: Voxel> Sparse<T> {
                 ));
             }
         }
+        if self.is_tile(at) {
+            self.set_tile(at, false)?;
+        }
         self.bricks.insert(at, Box::new(values));
         Ok(())
     }
@@ -82,24 +152,38 @@ impl<T: Voxel> Sparse<T> {
     pub fn get(&self, x: u32, y: u32, z: u32) -> T {
         let d = self.grid.dims;
         assert!(x < d[0] && y < d[1] && z < d[2], "voxel outside the grid");
-        match self.bricks.get(&[x / BRICK, y / BRICK, z / BRICK]) {
+        let at = [x / BRICK, y / BRICK, z / BRICK];
+        match self.bricks.get(&at) {
             Some(b) => b[offset(x, y, z)],
+            None if self.is_tile(at) => self.tile_value,
             None => self.background,
         }
     }
 
-    /// Sets a voxel, making its brick when it has none (unless `v` is the background).
+    /// Sets a voxel, making its brick when it has none (unless `v` is already its value): a
+    /// tile becomes a brick of the tile value inside the grid (the background past it).
     pub fn set(&mut self, x: u32, y: u32, z: u32, v: T) {
         let d = self.grid.dims;
         assert!(x < d[0] && y < d[1] && z < d[2], "voxel outside the grid");
         let key = [x / BRICK, y / BRICK, z / BRICK];
-        if v == self.background && !self.bricks.contains_key(&key) {
-            return;
+        if !self.bricks.contains_key(&key) {
+            if v == self.get(x, y, z) {
+                return;
+            }
+            let mut brick = Box::new([self.background; BRICK_VOXELS]);
+            if self.is_tile(key) {
+                for (i, b) in brick.iter_mut().enumerate() {
+                    let (bx, by, bz) = (i as u32 / 64, i as u32 / 8 % 8, i as u32 % 8);
+                    let p = [key[0] * BRICK + bx, key[1] * BRICK + by, key[2] * BRICK + bz];
+                    if (0..3).all(|a| p[a] < d[a]) {
+                        *b = self.tile_value;
+                    }
+                }
+                self.set_tile(key, false).expect("inside the brick grid");
+            }
+            self.bricks.insert(key, brick);
         }
-        let bg = self.background;
-        self.bricks
-            .entry(key)
-            .or_insert_with(|| Box::new([bg; BRICK_VOXELS]))[offset(x, y, z)] = v;
+        self.bricks.get_mut(&key).expect("made above")[offset(x, y, z)] = v;
     }
 
     /// Drops the bricks that hold only the background.
@@ -140,6 +224,15 @@ impl<T: Voxel> Sparse<T> {
     pub fn to_dense(&self) -> Dense<T> {
         let mut d = Dense::new(self.grid, self.background);
         let [nx, ny, nz] = self.grid.dims;
+        for [bx, by, bz] in self.tiles() {
+            for x in bx * BRICK..(bx * BRICK + BRICK).min(nx) {
+                for y in by * BRICK..(by * BRICK + BRICK).min(ny) {
+                    for z in bz * BRICK..(bz * BRICK + BRICK).min(nz) {
+                        d.set(x, y, z, self.tile_value);
+                    }
+                }
+            }
+        }
         for (&[bx, by, bz], b) in &self.bricks {
             for x in bx * BRICK..(bx * BRICK + BRICK).min(nx) {
                 for y in by * BRICK..(by * BRICK + BRICK).min(ny) {
@@ -185,7 +278,15 @@ impl<T: Voxel> Sparse<T> {
             .values()
             .map(|b| b.iter().filter(|v| v.occupied()).count() as u64)
             .sum();
-        background + occupied - past
+        // Tiles: their voxels inside the grid hold the tile value, not the background.
+        let e = |b: u32, n: u64| (n - b as u64 * 8).min(8);
+        let tiles: u64 = self
+            .tiles()
+            .map(|[bx, by, bz]| e(bx, nx) * e(by, ny) * e(bz, nz))
+            .sum();
+        let tiles_occupied = if self.tile_value.occupied() { tiles } else { 0 };
+        let tiles_background = if self.background.occupied() { tiles } else { 0 };
+        background + occupied + tiles_occupied - past - tiles_background
     }
 }
 
@@ -221,6 +322,29 @@ mod tests {
             s.insert_brick([2, 0, 0], [f32::INFINITY; BRICK_VOXELS])
                 .is_err()
         );
+    }
+
+    #[test]
+    fn tiles_hold_their_value_until_a_voxel_is_set() {
+        let g = Grid {
+            origin: [0.0; 3],
+            voxel_size: 1.0,
+            dims: [12, 8, 8],
+        };
+        let mut s = Sparse::with_tile_value(g, 3.0f32, -3.0);
+        s.set_tile([1, 0, 0], true).unwrap();
+        assert!(s.is_tile([1, 0, 0]) && !s.is_tile([0, 0, 0]));
+        assert_eq!(s.tiles().collect::<Vec<_>>(), vec![[1, 0, 0]]);
+        assert_eq!(s.get(9, 3, 3), -3.0);
+        assert_eq!(s.get(2, 3, 3), 3.0);
+        assert_eq!(s.count_occupied(), 4 * 8 * 8);
+        assert_eq!(s.to_dense().count_occupied(), 4 * 8 * 8);
+        s.set(9, 3, 3, -1.0);
+        assert_eq!((s.tile_count(), s.brick_count()), (0, 1));
+        assert_eq!(s.get(10, 3, 3), -3.0);
+        assert_eq!(s.get(9, 3, 3), -1.0);
+        assert_eq!(s.count_occupied(), 4 * 8 * 8);
+        assert!(s.set_tile([2, 0, 0], true).is_err());
     }
 
     #[test]

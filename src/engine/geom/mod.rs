@@ -5,14 +5,16 @@
 //! distance to) a triangle or a segment, and the bounding-volume hierarchy over triangles
 //! ([`bvh`]) that makes "the triangles near q" cheap.
 //!
-//! Not here: the lattice (`snap`) and its exact integer rules, which the voxelizers must follow
-//! bit for bit; the winding fill's expansions, bounds and eight-lane kernels (in
+//! [`lattice`]: the exact distance from a lattice point to a snapped triangle (integers), which
+//! the distance methods share. Not here: the snap itself (`snap`) and the voxelizers' exact
+//! integer rules, which they must follow bit for bit; the winding fill's expansions, bounds and eight-lane kernels (in
 //! [`super::winding`], which builds them on [`bvh`]); anything about grids or volumes.
 //!
 //! Every function computes exactly what it did where it was written for the winding fill (same
 //! operations in the same order): the fill's output depends on these bits.
 
 pub mod bvh;
+pub mod lattice;
 
 use std::f64::consts::PI;
 
