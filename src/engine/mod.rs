@@ -9,6 +9,7 @@ pub mod density;
 pub mod fill;
 mod geom;
 pub mod gpu;
+pub mod sdf;
 mod snap;
 pub mod winding;
 
