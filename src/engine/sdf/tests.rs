@@ -250,12 +250,12 @@ fn check(mesh: &Mesh, g: &Grid, band: Band, fills: &[Fill]) -> f64 {
         let tiles: BTreeSet<[u32; 3]> = sdf.tiles().collect();
         let want_stored: BTreeSet<[u32; 3]> = want
             .iter()
-            .filter(|(_, &(b, a, l))| b || (a && !l))
+            .filter(|(_, v)| v.0 || (v.1 && !v.2))
             .map(|(k, _)| *k)
             .collect();
         let want_tiles: BTreeSet<[u32; 3]> = want
             .iter()
-            .filter(|(_, &(b, _, l))| !b && l)
+            .filter(|(_, v)| !v.0 && v.2)
             .map(|(k, _)| *k)
             .collect();
         if band == Band::All {
