@@ -93,7 +93,7 @@ fn distance_and_sdf_parameters_are_refused_where_they_do_not_apply() {
         ("method=solid&band=3", &["band=3", "method=solid", "method=sdf"]),
         ("band=all", &["band=all", "method=solid"]),
         ("method=distance&thickness=-1", &["thickness", "≥ 0"]),
-        ("method=distance&thickness=5", &["thickness", "32 voxels"]),
+        ("method=distance&thickness=5", &["thickness", "at most 32"]),
         ("method=sdf&thickness=0.1", &["thickness", "method=distance"]),
         ("method=distance&band=3", &["band", "method=sdf"]),
         ("method=distance&fill=winding", &["fill=winding", "method=distance"]),
