@@ -66,11 +66,16 @@ fn openvdb_python() -> Option<&'static str> {
 /// Writes `v` as `.vdb` (through the format table) and has OpenVDB read it, asking for the
 /// voxels `queries`.
 fn read_back(python: &str, v: &Volume, queries: &[[i64; 3]], name: &str) -> serde_json::Value {
+    let bytes = VolumeFormat::Vdb.encode(v).unwrap();
+    assert_eq!(VolumeFormat::sniff(&bytes), Some(VolumeFormat::Vdb));
+    openvdb_read(python, &bytes, queries, name)
+}
+
+/// Has OpenVDB read the `.vdb` `bytes`, asking for the voxels `queries`.
+fn openvdb_read(python: &str, bytes: &[u8], queries: &[[i64; 3]], name: &str) -> serde_json::Value {
     let dir = Scratch::new(name);
     let path = dir.join("v.vdb");
     let q = dir.join("queries.txt");
-    let bytes = VolumeFormat::Vdb.encode(v).unwrap();
-    assert_eq!(VolumeFormat::sniff(&bytes), Some(VolumeFormat::Vdb));
     std::fs::write(&path, bytes).unwrap();
     let lines: Vec<String> = queries
         .iter()
@@ -301,4 +306,137 @@ fn openvdb_reads_a_bit_volume_as_a_bool_grid() {
     let mut want = set;
     want.sort();
     assert_eq!(on, want);
+}
+
+/// Stores `v` in a data directory (as the service stores volumes), for a server started on it.
+fn store_in(dir: &std::path::Path, v: &Volume) -> String {
+    use voxd::app::metadata::{Origin, build};
+    use voxd::app::store::VolumeStore;
+    let provenance = serde_json::json!({"test": "vdb"});
+    let built = build(
+        v,
+        &Origin::Derived {
+            method: "test",
+            provenance: &provenance,
+        },
+        Some("sparse".into()),
+        "test",
+    )
+    .unwrap();
+    let id = built.meta.id.clone();
+    let store = voxd::store::fs::FsStore::open(dir, 1 << 30).unwrap();
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap()
+        .block_on(store.put(built.meta, built.vxl))
+        .unwrap();
+    id
+}
+
+/// Over HTTP: a stored sparse distance volume downloads as `.vdb` (OpenVDB reads the voxels
+/// back) and as `.npy` (numpy loads float32 (X, Y, Z), every voxel what `get` says); a grid
+/// over the server's voxel limit is refused as `.npy` with its bytes, and still downloads as
+/// `.vdb`.
+#[test]
+fn sparse_distance_volumes_download_as_vdb_and_npy() {
+    let Some(python) = openvdb_python() else {
+        return;
+    };
+    let dir = crate::common::tmpdir("vdb-http");
+    let g = Grid {
+        origin: [1.0, 2.0, -3.0],
+        voxel_size: 0.5,
+        dims: [40, 33, 21],
+    };
+    let mut s = Sparse::with_tile_value(g, 1.5f32, -1.5);
+    let mut rng = Rng::new(11);
+    for _ in 0..300 {
+        let p = [0, 1, 2].map(|a| rng.below(g.dims[a] as u64) as u32);
+        s.set(p[0], p[1], p[2], (rng.range(-1.0, 1.0) * 1.4) as f32);
+    }
+    s.set_tile([4, 4, 2], true).unwrap();
+    s.set_tile([0, 0, 0], true).unwrap();
+    // 1.2 million voxels: over the limit of 1 million below, as a dense array.
+    let big_grid = Grid {
+        dims: [120, 100, 100],
+        ..g
+    };
+    let mut big = Sparse::with_tile_value(big_grid, 1.5f32, -1.5);
+    big.set(119, 99, 99, -0.25);
+    let id = store_in(&dir, &Volume::SparseDistance(s.clone()));
+    let big_id = store_in(&dir, &Volume::SparseDistance(big));
+    let server = crate::service::Server::start(&dir, &["--max-voxels", "1000000"]);
+    let get = |path: &str| crate::common::request(&server.addr, "GET", path, &[], b"");
+
+    let r = get(&format!("/v1/volumes/{id}/data?format=vdb"));
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    assert_eq!(r.header("content-type"), Some("application/x-vdb"));
+    assert!(
+        r.header("content-disposition")
+            .is_some_and(|d| d.contains(".vdb"))
+    );
+    let mut queries = vec![];
+    for x in 0..g.dims[0] as i64 {
+        for y in 0..g.dims[1] as i64 {
+            for z in (0..g.dims[2] as i64).step_by(4) {
+                queries.push([x, y, z]);
+            }
+        }
+    }
+    let got = openvdb_read(python, &r.body, &queries, "vdb-http-read");
+    assert_eq!(got["class"], "level set");
+    for (p, a) in queries.iter().zip(got["queries"].as_array().unwrap()) {
+        let want = s.get(p[0] as u32, p[1] as u32, p[2] as u32);
+        assert_eq!(f32_of(&a[0]).to_bits(), want.to_bits(), "{p:?}");
+        assert_eq!(a[1].as_bool(), Some(want.abs() < 1.5), "{p:?}");
+    }
+    check_world(&g, &queries, &got);
+
+    let r = get(&format!("/v1/volumes/{id}/data?format=npy"));
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    let npy = dir.join("d.npy");
+    let raw = dir.join("d.raw");
+    std::fs::write(&npy, &r.body).unwrap();
+    let script = "import numpy as np, sys; a = np.load(sys.argv[1]); assert a.dtype == np.float32, a.dtype; print(*a.shape); open(sys.argv[2], 'wb').write(a.astype('<f4').tobytes(order='C'))";
+    let o = Command::new(python)
+        .args(["-c", script])
+        .arg(&npy)
+        .arg(&raw)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(String::from_utf8(o.stdout).unwrap().trim(), "40 33 21");
+    let data = std::fs::read(&raw).unwrap();
+    let [nx, ny, nz] = g.dims;
+    assert_eq!(data.len() as u32, nx * ny * nz * 4);
+    for x in 0..nx {
+        for y in 0..ny {
+            for z in 0..nz {
+                let at = (((x * ny + y) * nz + z) * 4) as usize;
+                let v = f32::from_le_bytes(data[at..at + 4].try_into().unwrap());
+                assert_eq!(v.to_bits(), s.get(x, y, z).to_bits(), "({x}, {y}, {z})");
+            }
+        }
+    }
+    let r = get(&format!("/v1/volumes/{id}/data?format=raw"));
+    assert_eq!((r.status, r.body), (200, data));
+
+    // Over the limit as a dense array: refused with the numbers; as .vdb it is sparse.
+    let r = get(&format!("/v1/volumes/{big_id}/data?format=npy"));
+    assert_eq!(r.status, 422, "{}", String::from_utf8_lossy(&r.body));
+    let detail = r.json()["detail"].as_str().unwrap().to_string();
+    for want in ["1200000 voxels", "4800000 bytes", "4000000 bytes", "vdb"] {
+        assert!(detail.contains(want), "{want:?} not in {detail:?}");
+    }
+    let r = get(&format!("/v1/volumes/{big_id}/data?format=vdb"));
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    let got = openvdb_read(python, &r.body, &[[119, 99, 99], [0, 0, 0]], "vdb-http-big");
+    assert_eq!(got["active"], 1);
+    let q = got["queries"].as_array().unwrap();
+    assert_eq!((f32_of(&q[0][0]), f32_of(&q[1][0])), (-0.25, 1.5));
+    // bits that are no distance: refused by the table.
+    let r = get(&format!("/v1/volumes/{id}/data?format=binvox"));
+    assert_eq!(r.status, 400);
+    drop(server);
 }
