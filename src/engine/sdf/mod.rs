@@ -109,7 +109,9 @@ pub fn lattice_triangles(
         .with_min_len(crate::PAR_PIECE)
         .map(|&p| to_lattice(grid, p))
         .collect();
-    let hi_centre = grid.dims.map(|d| (i64::from(d) - 1) * FIXED_ONE + FIXED_HALF);
+    let hi_centre = grid
+        .dims
+        .map(|d| (i64::from(d) - 1) * FIXED_ONE + FIXED_HALF);
     let snap = |tri: &[u32; 3]| -> Result<Option<[[i32; 3]; 3]>, EngineError> {
         let v = tri.map(|i| snapped[i as usize]);
         if let Some(r) = reach {
@@ -231,7 +233,9 @@ pub fn signed_distance(
                     for &(key, lo, hi) in chunk {
                         let at = bins::unkey(key, bd);
                         let list = &bins.tris()[lo..hi];
-                        out.extend(eval::band_brick(tris, list, solid, at, r, scale, background));
+                        out.extend(eval::band_brick(
+                            tris, list, solid, at, r, scale, background,
+                        ));
                     }
                     counter.add(chunk.len() as u64);
                     Ok(out)
