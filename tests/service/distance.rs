@@ -177,3 +177,64 @@ fn distance_and_sdf_parameters_are_refused_where_they_do_not_apply() {
     assert!(p["detail"].as_str().unwrap().contains("bricks"), "{p}");
     srv.stop();
 }
+
+/// The command line: `voxd voxelize --method sdf --band 2` of an open mesh with the winding
+/// fill writes a sparse distance volume signed like `--method solid`, and `voxd info` describes
+/// it; `--band` and `--thickness` only with their methods.
+#[test]
+fn the_cli_writes_and_describes_an_sdf() {
+    let dir = tmpdir("distance-cli");
+    let mesh = dir.join("bowl.obj");
+    std::fs::write(&mesh, to_obj(&open_bowl())).unwrap();
+    let (sdf, solid) = (dir.join("bowl-sdf.vxl"), dir.join("bowl-solid.vxl"));
+    let run = |args: &[&str]| {
+        let o = run_voxd(args);
+        assert!(o.status.success(), "{args:?}: {}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8(o.stdout).unwrap()
+    };
+    let m = mesh.to_str().unwrap();
+    let common = ["--resolution", "30", "--padding", "1", "--fill", "winding", "--engine", "cpu"];
+    let mut a = vec!["voxelize", m, "-o", sdf.to_str().unwrap(), "--method", "sdf", "--band", "2"];
+    a.extend(common);
+    run(&a);
+    let mut a = vec!["voxelize", m, "-o", solid.to_str().unwrap(), "--method", "solid"];
+    a.extend(common);
+    run(&a);
+    let read = |p: &Path| VolumeFormat::Vxl.decode(&std::fs::read(p).unwrap()).unwrap();
+    let (Volume::SparseDistance(v), Volume::Bits(b)) = (read(&sdf), read(&solid)) else {
+        panic!("kinds")
+    };
+    let [nx, ny, nz] = b.dims();
+    let mut active = 0;
+    for x in 0..nx {
+        for y in 0..ny {
+            for z in 0..nz {
+                assert_eq!(v.get(x, y, z).is_sign_negative(), b.get(x, y, z), "{x},{y},{z}");
+                active += u64::from(v.get(x, y, z).abs() < v.background());
+            }
+        }
+    }
+    let info = run(&["info", sdf.to_str().unwrap()]);
+    assert!(info.contains("kind:       sparse-distance"), "{info}");
+    assert!(info.contains("band 2 voxels"), "{info}");
+    assert!(
+        info.contains(&format!("stored ({active} voxels in band)")),
+        "{info}"
+    );
+    for bad in [
+        &["--method", "solid", "--band", "2"][..],
+        &["--method", "sdf", "--band", "0"],
+        &["--method", "sdf", "--thickness", "0.1"],
+    ] {
+        let out = dir.join("bad.vxl");
+        let mut a = vec!["voxelize", m, "-o", out.to_str().unwrap()];
+        a.extend(bad);
+        let o = run_voxd(&a);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && (err.contains("band") || err.contains("thickness")),
+            "{bad:?}: {err}"
+        );
+        assert!(!out.exists());
+    }
+}
