@@ -189,18 +189,51 @@ fn the_cli_writes_and_describes_an_sdf() {
     let (sdf, solid) = (dir.join("bowl-sdf.vxl"), dir.join("bowl-solid.vxl"));
     let run = |args: &[&str]| {
         let o = run_voxd(args);
-        assert!(o.status.success(), "{args:?}: {}", String::from_utf8_lossy(&o.stderr));
+        assert!(
+            o.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
         String::from_utf8(o.stdout).unwrap()
     };
     let m = mesh.to_str().unwrap();
-    let common = ["--resolution", "30", "--padding", "1", "--fill", "winding", "--engine", "cpu"];
-    let mut a = vec!["voxelize", m, "-o", sdf.to_str().unwrap(), "--method", "sdf", "--band", "2"];
+    let common = [
+        "--resolution",
+        "30",
+        "--padding",
+        "1",
+        "--fill",
+        "winding",
+        "--engine",
+        "cpu",
+    ];
+    let mut a = vec![
+        "voxelize",
+        m,
+        "-o",
+        sdf.to_str().unwrap(),
+        "--method",
+        "sdf",
+        "--band",
+        "2",
+    ];
     a.extend(common);
     run(&a);
-    let mut a = vec!["voxelize", m, "-o", solid.to_str().unwrap(), "--method", "solid"];
+    let mut a = vec![
+        "voxelize",
+        m,
+        "-o",
+        solid.to_str().unwrap(),
+        "--method",
+        "solid",
+    ];
     a.extend(common);
     run(&a);
-    let read = |p: &Path| VolumeFormat::Vxl.decode(&std::fs::read(p).unwrap()).unwrap();
+    let read = |p: &Path| {
+        VolumeFormat::Vxl
+            .decode(&std::fs::read(p).unwrap())
+            .unwrap()
+    };
     let (Volume::SparseDistance(v), Volume::Bits(b)) = (read(&sdf), read(&solid)) else {
         panic!("kinds")
     };
@@ -209,7 +242,11 @@ fn the_cli_writes_and_describes_an_sdf() {
     for x in 0..nx {
         for y in 0..ny {
             for z in 0..nz {
-                assert_eq!(v.get(x, y, z).is_sign_negative(), b.get(x, y, z), "{x},{y},{z}");
+                assert_eq!(
+                    v.get(x, y, z).is_sign_negative(),
+                    b.get(x, y, z),
+                    "{x},{y},{z}"
+                );
                 active += u64::from(v.get(x, y, z).abs() < v.background());
             }
         }
