@@ -77,14 +77,18 @@ pub fn voxelize(mesh: &GridMesh, t: i64, ctl: &Control) -> Result<BitVolume, Can
                         (b0, b1)
                     };
                     for ib in b0..=b1 {
-                        let cb = centre(ib);
+                        let (y, z) = if a == 1 { (ia, ib) } else { (ib, ia) };
+                        let col = ((x - band.start) as usize * ny as usize + y as usize) * wpc;
+                        let (word, bit) = (&mut words[col + z as usize / 64], 1 << (z % 64));
+                        // Set already (by an earlier triangle): nothing to decide.
+                        if *word & bit != 0 {
+                            continue;
+                        }
                         let mut c = [cx, 0, 0];
                         c[a] = ca;
-                        c[b] = cb;
+                        c[b] = centre(ib);
                         if exact.within(c) {
-                            let (y, z) = if a == 1 { (ia, ib) } else { (ib, ia) };
-                            let col = ((x - band.start) as usize * ny as usize + y as usize) * wpc;
-                            words[col + z as usize / 64] |= 1 << (z % 64);
+                            *word |= bit;
                         }
                     }
                 }
