@@ -55,8 +55,8 @@ fn mag_add(a: &[u32], b: &[u32]) -> Vec<u32> {
 fn mag_sub(a: &[u32], b: &[u32]) -> Vec<u32> {
     let mut out = Vec::with_capacity(a.len());
     let mut borrow = 0i64;
-    for i in 0..a.len() {
-        let mut d = a[i] as i64 - *b.get(i).unwrap_or(&0) as i64 - borrow;
+    for (i, &x) in a.iter().enumerate() {
+        let mut d = x as i64 - *b.get(i).unwrap_or(&0) as i64 - borrow;
         borrow = (d < 0) as i64;
         if d < 0 {
             d += 1 << 32;
@@ -354,7 +354,7 @@ fn random_triangle(rng: &mut Rng, span: [i64; 3]) -> [[i32; 3]; 3] {
     let point = |rng: &mut Rng, m: i64| [0, 1, 2].map(|a| rng.int(-m, span[a] + m));
     let v0 = point(rng, 512);
     let v = match rng.below(8) {
-        0 | 1 | 2 => [v0, point(rng, 512), point(rng, 512)],
+        0..=2 => [v0, point(rng, 512), point(rng, 512)],
         // Far larger than the grid.
         3 => [point(rng, 40_000), point(rng, 40_000), point(rng, 40_000)],
         // Far smaller than a voxel.
