@@ -13,6 +13,7 @@ struct Params {
     words_per_column: u32,    // u32 words per column (even)
     item_count: u32,
     item_offset: u32,         // first item of this dispatch in the items buffer
+    thickness: u32,           // distance: the threshold in lattice units (0 for the others)
 }
 
 // value = hi * 2^64 + lo, two's complement.
@@ -77,4 +78,35 @@ fn widen(v: i32) -> i64 {
 // Linear invocation index of a 2D dispatch of 64-wide workgroups (65535 groups per row).
 fn linear_id(gid: vec3<u32>) -> u32 {
     return gid.x + gid.y * 65535u * 64u;
+}
+
+// value = w3 * 2^192 + w2 * 2^128 + w1 * 2^64 + w0, unsigned.
+struct U256 { w0: u64, w1: u64, w2: u64, w3: u64 }
+
+// a + b + c (c ≤ 2) as (sum mod 2^64, carry).
+fn adc(a: u64, b: u64, c: u64) -> vec2<u64> {
+    let s = a + b;
+    let s2 = s + c;
+    return vec2<u64>(s2, select(0lu, 1lu, s < a) + select(0lu, 1lu, s2 < s));
+}
+
+// Exact a * b of unsigned 128-bit values (the I128 halves read as unsigned).
+fn mul_u128_wide(a: I128, b: I128) -> U256 {
+    let p0 = mul_u64_wide(a.lo, b.lo);
+    let p1 = mul_u64_wide(a.lo, b.hi);
+    let p2 = mul_u64_wide(a.hi, b.lo);
+    let p3 = mul_u64_wide(a.hi, b.hi);
+    let r1 = adc(p0.hi, p1.lo, 0lu);
+    let r1b = adc(r1.x, p2.lo, 0lu);
+    let r2 = adc(p1.hi, p2.hi, r1.y + r1b.y);
+    let r2b = adc(r2.x, p3.lo, 0lu);
+    return U256(p0.lo, r1b.x, r2b.x, p3.hi + r2.y + r2b.y);
+}
+
+// Unsigned a < b.
+fn less256(a: U256, b: U256) -> bool {
+    if (a.w3 != b.w3) { return a.w3 < b.w3; }
+    if (a.w2 != b.w2) { return a.w2 < b.w2; }
+    if (a.w1 != b.w1) { return a.w1 < b.w1; }
+    return a.w0 < b.w0;
 }

@@ -392,3 +392,192 @@ fn a_job_run_again_reuses_its_buffers_within_the_pool_budget() {
         }
     }
 }
+
+// ---- distance: the GPU against the CPU (which is tested against an exact oracle). ----
+
+/// Thicknesses (lattice units) with several integer vectors of their length, for ties.
+const THICKNESSES: [i64; 8] = [0, 1, 21, 222, 231, 256, 693, 8085];
+
+/// Triangles exactly `t` from voxel centre `c` through a vertex, an edge and a face: f = c + o
+/// with |o| = t, the rest of each triangle in the half-space (q − f)·o ≥ 0.
+fn tie_triangles(rng: &mut Rng, c: [i64; 3], t: i64) -> Vec<[[i32; 3]; 3]> {
+    let mut dirs = vec![[1, 0, 0], [0, 1, 0], [0, 0, 1]];
+    for (d, l) in [
+        ([1, 2, 2], 3),
+        ([2, 3, 6], 7),
+        ([2, 6, 9], 11),
+        ([-2, 1, 2], 3),
+    ] {
+        if t % l == 0 {
+            dirs.push(d.map(|x| x * t / l));
+        }
+    }
+    let mut o = dirs[rng.below(dirs.len() as u64) as usize];
+    if o.iter().all(|&x| x.abs() <= 1) {
+        o = o.map(|x| x * t);
+    }
+    let f = [0, 1, 2].map(|a| c[a] + o[a]);
+    let dot = |a: [i64; 3], b: [i64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let perp: Vec<[i64; 3]> = [[o[1], -o[0], 0], [o[2], 0, -o[0]], [0, o[2], -o[1]]]
+        .into_iter()
+        .filter(|&u| u != [0; 3])
+        .collect();
+    let (u1, u2) = if o == [0; 3] {
+        ([1, 0, 0], [0, 1, 0])
+    } else {
+        let u1 = perp[0];
+        let cross = |a: [i64; 3], b: [i64; 3]| {
+            [
+                a[1] * b[2] - a[2] * b[1],
+                a[2] * b[0] - a[0] * b[2],
+                a[0] * b[1] - a[1] * b[0],
+            ]
+        };
+        let u2 = perp[1..]
+            .iter()
+            .copied()
+            .find(|&u| cross(u1, u) != [0; 3])
+            .unwrap_or_else(|| cross(o, u1));
+        (u1, u2)
+    };
+    let at = |p: [i64; 3], k: i64, d: [i64; 3]| [0, 1, 2].map(|a| p[a] + k * d[a]);
+    let mut away = || {
+        let d = [0, 1, 2].map(|_| rng.below(601) as i64 - 300);
+        if dot(d, o) < 0 { d.map(|x| -x) } else { d }
+    };
+    let (a, b) = (away(), away());
+    [
+        [
+            at(at(f, -1, u1), -1, u2),
+            at(at(f, 2, u1), -1, u2),
+            at(at(f, -1, u1), 2, u2),
+        ],
+        [at(f, -1, u1), at(f, 1, u1), at(f, 1, a)],
+        [f, at(f, 1, a), at(f, 1, b)],
+    ]
+    .into_iter()
+    .map(|v| v.map(|p| p.map(|x| i32::try_from(x).unwrap())))
+    .collect()
+}
+
+fn check_distance(e: &GpuEngine, gm: &GridMesh, t: i64, what: &str) {
+    let want = CpuEngine.distance_with(gm, t, &Default::default()).unwrap();
+    let got = e.distance_with(gm, t, &Default::default()).unwrap();
+    if let Some(d) = first_difference(&got, &want) {
+        panic!("{what}, distance t = {t}: GPU differs from CPU: {d}");
+    }
+}
+
+/// Random meshes with degenerate (segments, points), tiny and huge triangles and triangles
+/// exactly at the threshold from voxel centres.
+#[test]
+fn distance_equals_the_cpu_on_random_meshes() {
+    let Some(e) = gpu() else { return };
+    let mut set = 0;
+    for seed in 0..48u64 {
+        let mut rng = Rng::new(seed);
+        let dims = [
+            1 + rng.below(16) as u32,
+            1 + rng.below(16) as u32,
+            [1, 31, 32, 33, 40][rng.below(5) as usize],
+        ];
+        let g = unit_grid(dims);
+        let mut gm = GridMesh::new(&random_mesh(&mut rng, dims, seed), &g).unwrap();
+        let t = THICKNESSES[seed as usize % THICKNESSES.len()];
+        let centre = |rng: &mut Rng, a: usize| rng.below(dims[a] as u64) as i64 * 256 + 128;
+        for _ in 0..4 {
+            let c = [0, 1, 2].map(|a| centre(&mut rng, a));
+            gm.triangles.extend(tie_triangles(&mut rng, c, t));
+            let p = [0, 1, 2].map(|a| centre(&mut rng, a) as i32 + 37);
+            let q = [p[0] + 900, p[1] - 300, p[2] + 5];
+            // A point, a segment (repeated vertex), three collinear points, a sliver, a speck.
+            gm.triangles.extend([
+                [p, p, p],
+                [p, q, q],
+                [p, q, [2 * q[0] - p[0], 2 * q[1] - p[1], 2 * q[2] - p[2]]],
+                [
+                    p,
+                    q,
+                    [2 * q[0] - p[0] + 1, 2 * q[1] - p[1], 2 * q[2] - p[2]],
+                ],
+                [p, [p[0] + 3, p[1], p[2]], [p[0], p[1] + 2, p[2] - 1]],
+            ]);
+        }
+        let want = CpuEngine
+            .distance_with(&gm, t, &Default::default())
+            .unwrap();
+        set += want.count_ones();
+        check_distance(e, &gm, t, &format!("seed {seed}"));
+    }
+    assert!(set > 0);
+}
+
+/// Triangles far larger than the grid (the host leaves out tiles far from their planes), in
+/// several slabs.
+#[test]
+fn distance_of_huge_triangles_in_slabs_equals_the_cpu() {
+    let Some(e) = gpu() else { return };
+    let p = vec![
+        [-3000.0, -3000.0, 5.0],
+        [5000.0, -3000.0, 40.0],
+        [-3000.0, 5000.0, 60.0],
+        [-50.0, 10.0, -40.0],
+        [400.0, 20.0, 90.0],
+        [100.0, 300.0, 20.5],
+    ];
+    let mesh = Mesh::new(p, vec![[0, 1, 2], [3, 4, 5]]).unwrap();
+    let g = unit_grid([300, 200, 64]);
+    let gm = GridMesh::new(&mesh, &g).unwrap();
+    for t in [0, 222, 1000] {
+        check_distance(e, &gm, t, "huge triangles");
+    }
+    let small = GpuEngine::new(GpuOptions {
+        adapter: std::env::var("VOXD_ADAPTER").ok(),
+        max_slab_bytes: Some(3 * 200 * 8),
+        max_chunk_bytes: Some(36),
+        ..Default::default()
+    })
+    .unwrap();
+    let (v, timings) = small
+        .distance_timed_with(&gm, 600, &Default::default())
+        .unwrap();
+    assert!(timings.slabs > 50, "only {} slabs", timings.slabs);
+    assert_eq!(
+        v,
+        CpuEngine
+            .distance_with(&gm, 600, &Default::default())
+            .unwrap()
+    );
+}
+
+/// Real meshes: spot (tests/data) and the shared meshes where present.
+#[test]
+fn distance_of_real_meshes_equals_the_cpu() {
+    let Some(e) = gpu() else { return };
+    let mut meshes = vec![(
+        "spot.obj",
+        mesh::load_file(&data("spot.obj"), usize::MAX).unwrap(),
+    )];
+    if let Some(dir) = shared_meshes() {
+        for name in ["teapot.obj", "stanford-bunny.obj", "2CylinderEngine.gltf"] {
+            meshes.push((name, mesh::load_file(&dir.join(name), usize::MAX).unwrap()));
+        }
+    }
+    for (name, m) in &meshes {
+        let (lo, hi) = m.bounds();
+        for n in [48, 128] {
+            let g = Grid::fit(
+                lo,
+                hi,
+                GridSpec::Resolution { n, cubic: false },
+                1,
+                Default::default(),
+            )
+            .unwrap();
+            let gm = GridMesh::new(m, &g).unwrap();
+            for t in [222, 700] {
+                check_distance(e, &gm, t, &format!("{name} at {n}"));
+            }
+        }
+    }
+}

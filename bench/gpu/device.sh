@@ -6,6 +6,7 @@
 #   2. the whole `voxd voxelize` command, CPU engine against GPU engine, interleaved, 3 runs each;
 #   0. the GPU tests (tests/gpu.rs: every kernel against the CPU engine, bit for bit) on the
 #      device's adapter, from the integration tests' release binary;
+#   2b. `distance` against `surface` on each engine, once the CLI has `--method distance`;
 #   3. small jobs from 1, 4 and 16 threads on one GPU engine (examples/gpu_small_jobs, every
 #      volume checked against the CPU engine's).
 # Every step has its own timeout; a step that fails is reported and the rest go on.
@@ -77,6 +78,27 @@ whole() { # MESH RES: the whole command, cpu and gpu interleaved, 3 runs each (w
 }
 if [[ -f $d/meshes/igea-subdiv4.obj.gz ]]; then
   for n in 256 512; do step "whole voxd voxelize, igea-subdiv4 at $n³" 120 whole $d/meshes/igea-subdiv4.obj.gz $n; done
+fi
+distance_vs_surface() { # MESH RES: `distance` (default thickness) against `surface`, each engine (wall seconds)
+  echo "| engine | surface | distance |"
+  echo "|---|---|---|"
+  for e in cpu gpu; do
+    local row="| $e |"
+    for m in surface distance; do
+      local s=$EPOCHREALTIME
+      if $d/voxd voxelize "$1" --resolution "$2" --cubic --engine "$e" --method "$m" -o /tmp/dvs-$e-$m.vxl >/dev/null 2>>"$out/stderr.log"; then
+        row+=" $(awk -v a="$s" -v b="$EPOCHREALTIME" 'BEGIN { printf "%.3f", b - a }') s |"
+      else
+        row+=" failed |"
+      fi
+    done
+    echo "$row"
+  done
+  cmp -s /tmp/dvs-cpu-distance.vxl /tmp/dvs-gpu-distance.vxl && echo -e "\ndistance volumes identical" || echo -e "\nDISTANCE VOLUMES DIFFER"
+}
+# Once the CLI knows `--method distance`.
+if [[ -f $d/meshes/igea-subdiv4.obj.gz ]] && $d/voxd voxelize --help 2>/dev/null | grep -q distance; then
+  step "distance against surface, igea-subdiv4 at 512³" 120 distance_vs_surface $d/meshes/igea-subdiv4.obj.gz 512
 fi
 for c in "cube.obj 64 2000" "spot.obj 64 2000" "spot.obj 128 500"; do
   read -r m n jobs <<<"$c"

@@ -15,6 +15,7 @@ const COMMON: &str = include_str!("../../../shaders/common.wgsl");
 const SOLID: &str = include_str!("../../../shaders/solid.wgsl");
 const PREFIX_XOR: &str = include_str!("../../../shaders/prefix_xor.wgsl");
 const SURFACE: &str = include_str!("../../../shaders/surface.wgsl");
+const DISTANCE: &str = include_str!("../../../shaders/distance.wgsl");
 const COMBINE: &str = include_str!("../../../shaders/combine.wgsl");
 
 /// What the engine runs on, for logs, summaries and health checks.
@@ -37,6 +38,7 @@ pub(super) struct GpuDevice {
     pub solid_masks: wgpu::ComputePipeline,
     pub prefix_xor: wgpu::ComputePipeline,
     pub surface: wgpu::ComputePipeline,
+    pub distance: wgpu::ComputePipeline,
     pub union: wgpu::ComputePipeline,
     pub subtract: wgpu::ComputePipeline,
     /// Buffers kept from one job for the next.
@@ -147,6 +149,7 @@ impl GpuDevice {
             solid_masks: pipeline("solid_masks", SOLID, &[("MASKS", 1.0)]),
             prefix_xor: pipeline("prefix_xor", PREFIX_XOR, &[]),
             surface: pipeline("surface", SURFACE, &[]),
+            distance: pipeline("distance", DISTANCE, &[]),
             union: pipeline("union", COMBINE, &[("SUBTRACT", 0.0)]),
             subtract: pipeline("subtract", COMBINE, &[("SUBTRACT", 1.0)]),
             pool: BufferPool::new(

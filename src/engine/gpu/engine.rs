@@ -12,6 +12,7 @@ use super::pool::Leases;
 use super::{GpuOptions, GpuStats, GpuTimings, SolidStrategy};
 use super::{device, work};
 use crate::cancel::Control;
+use crate::engine::distance::MAX_LATTICE;
 use crate::engine::{Engine, EngineError, GridMesh, Method};
 use crate::volume::{BitVolume, words_per_column};
 
@@ -31,6 +32,17 @@ struct Params {
     words_per_column: u32,
     item_count: u32,
     item_offset: u32,
+    /// `distance`'s threshold in lattice units (0 for the others).
+    thickness: u32,
+    /// To the uniform block's size (a multiple of 16 bytes).
+    _pad: [u32; 3],
+}
+
+/// What a job computes: a method's bits, or `distance`'s with its threshold (lattice units).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Job {
+    Method(Method),
+    Distance(i64),
 }
 
 /// One slab's recorded work, handed to the batcher: the device runs `commands`, after which
@@ -120,12 +132,36 @@ impl GpuEngine {
         method: Method,
         ctl: &Control,
     ) -> Result<(BitVolume, GpuTimings), EngineError> {
+        self.job(mesh, Job::Method(method), ctl)
+    }
+
+    /// `distance` with threshold `thickness` (lattice units, 0..=[`MAX_LATTICE`]), slab by slab
+    /// as [`GpuEngine::voxelize_timed_with`]; the same bits as the CPU engine's.
+    pub fn distance_timed_with(
+        &self,
+        mesh: &GridMesh,
+        thickness: i64,
+        ctl: &Control,
+    ) -> Result<(BitVolume, GpuTimings), EngineError> {
+        assert!(
+            (0..=MAX_LATTICE).contains(&thickness),
+            "thickness {thickness} out of 0..={MAX_LATTICE}"
+        );
+        self.job(mesh, Job::Distance(thickness), ctl)
+    }
+
+    fn job(
+        &self,
+        mesh: &GridMesh,
+        job: Job,
+        ctl: &Control,
+    ) -> Result<(BitVolume, GpuTimings), EngineError> {
         ctl.check()?;
         let dev = self.device()?;
         let mut leases = Leases::new(&dev.pool);
         // This job's buffers (and, when this thread leads a batch, that batch's submission);
         // each slab's recording has a scope of its own (`run`).
-        let result = scoped(&dev, || self.run(&dev, &mut leases, mesh, method, ctl))?;
+        let result = scoped(&dev, || self.run(&dev, &mut leases, mesh, job, ctl))?;
         if dev.is_lost() {
             return Err(EngineError::Gpu(
                 "the GPU device was lost during the job; it will be reopened for the next one"
@@ -141,7 +177,7 @@ impl GpuEngine {
         dev: &GpuDevice,
         leases: &mut Leases<'_>,
         mesh: &GridMesh,
-        method: Method,
+        job: Job,
         ctl: &Control,
     ) -> Result<(BitVolume, GpuTimings), EngineError> {
         let grid = mesh.grid;
@@ -187,8 +223,12 @@ impl GpuEngine {
             .collect();
         timings.upload += t0.elapsed();
 
-        let need_solid = method != Method::Surface;
-        let need_surface = method != Method::Solid;
+        let (method, thickness) = match job {
+            Job::Method(m) => (Some(m), None),
+            Job::Distance(t) => (None, Some(t)),
+        };
+        let need_solid = method.is_some_and(|m| m != Method::Surface);
+        let need_surface = method.is_some_and(|m| m != Method::Solid);
         let slab_a = leases.take(&dev.device, "slab a", SLAB_USAGE, slab_bytes);
         let slab_b = (need_solid && need_surface)
             .then(|| leases.take(&dev.device, "slab b", SLAB_USAGE, slab_bytes));
@@ -206,6 +246,8 @@ impl GpuEngine {
                 words_per_column: wpc32 as u32,
                 item_count: 0,
                 item_offset: 0,
+                thickness: thickness.unwrap_or(0) as u32,
+                _pad: [0; 3],
             };
             let t_up = Instant::now();
             // This slab's work items and parameters: back to the pool once it has run.
@@ -247,6 +289,10 @@ impl GpuEngine {
                         let target = slab_b.as_ref().unwrap_or(&slab_a);
                         rec.items(&dev.surface, &params, tris, &items, 5, target);
                     }
+                    if let Some(t) = thickness {
+                        let items = work::distance_items(part, xr.clone(), grid.dims, t);
+                        rec.items(&dev.distance, &params, tris, &items, 5, &slab_a);
+                    }
                 }
                 if need_solid && self.options.solid_strategy == SolidStrategy::ToggleScan {
                     let cols = rows * ny;
@@ -255,7 +301,7 @@ impl GpuEngine {
                     rec.dispatch(&dev.prefix_xor, &bind, cols);
                 }
                 if let Some(b) = &slab_b {
-                    let pipeline = if method == Method::Interior {
+                    let pipeline = if method == Some(Method::Interior) {
                         &dev.subtract
                     } else {
                         &dev.union
@@ -464,6 +510,15 @@ impl Engine for GpuEngine {
         ctl: &Control,
     ) -> Result<BitVolume, EngineError> {
         self.voxelize_timed_with(mesh, method, ctl).map(|(v, _)| v)
+    }
+    fn distance_with(
+        &self,
+        mesh: &GridMesh,
+        thickness: i64,
+        ctl: &Control,
+    ) -> Result<BitVolume, EngineError> {
+        self.distance_timed_with(mesh, thickness, ctl)
+            .map(|(v, _)| v)
     }
     fn gpu_stats(&self) -> Option<GpuStats> {
         Some(self.stats())

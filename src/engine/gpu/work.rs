@@ -81,6 +81,77 @@ pub fn surface_items(tris: &[[[i32; 3]; 3]], slab: Range<u32>, dims: [u32; 3]) -
     })
 }
 
+/// Items `[triangle, x0, y0, z0, nx << 20 | ny << 10 | nz]` covering the voxels of the slab whose
+/// centres lie within `t` of each triangle's bounding box (`distance`), less the tiles whose
+/// centres all lie farther than `t` from the triangle's plane (decided in `f64` with a voxel's
+/// margin: it only prunes, the kernel decides exactly).
+pub fn distance_items(
+    tris: &[[[i32; 3]; 3]],
+    slab: Range<u32>,
+    dims: [u32; 3],
+    t: i64,
+) -> Vec<u32> {
+    per_triangle(tris, |i, v, out| {
+        let r = |a: usize| {
+            let (lo, hi) = axis_bounds(v, a);
+            centre_range(lo - t, hi + t, dims[a])
+        };
+        let (Some((x0, x1)), Some((y0, y1)), Some((z0, z1))) = (r(0), r(1), r(2)) else {
+            return;
+        };
+        let (x0, x1) = (x0.max(slab.start), x1.min(slab.end - 1));
+        if x0 > x1 {
+            return;
+        }
+        let sub = |a: [i64; 3], b: [i64; 3]| [0, 1, 2].map(|k| (a[k] - b[k]) as f64);
+        let (e1, e2) = (sub(v[1], v[0]), sub(v[2], v[0]));
+        let n = [
+            e1[1] * e2[2] - e1[2] * e2[1],
+            e1[2] * e2[0] - e1[0] * e2[2],
+            e1[0] * e2[1] - e1[1] * e2[0],
+        ];
+        let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        let one = crate::engine::FIXED_ONE as f64;
+        // Is every centre of the tile farther than t from the plane? The plane's signed
+        // distance over the tile's box of centres is its value at the box's middle ± the half
+        // extents weighted by |n|.
+        let far = |o: [u32; 3], s: [u32; 3]| {
+            if len == 0.0 {
+                return false;
+            }
+            let mid = [0, 1, 2].map(|a| (o[a] as f64 + (s[a] - 1) as f64 / 2.0) * one + one / 2.0);
+            let m: f64 = (0..3)
+                .map(|a| n[a] * (mid[a] - v[0][a] as f64))
+                .sum::<f64>()
+                / len;
+            let spread: f64 = (0..3)
+                .map(|a| n[a].abs() * (s[a] - 1) as f64 * one / 2.0)
+                .sum::<f64>()
+                / len;
+            m.abs() - spread > t as f64 + one + m.abs() * 1e-9
+        };
+        let (ex, ey, ez) = (x1 - x0 + 1, y1 - y0 + 1, z1 - z0 + 1);
+        let tz = ez.min(16);
+        let txy = ((MAX_TILE / tz) as f64).sqrt() as u32;
+        let tx = ex.min(txy).max(1);
+        let ty = ey.min(MAX_TILE / (tx * tz)).clamp(1, 1023);
+        for ix in (x0..=x1).step_by(tx as usize) {
+            for iy in (y0..=y1).step_by(ty as usize) {
+                for iz in (z0..=z1).step_by(tz as usize) {
+                    let s = [
+                        (x1 - ix + 1).min(tx),
+                        (y1 - iy + 1).min(ty),
+                        (z1 - iz + 1).min(tz),
+                    ];
+                    if !far([ix, iy, iz], s) {
+                        out.extend_from_slice(&[i, ix, iy, iz, s[0] << 20 | s[1] << 10 | s[2]]);
+                    }
+                }
+            }
+        }
+    })
+}
+
 fn per_triangle(
     tris: &[[[i32; 3]; 3]],
     f: impl Fn(u32, &[[i64; 3]; 3], &mut Vec<u32>) + Sync,

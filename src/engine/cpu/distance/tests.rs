@@ -10,7 +10,7 @@
 
 use std::cmp::Ordering;
 
-use super::voxelize;
+use super::{Exact, voxelize};
 use crate::cancel::Control;
 use crate::engine::cpu::CpuEngine;
 use crate::engine::geom::lattice;
@@ -55,8 +55,8 @@ fn mag_add(a: &[u32], b: &[u32]) -> Vec<u32> {
 fn mag_sub(a: &[u32], b: &[u32]) -> Vec<u32> {
     let mut out = Vec::with_capacity(a.len());
     let mut borrow = 0i64;
-    for i in 0..a.len() {
-        let mut d = a[i] as i64 - *b.get(i).unwrap_or(&0) as i64 - borrow;
+    for (i, &x) in a.iter().enumerate() {
+        let mut d = x as i64 - *b.get(i).unwrap_or(&0) as i64 - borrow;
         borrow = (d < 0) as i64;
         if d < 0 {
             d += 1 << 32;
@@ -354,7 +354,7 @@ fn random_triangle(rng: &mut Rng, span: [i64; 3]) -> [[i32; 3]; 3] {
     let point = |rng: &mut Rng, m: i64| [0, 1, 2].map(|a| rng.int(-m, span[a] + m));
     let v0 = point(rng, 512);
     let v = match rng.below(8) {
-        0 | 1 | 2 => [v0, point(rng, 512), point(rng, 512)],
+        0..=2 => [v0, point(rng, 512), point(rng, 512)],
         // Far larger than the grid.
         3 => [point(rng, 40_000), point(rng, 40_000), point(rng, 40_000)],
         // Far smaller than a voxel.
@@ -498,6 +498,13 @@ fn lattice_compare_and_distance_agree_with_the_oracle() {
         if r <= (1u64 << 32) as f64 {
             let f = r.floor() as i64;
             for t in [f - 1, f, f + 1, f + 2] {
+                if (0..=super::MAX_LATTICE).contains(&t) {
+                    assert_eq!(
+                        Exact::new(&tri, t).within(p),
+                        oracle_cmp(&d2, t) != Ordering::Greater,
+                        "Exact: {tri:?} {p:?} t = {t}"
+                    );
+                }
                 if (0..=1 << 32).contains(&t) {
                     assert_eq!(
                         lattice::compare(p, &tri, t),
@@ -525,6 +532,7 @@ fn lattice_compare_and_distance_agree_with_the_oracle() {
         );
         assert_eq!(lattice::compare(c, &tri, t - 1), Ordering::Greater);
         assert_eq!(lattice::compare(c, &tri, t + 1), Ordering::Less);
+        assert!(Exact::new(&tri, t).within(c) && !Exact::new(&tri, t - 1).within(c));
         ties += 1;
     }
     assert!(ties >= 3000);
@@ -680,4 +688,52 @@ fn cancellation_stops_it() {
     let ctl = Control::new();
     voxelize(&mesh, 222, &ctl).unwrap();
     assert_eq!(ctl.progress(), 1.0);
+}
+
+/// Not a check: times `distance` (default thickness) against `surface` on one mesh and grid,
+/// three runs each, interleaved. `cargo test --lib time_distance -- --ignored --nocapture`;
+/// VOXD_BENCH_MESH (default tests/data/spot.obj) and VOXD_BENCH_N (default 256, cubic).
+#[test]
+#[ignore]
+fn time_distance_against_surface() {
+    let m = match std::env::var_os("VOXD_BENCH_MESH") {
+        Some(p) => crate::mesh::load_file(std::path::Path::new(&p), usize::MAX).unwrap(),
+        None => spot(),
+    };
+    let n = std::env::var("VOXD_BENCH_N").map_or(256, |v| v.parse().unwrap());
+    let (lo, hi) = m.bounds();
+    let g = Grid::fit(
+        lo,
+        hi,
+        GridSpec::Resolution { n, cubic: true },
+        0,
+        Default::default(),
+    )
+    .unwrap();
+    let gm = GridMesh::new(&m, &g).unwrap();
+    for run in 1..=3 {
+        let t0 = std::time::Instant::now();
+        let s = CpuEngine.voxelize(&gm, Method::Surface).unwrap();
+        let t1 = std::time::Instant::now();
+        let d = voxelize(
+            &gm,
+            crate::engine::distance::DEFAULT_LATTICE,
+            &Control::none(),
+        )
+        .unwrap();
+        let t2 = std::time::Instant::now();
+        let d3 = voxelize(&gm, 3 * 256, &Control::none()).unwrap();
+        let t3 = std::time::Instant::now();
+        eprintln!(
+            "run {run}: {} triangles at {n}³: surface {:.3} s ({} voxels), distance t=222 {:.3} s ({} voxels, ratio {:.2}), t=3 voxels {:.3} s ({} voxels)",
+            gm.triangles.len(),
+            (t1 - t0).as_secs_f64(),
+            s.count_ones(),
+            (t2 - t1).as_secs_f64(),
+            d.count_ones(),
+            (t2 - t1).as_secs_f64() / (t1 - t0).as_secs_f64(),
+            (t3 - t2).as_secs_f64(),
+            d3.count_ones()
+        );
+    }
 }
