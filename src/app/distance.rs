@@ -36,10 +36,10 @@ pub async fn load_distance(store: &dyn VolumeStore, id: &str, what: &str) -> Res
 /// [`check_csg`] then holds every operand to)?
 pub async fn is_distance_csg(store: &dyn VolumeStore, expr: &CsgExpr) -> Result<bool> {
     for id in expr.volume_ids() {
-        if let Some(m) = store.get(&id).await? {
-            if DISTANCE_KINDS.contains(&m.kind) {
-                return Ok(true);
-            }
+        if let Some(m) = store.get(&id).await?
+            && DISTANCE_KINDS.contains(&m.kind)
+        {
+            return Ok(true);
         }
     }
     Ok(false)

@@ -266,7 +266,7 @@ pub fn apply_distance_with<E: From<CsgError> + From<Canceled>>(
         .iter()
         .map(|v| v.background())
         .fold(f32::INFINITY, f32::min);
-    if !(width > 0.0) || operands.iter().any(|v| v.tile_value() > 0.0) {
+    if width.is_nan() || width <= 0.0 || operands.iter().any(|v| v.tile_value() > 0.0) {
         return Err(CsgError::NotForDistance(
             "a distance volume whose background is not positive or whose tiles are not negative is not a level set CSG can combine".into(),
         )

@@ -169,10 +169,9 @@ pub fn interpolate(v: &super::Sparse<f32>, p: [f64; 3]) -> Option<(f64, [f64; 3]
     let w = |a: usize, d: usize| if d == 0 { 1.0 - f[a] } else { f[a] };
     let dw = |d: usize| if d == 0 { -1.0 } else { 1.0 };
     let (mut value, mut grad) = (0.0, [0.0; 3]);
-    for dx in 0..2 {
-        for dy in 0..2 {
-            for dz in 0..2 {
-                let x = c[dx][dy][dz];
+    for (dx, cx) in c.iter().enumerate() {
+        for (dy, cy) in cx.iter().enumerate() {
+            for (dz, &x) in cy.iter().enumerate() {
                 value += w(0, dx) * w(1, dy) * w(2, dz) * x;
                 grad[0] += dw(dx) * w(1, dy) * w(2, dz) * x;
                 grad[1] += w(0, dx) * dw(dy) * w(2, dz) * x;
