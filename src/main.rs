@@ -33,7 +33,21 @@ fn main() -> ExitCode {
             kernel,
             grow,
         } => commands::morph(op, &input, &output, radius, kernel, grow),
-        Command::Csg { op, inputs, output } => commands::csg(op, &inputs, &output),
+        Command::Csg { op, inputs, output } => match cli::distance::is_distance(&inputs[0]) {
+            Ok(true) => cli::distance::csg(op, &inputs, &output),
+            Ok(false) => commands::csg(op, &inputs, &output),
+            Err(e) => Err(e),
+        },
+        Command::Threshold {
+            input,
+            level,
+            output,
+        } => cli::distance::threshold(&input, level, &output),
+        Command::Sdf {
+            input,
+            band,
+            output,
+        } => cli::distance::sdf(&input, band, &output),
         Command::Bench(a) => cli::bench::run(&a),
         Command::Keygen { name } => voxd::service::auth::generate(&name).map(|(key, line)| {
             println!("{key}\n{line}");

@@ -12,6 +12,7 @@ mod connections;
 mod crash;
 mod csg;
 mod density;
+mod distance_cli;
 mod durable_jobs;
 mod fill;
 mod flood;

@@ -227,6 +227,8 @@ impl From<CsgError> for Error {
             CsgError::NoOverlap => ErrorKind::EmptyIntersection,
             CsgError::NoOperands => ErrorKind::InvalidParameter,
             CsgError::TooFarApart { .. } => ErrorKind::GridTooLarge,
+            CsgError::DifferentGrids { .. } => ErrorKind::MisalignedGrids,
+            CsgError::NotForDistance(_) => ErrorKind::InvalidParameter,
         };
         Error::new(kind, e.to_string())
     }

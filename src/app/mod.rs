@@ -11,6 +11,7 @@
 //! [`crate::limits`].
 
 pub mod cost;
+pub mod distance;
 pub mod error;
 pub mod files;
 pub mod jobs;

@@ -213,18 +213,40 @@ pub struct QueryAnswer {
 pub struct PointAnswer {
     pub inside: bool,
     pub value: VoxelValue,
+    /// Distance volumes: the trilinear interpolation of the voxel-centre samples at the point
+    /// (samples outside the grid: the background), absent where a sample is infinite.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub distance: Option<f64>,
+    /// Distance volumes: the interpolant's gradient there (per world unit).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gradient: Option<[f64; 3]>,
 }
 
 pub fn query(v: &Volume, q: &QueryRequest, limits: &Limits) -> Result<QueryAnswer> {
     use crate::volume::query::{ACCEPTS, point_value, ray};
     require(v, ACCEPTS, "a query")?;
     q.check(limits)?;
+    let distance = match v {
+        Volume::SparseDistance(s) => Some(std::borrow::Cow::Borrowed(s)),
+        Volume::Distance(_) => Some(std::borrow::Cow::Owned(
+            crate::volume::levelset::into_distance(v.clone(), "a query")?,
+        )),
+        _ => None,
+    };
     let points = q
         .points
         .iter()
         .map(|&p| {
             let (inside, value) = point_value(v, p);
-            PointAnswer { inside, value }
+            let interp = distance
+                .as_ref()
+                .and_then(|s| crate::volume::query::interpolate(s, p));
+            PointAnswer {
+                inside,
+                value,
+                distance: interp.map(|i| i.0),
+                gradient: interp.map(|i| i.1),
+            }
         })
         .collect();
     let rays = q
@@ -464,10 +486,21 @@ pub async fn store_derived(
     method: &'static str,
     provenance: Value,
 ) -> Result<VolumeMeta> {
+    store_derived_volume(store, Volume::Bits(v), label, method, provenance).await
+}
+
+/// [`store_derived`] for a volume of any kind.
+pub async fn store_derived_volume(
+    store: &dyn VolumeStore,
+    v: Volume,
+    label: Label,
+    method: &'static str,
+    provenance: Value,
+) -> Result<VolumeMeta> {
     let Label { name, owner } = label;
     let built = blocking(move || {
         metadata::build(
-            &Volume::Bits(v),
+            &v,
             &Origin::Derived {
                 method,
                 provenance: &provenance,
@@ -497,6 +530,9 @@ pub async fn csg_stored(
 /// operands' stored grids) must be within the voxel limit, and the voxels all nodes produce
 /// together within [`Limits::max_csg_work`] grids of that size.
 pub async fn check_csg(store: &dyn VolumeStore, expr: &CsgExpr, limits: &Limits) -> Result<()> {
+    if super::distance::is_distance_csg(store, expr).await? {
+        return super::distance::check_csg(store, expr, limits).await;
+    }
     let mut grids = HashMap::new();
     for id in expr.volume_ids() {
         let meta = store
@@ -559,6 +595,9 @@ pub async fn csg_stored_with(
     label: Label,
     ctl: &Control,
 ) -> Result<VolumeMeta> {
+    if super::distance::is_distance_csg(store, &expr).await? {
+        return super::distance::csg_stored_with(store, expr, label, ctl).await;
+    }
     let mut vols = HashMap::new();
     for id in expr.volume_ids() {
         let v = load_bits(store, &id, csg::ACCEPTS, "CSG").await?;

@@ -88,13 +88,31 @@ pub enum Command {
     Info { file: PathBuf },
     /// Convert a volume between formats, chosen by the files' extensions.
     Convert { input: PathBuf, output: PathBuf },
-    /// Combine bit volumes on aligned grids: union, intersection, difference (first minus the rest), xor.
+    /// Combine bit volumes on aligned grids: union, intersection, difference (first minus the rest), xor; or distance volumes on one grid by min/max (no xor).
     Csg {
         #[arg(value_parser = named::<CsgOp>())]
         op: CsgOp,
         /// Volumes (.vxl .binvox .npy), at least one.
         #[arg(required = true)]
         inputs: Vec<PathBuf>,
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// A distance volume's voxels below LEVEL (under IEEE totalOrder), as a bit volume: level 0
+    /// gives the inside, negative levels erode, positive ones dilate.
+    Threshold {
+        input: PathBuf,
+        #[arg(long, allow_hyphen_values = true)]
+        level: f64,
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// The exact signed distance transform of a bit volume, in a sparse band of BAND voxels
+    /// (negative at its set voxels; docs/methods.md).
+    Sdf {
+        input: PathBuf,
+        #[arg(long, default_value_t = voxd::volume::levelset::DEFAULT_BAND)]
+        band: u32,
         #[arg(short, long)]
         output: PathBuf,
     },

@@ -5,5 +5,6 @@
 pub mod args;
 pub mod bench;
 pub mod commands;
+pub mod distance;
 pub mod output;
 pub mod progress;

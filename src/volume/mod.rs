@@ -14,6 +14,7 @@ pub mod channels;
 pub mod csg;
 pub mod dense;
 pub mod kind;
+pub mod levelset;
 pub mod morph;
 pub mod normals;
 pub mod preview;

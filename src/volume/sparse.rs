@@ -127,6 +127,10 @@ impl<T: Voxel> Sparse<T> {
     pub fn bricks(&self) -> impl Iterator<Item = ([u32; 3], &[T; BRICK_VOXELS])> {
         self.bricks.iter().map(|(k, v)| (*k, &**v))
     }
+    /// Brick `at`'s values, if it is stored.
+    pub fn brick(&self, at: [u32; 3]) -> Option<&[T; BRICK_VOXELS]> {
+        self.bricks.get(&at).map(|b| &**b)
+    }
     pub fn brick_count(&self) -> usize {
         self.bricks.len()
     }

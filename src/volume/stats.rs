@@ -206,3 +206,107 @@ fn components(v: &BitVolume, diag: bool, ctl: &Control) -> Result<u64, Canceled>
         .filter(|&i| find(&mut parent, i) == i)
         .count() as u64)
 }
+
+/// Statistics of a distance volume (`levelset::DISTANCE_KINDS`; a dense one is read as every
+/// brick stored, background +∞).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DistanceStats {
+    /// The band's half width in voxels: the background over the voxel size (null: +∞, every
+    /// voxel stored).
+    pub band_voxels: Option<f64>,
+    /// The value of the voxels in no brick and of points outside the grid (null: +∞).
+    pub background: Option<f32>,
+    /// Voxels in the band: |v| < background.
+    pub active_voxels: u64,
+    /// Voxels inside: sign bit set.
+    pub inside_voxels: u64,
+    /// inside_voxels · s³: the inside voxels' cubes, not the volume under the interpolated
+    /// zero level.
+    pub enclosed_volume: f64,
+    pub bricks: u64,
+    pub tiles: u64,
+    /// The least and greatest value of the grid's voxels (null when infinite).
+    pub min: Option<f32>,
+    pub max: Option<f32>,
+}
+
+pub fn distance_stats(s: &super::Sparse<f32>) -> DistanceStats {
+    let g = *s.grid();
+    let [nx, ny, nz] = g.dims.map(u64::from);
+    let e = |b: u32, n: u64| (n - u64::from(b) * 8).min(8);
+    let in_grid = |[bx, by, bz]: [u32; 3]| e(bx, nx) * e(by, ny) * e(bz, nz);
+    let bg = s.background();
+    let active = |v: f32| v.abs() < bg;
+    let (mut n_active, mut n_inside) = (0u64, 0u64);
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    let mut note = |v: f32, n: u64| {
+        if n > 0 {
+            n_active += if active(v) { n } else { 0 };
+            n_inside += if v.is_sign_negative() { n } else { 0 };
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+    };
+    let mut covered = 0u64;
+    for (at, b) in s.bricks() {
+        covered += in_grid(at);
+        let d = g.dims;
+        for (i, &v) in b.iter().enumerate() {
+            let o = i as u32;
+            let p = [at[0] * 8 + o / 64, at[1] * 8 + o / 8 % 8, at[2] * 8 + o % 8];
+            if (0..3).all(|a| p[a] < d[a]) {
+                note(v, 1);
+            }
+        }
+    }
+    let tiles: u64 = s.tiles().map(in_grid).sum();
+    note(s.tile_value(), tiles);
+    note(bg, nx * ny * nz - covered - tiles);
+    let finite = |v: f32| v.is_finite().then_some(v);
+    DistanceStats {
+        band_voxels: bg.is_finite().then(|| f64::from(bg) / g.voxel_size),
+        background: finite(bg),
+        active_voxels: n_active,
+        inside_voxels: n_inside,
+        enclosed_volume: g.volume_of(n_inside),
+        bricks: s.brick_count() as u64,
+        tiles: s.tile_count() as u64,
+        min: finite(lo),
+        max: finite(hi),
+    }
+}
+
+#[cfg(test)]
+mod distance_tests {
+    use super::*;
+    use crate::grid::Grid;
+    use crate::volume::Sparse;
+
+    #[test]
+    fn distance_stats_count_every_voxel_once() {
+        let g = Grid {
+            origin: [0.0; 3],
+            voxel_size: 0.5,
+            dims: [12, 9, 8],
+        };
+        let mut s = Sparse::with_tile_value(g, 1.5f32, -1.5);
+        s.set_tile([1, 0, 0], true).unwrap();
+        s.set(0, 0, 0, -0.0);
+        s.set(0, 0, 1, 0.25);
+        s.set(3, 8, 7, -1.5);
+        let st = distance_stats(&s);
+        // Brute force over the dense copy.
+        let d = s.to_dense();
+        let vals: Vec<f32> = d.data().to_vec();
+        assert_eq!(
+            st.inside_voxels,
+            vals.iter().filter(|v| v.is_sign_negative()).count() as u64
+        );
+        assert_eq!(st.inside_voxels, 4 * 8 * 8 + 2);
+        assert_eq!(st.active_voxels, 2);
+        assert_eq!(st.enclosed_volume, (4 * 8 * 8 + 2) as f64 * 0.125);
+        assert_eq!((st.band_voxels, st.background), (Some(3.0), Some(1.5)));
+        assert_eq!((st.bricks, st.tiles), (2, 1));
+        assert_eq!((st.min, st.max), (Some(-1.5), Some(1.5)));
+    }
+}

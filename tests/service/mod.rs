@@ -20,6 +20,7 @@ use voxd::volume::Volume;
 
 mod contract;
 mod distance;
+mod distance_ops;
 mod http;
 mod inputs;
 mod jobs;

@@ -3,6 +3,7 @@
 
 mod conditional;
 mod disposition;
+mod distance;
 mod download;
 mod health;
 mod jobs;
@@ -41,6 +42,8 @@ pub const ROUTES: &[(&str, &[&str])] = &[
     ("/v1/volumes/{id}/data", &["GET"]),
     ("/v1/volumes/{id}/morphology", &["POST"]),
     ("/v1/volumes/{id}/stats", &["GET"]),
+    ("/v1/volumes/{id}/threshold", &["POST"]),
+    ("/v1/volumes/{id}/sdf", &["POST"]),
     ("/v1/volumes/{id}/query", &["POST"]),
     ("/v1/volumes/{id}/normals", &["GET"]),
     ("/v1/volumes/{id}/preview.png", &["GET"]),
@@ -77,6 +80,8 @@ pub fn router(app: Arc<App>) -> Router {
         .route("/v1/volumes/{id}/data", get(download::data))
         .route("/v1/volumes/{id}/morphology", post(volumes::morphology))
         .route("/v1/volumes/{id}/stats", get(volumes::stats))
+        .route("/v1/volumes/{id}/threshold", post(distance::threshold))
+        .route("/v1/volumes/{id}/sdf", post(distance::sdf))
         .route("/v1/volumes/{id}/query", post(volumes::query))
         .route("/v1/volumes/{id}/normals", get(volumes::normals))
         .route("/v1/volumes/{id}/preview.png", get(volumes::preview))

@@ -247,7 +247,17 @@ pub async fn csg(
     }
     ops::check_csg(&*app.store, &expr, &app.limits).await?;
     let _memory = app
-        .admit(cost::csg(&metas, &expr), "this CSG expression")
+        .admit(
+            if metas
+                .values()
+                .any(|m| crate::volume::levelset::DISTANCE_KINDS.contains(&m.kind))
+            {
+                crate::app::distance::csg_cost(&metas)
+            } else {
+                cost::csg(&metas, &expr)
+            },
+            "this CSG expression",
+        )
         .await?;
     drop(metas);
     let label = ops::Label {
@@ -319,6 +329,21 @@ pub async fn stats(
     Path(id): Path<String>,
 ) -> Result<Response, Problem> {
     let meta = meta_of(&app, &caller, &id).await?;
+    if crate::volume::levelset::DISTANCE_KINDS.contains(&meta.kind) {
+        let _memory = app
+            .admit(
+                cost::read_only(&meta, 0),
+                &format!("statistics of volume {id}"),
+            )
+            .await?;
+        let st = crate::app::distance::stats_stored_with(
+            &*app.store,
+            &id,
+            &crate::cancel::Control::new(),
+        )
+        .await?;
+        return Ok(axum::Json(st).into_response());
+    }
     let _memory = app
         .admit(cost::stats(&meta), &format!("statistics of volume {id}"))
         .await?;

@@ -1,14 +1,15 @@
 """Contains all the data models used in inputs/outputs"""
 
+from .bit_stats import BitStats
 from .csg_expression import CsgExpression
 from .csg_expression_op import CsgExpressionOp
+from .distance_stats import DistanceStats
 from .get_healthz_response_200 import GetHealthzResponse200
 from .get_readyz_response_200 import GetReadyzResponse200
 from .get_v1_volumes_id_data_format import GetV1VolumesIdDataFormat
 from .get_v1_volumes_id_normals_response_200 import GetV1VolumesIdNormalsResponse200
 from .get_v1_volumes_id_preview_png_axis import GetV1VolumesIdPreviewPngAxis
 from .get_v1_volumes_id_preview_png_projection import GetV1VolumesIdPreviewPngProjection
-from .get_v1_volumes_id_stats_response_200 import GetV1VolumesIdStatsResponse200
 from .get_v1_volumes_response_200 import GetV1VolumesResponse200
 from .grid import Grid
 from .job import Job
@@ -54,15 +55,16 @@ from .volume_source import VolumeSource
 from .volume_source_compression import VolumeSourceCompression
 
 __all__ = (
+    "BitStats",
     "CsgExpression",
     "CsgExpressionOp",
+    "DistanceStats",
     "GetHealthzResponse200",
     "GetReadyzResponse200",
     "GetV1VolumesIdDataFormat",
     "GetV1VolumesIdNormalsResponse200",
     "GetV1VolumesIdPreviewPngAxis",
     "GetV1VolumesIdPreviewPngProjection",
-    "GetV1VolumesIdStatsResponse200",
     "GetV1VolumesResponse200",
     "Grid",
     "Job",

@@ -6,9 +6,8 @@ import httpx
 
 from ... import errors
 from ...client import AuthenticatedClient, Client
-from ...models.get_v1_volumes_id_stats_response_200 import (
-    GetV1VolumesIdStatsResponse200,
-)
+from ...models.bit_stats import BitStats
+from ...models.distance_stats import DistanceStats
 from ...models.problem import Problem
 from ...types import Response
 
@@ -29,9 +28,25 @@ def _get_kwargs(
 
 def _parse_response(
     *, client: AuthenticatedClient | Client, response: httpx.Response
-) -> GetV1VolumesIdStatsResponse200 | Problem | None:
+) -> BitStats | DistanceStats | Problem | None:
     if response.status_code == 200:
-        response_200 = GetV1VolumesIdStatsResponse200.from_dict(response.json())
+
+        def _parse_response_200(data: object) -> BitStats | DistanceStats:
+            try:
+                if not isinstance(data, dict):
+                    raise TypeError()
+                response_200_type_0 = BitStats.from_dict(data)
+
+                return response_200_type_0
+            except (TypeError, ValueError, AttributeError, KeyError):
+                pass
+            if not isinstance(data, dict):
+                raise TypeError()
+            response_200_type_1 = DistanceStats.from_dict(data)
+
+            return response_200_type_1
+
+        response_200 = _parse_response_200(response.json())
 
         return response_200
 
@@ -63,7 +78,7 @@ def _parse_response(
 
 def _build_response(
     *, client: AuthenticatedClient | Client, response: httpx.Response
-) -> Response[GetV1VolumesIdStatsResponse200 | Problem]:
+) -> Response[BitStats | DistanceStats | Problem]:
     return Response(
         status_code=HTTPStatus(response.status_code),
         content=response.content,
@@ -76,10 +91,12 @@ def sync_detailed(
     id: str,
     *,
     client: AuthenticatedClient | Client,
-) -> Response[GetV1VolumesIdStatsResponse200 | Problem]:
-    """Statistics of a stored bit volume
+) -> Response[BitStats | DistanceStats | Problem]:
+    """Statistics of a stored bit or distance volume
 
-     Voxels are unit-density cubes. surface_voxels are solid voxels with an empty face neighbour
+     Distance volumes answer DistanceStats (docs/methods.md, "Operations on distance volumes").
+    For bit volumes: voxels are unit-density cubes. surface_voxels are solid voxels with an empty face
+    neighbour
     (outside the grid counts as empty); components are 6- and 26-connected; the inertia tensor
     is about the centre of mass, in world units. Bounds are [min, max] pairs.
 
@@ -91,7 +108,7 @@ def sync_detailed(
         httpx.TimeoutException: If the request takes longer than Client.timeout.
 
     Returns:
-        Response[GetV1VolumesIdStatsResponse200 | Problem]
+        Response[BitStats | DistanceStats | Problem]
     """
 
     kwargs = _get_kwargs(
@@ -109,10 +126,12 @@ def sync(
     id: str,
     *,
     client: AuthenticatedClient | Client,
-) -> GetV1VolumesIdStatsResponse200 | Problem | None:
-    """Statistics of a stored bit volume
+) -> BitStats | DistanceStats | Problem | None:
+    """Statistics of a stored bit or distance volume
 
-     Voxels are unit-density cubes. surface_voxels are solid voxels with an empty face neighbour
+     Distance volumes answer DistanceStats (docs/methods.md, "Operations on distance volumes").
+    For bit volumes: voxels are unit-density cubes. surface_voxels are solid voxels with an empty face
+    neighbour
     (outside the grid counts as empty); components are 6- and 26-connected; the inertia tensor
     is about the centre of mass, in world units. Bounds are [min, max] pairs.
 
@@ -124,7 +143,7 @@ def sync(
         httpx.TimeoutException: If the request takes longer than Client.timeout.
 
     Returns:
-        GetV1VolumesIdStatsResponse200 | Problem
+        BitStats | DistanceStats | Problem
     """
 
     return sync_detailed(
@@ -137,10 +156,12 @@ async def asyncio_detailed(
     id: str,
     *,
     client: AuthenticatedClient | Client,
-) -> Response[GetV1VolumesIdStatsResponse200 | Problem]:
-    """Statistics of a stored bit volume
+) -> Response[BitStats | DistanceStats | Problem]:
+    """Statistics of a stored bit or distance volume
 
-     Voxels are unit-density cubes. surface_voxels are solid voxels with an empty face neighbour
+     Distance volumes answer DistanceStats (docs/methods.md, "Operations on distance volumes").
+    For bit volumes: voxels are unit-density cubes. surface_voxels are solid voxels with an empty face
+    neighbour
     (outside the grid counts as empty); components are 6- and 26-connected; the inertia tensor
     is about the centre of mass, in world units. Bounds are [min, max] pairs.
 
@@ -152,7 +173,7 @@ async def asyncio_detailed(
         httpx.TimeoutException: If the request takes longer than Client.timeout.
 
     Returns:
-        Response[GetV1VolumesIdStatsResponse200 | Problem]
+        Response[BitStats | DistanceStats | Problem]
     """
 
     kwargs = _get_kwargs(
@@ -168,10 +189,12 @@ async def asyncio(
     id: str,
     *,
     client: AuthenticatedClient | Client,
-) -> GetV1VolumesIdStatsResponse200 | Problem | None:
-    """Statistics of a stored bit volume
+) -> BitStats | DistanceStats | Problem | None:
+    """Statistics of a stored bit or distance volume
 
-     Voxels are unit-density cubes. surface_voxels are solid voxels with an empty face neighbour
+     Distance volumes answer DistanceStats (docs/methods.md, "Operations on distance volumes").
+    For bit volumes: voxels are unit-density cubes. surface_voxels are solid voxels with an empty face
+    neighbour
     (outside the grid counts as empty); components are 6- and 26-connected; the inertia tensor
     is about the centre of mass, in world units. Bounds are [min, max] pairs.
 
@@ -183,7 +206,7 @@ async def asyncio(
         httpx.TimeoutException: If the request takes longer than Client.timeout.
 
     Returns:
-        GetV1VolumesIdStatsResponse200 | Problem
+        BitStats | DistanceStats | Problem
     """
 
     return (

@@ -114,6 +114,11 @@ def sync_detailed(
     number of voxels apart); the result's grid is the operands' bounding grid for union and
     xor, their overlap for intersection, and the first operand's for difference. The
     expression is kept as the volume's provenance.
+    Distance volumes combine with each other only (a bit volume among them is
+    wrong-volume-kind), on one grid (else misaligned-grids), by min (union), max
+    (intersection) and max(a, -b) (difference); xor is invalid-parameter. Operands are
+    clamped to the narrowest band first; the result is a sparse distance volume
+    (docs/methods.md, "Operations on distance volumes").
 
     Args:
         name (str | Unset): at most 256 characters, none of them control characters
@@ -152,6 +157,11 @@ def sync(
     number of voxels apart); the result's grid is the operands' bounding grid for union and
     xor, their overlap for intersection, and the first operand's for difference. The
     expression is kept as the volume's provenance.
+    Distance volumes combine with each other only (a bit volume among them is
+    wrong-volume-kind), on one grid (else misaligned-grids), by min (union), max
+    (intersection) and max(a, -b) (difference); xor is invalid-parameter. Operands are
+    clamped to the narrowest band first; the result is a sparse distance volume
+    (docs/methods.md, "Operations on distance volumes").
 
     Args:
         name (str | Unset): at most 256 characters, none of them control characters
@@ -185,6 +195,11 @@ async def asyncio_detailed(
     number of voxels apart); the result's grid is the operands' bounding grid for union and
     xor, their overlap for intersection, and the first operand's for difference. The
     expression is kept as the volume's provenance.
+    Distance volumes combine with each other only (a bit volume among them is
+    wrong-volume-kind), on one grid (else misaligned-grids), by min (union), max
+    (intersection) and max(a, -b) (difference); xor is invalid-parameter. Operands are
+    clamped to the narrowest band first; the result is a sparse distance volume
+    (docs/methods.md, "Operations on distance volumes").
 
     Args:
         name (str | Unset): at most 256 characters, none of them control characters
@@ -221,6 +236,11 @@ async def asyncio(
     number of voxels apart); the result's grid is the operands' bounding grid for union and
     xor, their overlap for intersection, and the first operand's for difference. The
     expression is kept as the volume's provenance.
+    Distance volumes combine with each other only (a bit volume among them is
+    wrong-volume-kind), on one grid (else misaligned-grids), by min (union), max
+    (intersection) and max(a, -b) (difference); xor is invalid-parameter. Operands are
+    clamped to the narrowest band first; the result is a sparse distance volume
+    (docs/methods.md, "Operations on distance volumes").
 
     Args:
         name (str | Unset): at most 256 characters, none of them control characters

@@ -8,11 +8,11 @@ from attrs import field as _attrs_field
 
 from ..types import UNSET, Unset
 
-T = TypeVar("T", bound="GetV1VolumesIdStatsResponse200")
+T = TypeVar("T", bound="BitStats")
 
 
 @_attrs_define
-class GetV1VolumesIdStatsResponse200:
+class BitStats:
     """
     Attributes:
         solid_voxels (int):
@@ -218,7 +218,7 @@ class GetV1VolumesIdStatsResponse200:
 
         inertia = _parse_inertia(d.pop("inertia", UNSET))
 
-        get_v1_volumes_id_stats_response_200 = cls(
+        bit_stats = cls(
             solid_voxels=solid_voxels,
             volume=volume,
             surface_voxels=surface_voxels,
@@ -230,8 +230,8 @@ class GetV1VolumesIdStatsResponse200:
             inertia=inertia,
         )
 
-        get_v1_volumes_id_stats_response_200.additional_properties = d
-        return get_v1_volumes_id_stats_response_200
+        bit_stats.additional_properties = d
+        return bit_stats
 
     @property
     def additional_keys(self) -> list[str]:
