@@ -204,7 +204,7 @@ def cell(a, mesh, path, npz, res, work, log, big=False):
     # The grid, from the header of a surface .vxl (and the surface voxels, for the peers' queries
     # when voxd has no sdf).
     r = peers.run_child([a.voxd, "voxelize", str(path), "-o", str(d / "ref.vxl"), "--method", "surface",
-                         *(grid_args if not big else ["--resolution", "64", "--cubic", "--padding", str(band * 0)])],
+                         *(grid_args if not big else ["--resolution", "64", "--cubic", "--engine", "cpu"])],
                         a.timeout, 2**40, log)
     if r["rc"] != 0:
         c["error"] = "voxd surface failed: " + r["stderr"][-300:]
@@ -238,15 +238,17 @@ def cell(a, mesh, path, npz, res, work, log, big=False):
 
     def voxd_sdf(rnd):
         out = d / f"sdf.{fmt}"
+        explicit = [f"--voxel-size={s!r}", "--origin=" + ",".join(map(repr, g["origin"])),
+                    "--dims=" + ",".join(map(str, g["dims"])), "--engine", "cpu"]
         cmd = [a.voxd, "voxelize", str(path), "-o", str(out), "--method", "sdf", "--band", str(band),
-               "--fill", "winding", *(grid_args if not big else ["--voxel-size", repr(s), "--origin",
-                                                                  ",".join(map(repr, g["origin"])), "--dims",
-                                                                  ",".join(map(str, g["dims"])), "--engine", "cpu"])]
+               "--fill", "winding", *(explicit if big else grid_args)]
         return peers.run_child(cmd, a.timeout, a.mem_limit_kb, log)
 
-    tools = ["voxd"]
+    tools = ["voxd"] if a.has_sdf else []
+    if not a.has_sdf:
+        c["skipped"]["voxd"] = "this voxd has no --method sdf"
     if not big:
-        tools += ["voxd-distance", "voxd-surface"] if res in a.distance_res else []
+        tools += ["voxd-distance", "voxd-surface"] if res in a.distance_res and a.has_distance else []
         for p in a.peers:
             why = a.unavailable.get(p)
             if why:
@@ -259,7 +261,7 @@ def cell(a, mesh, path, npz, res, work, log, big=False):
     for rnd in range(a.runs):
         order = [t for t in tools if t != "voxd"]
         k = rnd % max(1, len(order))
-        order = ["voxd"] + order[k:] + order[:k]
+        order = ["voxd"][:len(tools) - len(order)] + order[k:] + order[:k]
         for t in order:
             if t == "voxd":
                 rec = voxd_record(voxd_sdf(rnd))
@@ -299,7 +301,7 @@ def cell(a, mesh, path, npz, res, work, log, big=False):
             e.update(errors(vals[0], vals[1], sd, wn, s, band))
         c["tools"][t] = e
     if "band_voxels" in c:
-        c["tools"]["voxd"]["band_voxels"] = c["band_voxels"]
+        c["tools"].setdefault("voxd", {})["band_voxels"] = c["band_voxels"]
     c["cell_s"] = time.time() - t0
     if not a.keep:
         import shutil
@@ -373,7 +375,9 @@ def cmd_run(a):
             a.unavailable[p] = f"not installed: {why}"
             print(f"notice: {p} skipped ({why})", flush=True)
     help_txt = subprocess.run([a.voxd, "voxelize", "--help"], capture_output=True, text=True).stdout
-    if "sdf" not in help_txt:
+    a.has_sdf = bool(re.search(r"\bsdf\b", help_txt))
+    a.has_distance = bool(re.search(r"\bdistance\b", help_txt))
+    if not a.has_sdf:
         print("notice: this voxd has no --method sdf: only the peers are measured", flush=True)
     import importlib.metadata as md
     versions = {}
@@ -391,7 +395,7 @@ def cmd_run(a):
            "started_utc": time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()),
            "machine": {"cpu": cpu, "cores": os.cpu_count()},
            "voxd": {"path": a.voxd, "version": subprocess.run([a.voxd, "--version"], capture_output=True, text=True).stdout.strip(),
-                    "has_sdf": "sdf" in help_txt},
+                    "has_sdf": a.has_sdf},
            "versions": versions, "band": a.band, "sample": a.sample, "runs": a.runs,
            "skipped_peers": a.unavailable, "uptime_start": peers.uptime(), "meshes": {}, "cells": []}
     paths = {}
@@ -403,7 +407,7 @@ def cmd_run(a):
     t_start = time.time()
     todo = [(m, r, False) for r in res for m in a.meshes] + [(m, a.big, True) for m in a.big_meshes if a.big]
     for m, r, big in todo:
-        if "sdf" not in help_txt and big:
+        if not a.has_sdf and big:
             continue
         with open(peers.LOCK, "a") as lk:
             if not a.no_lock:
@@ -473,11 +477,47 @@ def report(doc):
         for p, why in c.get("skipped", {}).items():
             if p not in doc.get("skipped_peers", {}):
                 L.append(f"| {c['mesh']} | {c['resolution']}³ | {LABEL[p]} | – | – | – | – | – | – | {why} |")
+    L += ["", *headline(doc)]
     L += ["", "Cells: " + "; ".join(
         f"{c['mesh']}@{c['resolution']}: sample {c.get('sample', {}).get('n')} "
         f"({c.get('sample', {}).get('inside')} inside, {c.get('sample', {}).get('fragile_wn')} with ||w|−½| < 0.01), "
         f"queries: {c.get('queries_from', '–')}" for c in doc["cells"] if "error" not in c)]
     return "\n".join(L) + "\n"
+
+
+def headline(doc):
+    """The issue's targets, from the cells."""
+    cells = {(c["mesh"], c["resolution"]): c for c in doc["cells"] if "error" not in c}
+    out = ["Targets:"]
+
+    def med(c, t):
+        return c["tools"].get(t, {}).get("median_s")
+
+    c = cells.get(("igea-subdiv4", 512))
+    if c and med(c, "voxd") and med(c, "openvdb"):
+        v = c["tools"]["voxd"]
+        out.append(f"- igea-subdiv4 at 512³, band 3: OpenVDB {med(c, 'openvdb'):.2f} s / voxd {med(c, 'voxd'):.2f} s = "
+                   f"**{med(c, 'openvdb') / med(c, 'voxd'):.1f}×** (target ≥ 3×); voxd's max error "
+                   f"{v.get('max_err_s', float('nan')):.2e}·s (target ≤ 1e-6·s), OpenVDB's "
+                   f"{c['tools']['openvdb'].get('max_err_s', float('nan')):.2e}·s")
+    for m in sorted(OPEN):
+        for (mm, r), c in sorted(cells.items()):
+            if mm != m:
+                continue
+            parts = [f"{t} {e['sign_errors']}/{e['sign_counted']}" for t, e in c["tools"].items() if "sign_errors" in e]
+            if parts:
+                out.append(f"- sign errors, {m} at {r}³ (open; voxd fill=winding): " + ", ".join(parts))
+    for (m, r), c in sorted(cells.items()):
+        if r > 512 and "voxd" in c["tools"] and "maxrss_kb" in c["tools"]["voxd"]:
+            e = c["tools"]["voxd"]
+            out.append(f"- {m} at {r}³, band 3: voxd {e['median_s']:.2f} s, peak RSS **{fmt_mem(e['maxrss_kb'])}** "
+                       f"(target < 2 GB), max error {e.get('max_err_s', float('nan')):.2e}·s, "
+                       f"sign errors {e.get('sign_errors', '–')}")
+    for (m, r), c in sorted(cells.items()):
+        if med(c, "voxd-distance") and med(c, "voxd-surface"):
+            out.append(f"- {m} at {r}³: distance {med(c, 'voxd-distance'):.3f} s / surface {med(c, 'voxd-surface'):.3f} s "
+                       f"= {med(c, 'voxd-distance') / med(c, 'voxd-surface'):.2f}× (target ≤ 2×)")
+    return out
 
 
 def cmd_report(a):
@@ -500,7 +540,7 @@ def main():
     r.add_argument("--distance-res", default="512", help="grids where voxd distance and surface are timed too")
     r.add_argument("--band", type=int, default=3)
     r.add_argument("--peers", default=",".join(PEERS))
-    r.add_argument("--query-max-res", type=int, default=512, help="libigl, pysdf, Open3D only up to this resolution")
+    r.add_argument("--query-max-res", type=int, default=256, help="libigl, pysdf, Open3D only up to this resolution")
     r.add_argument("--sample", type=int, default=2000)
     r.add_argument("--seed", type=int, default=20261204)
     r.add_argument("--runs", type=int, default=1)
