@@ -141,15 +141,24 @@ def cmd_worker(a):
 
 
 def cmd_probe(a):
-    """voxd's .vdb at the sample voxels (index space = voxd's voxel index)."""
+    """voxd's .vdb at the sample voxels: each sample voxel's world centre taken to the file's
+    index space by the file's own transform (so voxd's index convention is not assumed; the
+    largest distance of such an index from an integer is reported: ~0 when centres align)."""
     import pyopenvdb as vdb
     grids = vdb.readAllGridMetadata(a.vdb)
     grid = vdb.read(a.vdb, grids[0].name)
     acc = grid.getConstAccessor()
+    g = json.loads((Path(a.sample).parent / "grid.json").read_text())
     S = np.load(a.sample)
-    vals = np.array([acc.getValue(tuple(v)) for v in S.tolist()], np.float64)
-    np.save(a.out, vals)
-    print(json.dumps({"band_voxels": int(grid.activeVoxelCount()), "transform": str(grid.transform)}))
+    vals, off = [], 0.0
+    for c in centres_of(S, g).tolist():
+        x = grid.transform.worldToIndex(tuple(c))
+        ijk = tuple(int(round(v)) for v in x)
+        off = max(off, max(abs(v - r) for v, r in zip(x, ijk)))
+        vals.append(acc.getValue(ijk))
+    np.save(a.out, np.array(vals, np.float64))
+    print(json.dumps({"band_voxels": int(grid.activeVoxelCount()), "grid": grids[0].name,
+                      "max_index_offset": off, "background": grid.background}))
 
 
 def peer_available(tool):
@@ -340,6 +349,7 @@ def read_values(a, d, t, fmt, g, c, log):
             if r["rc"] == 0:
                 info = json.loads(r["stdout"].strip().splitlines()[-1])
                 c["band_voxels"] = info["band_voxels"]
+                c["vdb"] = info
                 v = np.load(d / "voxd-sample.npy")
                 return v, np.abs(v) < g["band"] * g["voxel_size"]
             c["voxd_read_error"] = (r["stderr"].strip().splitlines() or ["?"])[-1]
