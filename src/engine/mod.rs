@@ -9,6 +9,7 @@ pub mod density;
 pub mod fill;
 mod geom;
 pub mod gpu;
+pub mod sdf;
 mod snap;
 pub mod winding;
 
@@ -87,6 +88,42 @@ pub trait Engine: Send + Sync {
             vol.subtract(&surface);
         }
         Ok(())
+    }
+    /// `method=distance`: voxels whose centre is within `thickness` (lattice units) of a
+    /// triangle. (Stand-in until branch `dist` lands its engines: each triangle's reach, voxel
+    /// by voxel, with the exact test.)
+    fn distance_with(
+        &self,
+        mesh: &GridMesh,
+        thickness: i64,
+        ctl: &Control,
+    ) -> Result<BitVolume, EngineError> {
+        let mut v = BitVolume::new(mesh.grid);
+        let d = mesh.grid.dims;
+        for tri in &mesh.triangles {
+            ctl.check()?;
+            let w = widen(tri);
+            let r: Vec<_> = (0..3)
+                .map(|a| {
+                    let (lo, hi) = axis_bounds(&w, a);
+                    centre_range(lo - thickness, hi + thickness, d[a])
+                })
+                .collect();
+            let (Some(rx), Some(ry), Some(rz)) = (r[0], r[1], r[2]) else {
+                continue;
+            };
+            for x in rx.0..=rx.1 {
+                for y in ry.0..=ry.1 {
+                    for z in rz.0..=rz.1 {
+                        let p = [x, y, z].map(|c| i64::from(c) * FIXED_ONE + FIXED_HALF);
+                        if geom::lattice::within(p, tri, thickness) {
+                            v.set(x, y, z, true);
+                        }
+                    }
+                }
+            }
+        }
+        Ok(v)
     }
     /// The GPU engine's submissions and buffer reuse (for metrics); `None` for other engines.
     fn gpu_stats(&self) -> Option<gpu::GpuStats> {
