@@ -6,6 +6,7 @@
 
 pub mod cpu;
 pub mod density;
+pub mod distance;
 pub mod fill;
 mod geom;
 pub mod gpu;
@@ -89,41 +90,16 @@ pub trait Engine: Send + Sync {
         }
         Ok(())
     }
-    /// `method=distance`: voxels whose centre is within `thickness` (lattice units) of a
-    /// triangle. (Stand-in until branch `dist` lands its engines: each triangle's reach, voxel
-    /// by voxel, with the exact test.)
+    /// `distance`: the voxels whose centres lie within `thickness` lattice units (0..=
+    /// [`distance::MAX_LATTICE`], from [`distance::thickness_lattice`]) of a triangle, exactly
+    /// (ties set). By default the CPU engine's; checks `ctl` like [`Engine::voxelize_with`].
     fn distance_with(
         &self,
         mesh: &GridMesh,
         thickness: i64,
         ctl: &Control,
     ) -> Result<BitVolume, EngineError> {
-        let mut v = BitVolume::new(mesh.grid);
-        let d = mesh.grid.dims;
-        for tri in &mesh.triangles {
-            ctl.check()?;
-            let w = widen(tri);
-            let r: Vec<_> = (0..3)
-                .map(|a| {
-                    let (lo, hi) = axis_bounds(&w, a);
-                    centre_range(lo - thickness, hi + thickness, d[a])
-                })
-                .collect();
-            let (Some(rx), Some(ry), Some(rz)) = (r[0], r[1], r[2]) else {
-                continue;
-            };
-            for x in rx.0..=rx.1 {
-                for y in ry.0..=ry.1 {
-                    for z in rz.0..=rz.1 {
-                        let p = [x, y, z].map(|c| i64::from(c) * FIXED_ONE + FIXED_HALF);
-                        if geom::lattice::within(p, tri, thickness) {
-                            v.set(x, y, z, true);
-                        }
-                    }
-                }
-            }
-        }
-        Ok(v)
+        Ok(cpu::distance::voxelize(mesh, thickness, ctl)?)
     }
     /// The GPU engine's submissions and buffer reuse (for metrics); `None` for other engines.
     fn gpu_stats(&self) -> Option<gpu::GpuStats> {
