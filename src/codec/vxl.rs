@@ -13,10 +13,15 @@
 //!                         type t, little-endian, C order
 //!   "x-y-zcolumns-u64le+channels" (channels) the bits' words, then per channel of the header's
 //!                         `channels`, in order, `set_voxels` values of its type
-//!   "bricks8-<t>"         (sparse-*) the background value, then `bricks` brick coordinates
-//!                         (3 × u32 little-endian each, strictly increasing in (x, y, z) order),
-//!                         then 512 values per brick in the same order
+//!   "bricks8-<t>"         (sparse-*) the background value; when the header has `tiles`, the
+//!                         tile value; then `bricks` brick coordinates (3 × u32 little-endian
+//!                         each, strictly increasing in (x, y, z) order), then 512 values per
+//!                         brick in the same order; then `tiles` tile coordinates (3 × u32 each,
+//!                         strictly increasing, none of them a brick's)
 //! ```
+//!
+//! A sparse file without `tiles` (written before tiles existed, or of a volume whose tile value
+//! is its background and that has no tiles) reads as a volume without tiles.
 //!
 //! Version-1 files (bits and density) are written byte for byte as before the other kinds were
 //! added, so the sha256 of a stored volume does not change.
@@ -61,6 +66,10 @@ struct Header {
     /// Sparse kinds (version 2): the number of occupied bricks.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     bricks: Option<u64>,
+    /// Sparse kinds: the number of tiles; present (and the tile value in the payload) when the
+    /// volume has tiles or a tile value other than its background.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    tiles: Option<u64>,
     /// Free-form provenance (method, source mesh, ...).
     #[serde(default)]
     meta: serde_json::Map<String, serde_json::Value>,
@@ -123,6 +132,7 @@ pub fn encode(
         set_voxels: None,
         channels: None,
         bricks: None,
+        tiles: None,
         meta: meta.clone(),
     };
     let owned: Vec<u8>;
@@ -163,17 +173,17 @@ pub fn encode(
             &owned
         }
         Volume::SparseDistance(s) => {
-            header.bricks = Some(s.brick_count() as u64);
+            (header.bricks, header.tiles) = sparse_counts(s);
             owned = sparse_payload(s);
             &owned
         }
         Volume::SparseMaterial(s) => {
-            header.bricks = Some(s.brick_count() as u64);
+            (header.bricks, header.tiles) = sparse_counts(s);
             owned = sparse_payload(s);
             &owned
         }
         Volume::SparseColour(s) => {
-            header.bricks = Some(s.brick_count() as u64);
+            (header.bricks, header.tiles) = sparse_counts(s);
             owned = sparse_payload(s);
             &owned
         }
@@ -225,11 +235,35 @@ fn one_shot_compressor() -> std::io::Result<zstd::bulk::Compressor<'static>> {
     Ok(c)
 }
 
-/// A sparse volume's payload: background, brick coordinates, brick values.
+/// Does a sparse volume need the tile fields: tiles, or a tile value other than the background
+/// (compared by bits: −0.0 is not +0.0)?
+fn has_tiles<T: Voxel>(s: &Sparse<T>) -> bool {
+    if s.tile_count() > 0 {
+        return true;
+    }
+    let (mut a, mut b) = (vec![], vec![]);
+    s.tile_value().write_le(&mut a);
+    s.background().write_le(&mut b);
+    a != b
+}
+
+/// The header's `bricks` and `tiles`.
+fn sparse_counts<T: Voxel>(s: &Sparse<T>) -> (Option<u64>, Option<u64>) {
+    let tiles = has_tiles(s).then(|| s.tile_count() as u64);
+    (Some(s.brick_count() as u64), tiles)
+}
+
+/// A sparse volume's payload: background, tile value (with tiles), brick coordinates, brick
+/// values, tile coordinates.
 fn sparse_payload<T: Voxel>(s: &Sparse<T>) -> Vec<u8> {
     let n = s.brick_count();
-    let mut out = Vec::with_capacity(T::TYPE.bytes() * (1 + n * BRICK_VOXELS) + 12 * n);
+    let tiles = has_tiles(s);
+    let mut out =
+        Vec::with_capacity(T::TYPE.bytes() * (2 + n * BRICK_VOXELS) + 12 * (n + s.tile_count()));
     s.background().write_le(&mut out);
+    if tiles {
+        s.tile_value().write_le(&mut out);
+    }
     for (at, _) in s.bricks() {
         for c in at {
             out.extend_from_slice(&c.to_le_bytes());
@@ -240,26 +274,52 @@ fn sparse_payload<T: Voxel>(s: &Sparse<T>) -> Vec<u8> {
             v.write_le(&mut out);
         }
     }
+    for at in s.tiles() {
+        for c in at {
+            out.extend_from_slice(&c.to_le_bytes());
+        }
+    }
     out
 }
 
-/// A sparse volume from its payload (of the length the header implies).
-fn read_sparse<T: Voxel>(grid: Grid, payload: &[u8], bricks: usize) -> Result<Sparse<T>, String> {
+/// A sparse volume from its payload (of the length the header implies): `tiles` is the
+/// header's (`None`: no tile value in the payload).
+fn read_sparse<T: Voxel>(
+    grid: Grid,
+    payload: &[u8],
+    bricks: usize,
+    tiles: Option<usize>,
+) -> Result<Sparse<T>, String> {
     let size = T::TYPE.bytes();
     let background = T::read_le(&payload[..size]);
     if !background.is_valid() {
         return Err(format!("background {background:?} is not a valid value"));
     }
-    let mut s = Sparse::new(grid, background);
-    let coords = &payload[size..size + 12 * bricks];
-    let values = &payload[size + 12 * bricks..];
+    let mut at_byte = size;
+    let mut s = match tiles {
+        None => Sparse::new(grid, background),
+        Some(_) => {
+            let tile_value = T::read_le(&payload[size..2 * size]);
+            if !tile_value.is_valid() {
+                return Err(format!("tile value {tile_value:?} is not a valid value"));
+            }
+            at_byte += size;
+            Sparse::with_tile_value(grid, background, tile_value)
+        }
+    };
+    let coords = &payload[at_byte..at_byte + 12 * bricks];
+    let values_end = at_byte + 12 * bricks + size * BRICK_VOXELS * bricks;
+    let values = &payload[at_byte + 12 * bricks..values_end];
+    let coord = |c: &[u8]| {
+        let u = |i: usize| u32::from_le_bytes(c[i..i + 4].try_into().unwrap());
+        [u(0), u(4), u(8)]
+    };
     let mut last: Option<[u32; 3]> = None;
     for (c, v) in coords
         .chunks_exact(12)
         .zip(values.chunks_exact(size * BRICK_VOXELS))
     {
-        let u = |i: usize| u32::from_le_bytes(c[i..i + 4].try_into().unwrap());
-        let at = [u(0), u(4), u(8)];
+        let at = coord(c);
         if last.is_some_and(|l| l >= at) {
             return Err(format!(
                 "brick {at:?} is out of order (bricks are listed in increasing (x, y, z))"
@@ -268,6 +328,21 @@ fn read_sparse<T: Voxel>(grid: Grid, payload: &[u8], bricks: usize) -> Result<Sp
         last = Some(at);
         let vals: Vec<T> = valid_from_le_bytes(v)?;
         s.insert_brick(at, vals.try_into().expect("512 values"))?;
+    }
+    let mut last: Option<[u32; 3]> = None;
+    for c in payload[values_end..].chunks_exact(12) {
+        let at = coord(c);
+        if last.is_some_and(|l| l >= at) {
+            return Err(format!(
+                "tile {at:?} is out of order (tiles are listed in increasing (x, y, z))"
+            ));
+        }
+        last = Some(at);
+        let before = s.brick_count();
+        s.set_tile(at, true)?;
+        if s.brick_count() != before {
+            return Err(format!("tile {at:?} is also a brick"));
+        }
     }
     Ok(s)
 }
@@ -358,14 +433,20 @@ pub fn decode_limited(
         }
         VolumeKind::SparseDistance | VolumeKind::SparseMaterial | VolumeKind::SparseColour => {
             let bricks = h.bricks.ok_or_else(|| missing("bricks"))? as u128;
+            let tiles = h.tiles.map(u128::from);
             let grid_bricks: u128 = h.dims.iter().map(|&d| d.div_ceil(8) as u128).product();
-            if bricks > grid_bricks {
+            if bricks + tiles.unwrap_or(0) > grid_bricks {
                 return Err(malformed(
                     "vxl",
-                    format!("{bricks} bricks, but the grid has {grid_bricks}"),
+                    format!(
+                        "{bricks} bricks and {} tiles, but the grid has {grid_bricks} brick positions",
+                        tiles.unwrap_or(0)
+                    ),
                 ));
             }
-            typed + bricks * (12 + typed * BRICK_VOXELS as u128)
+            typed
+                + tiles.map_or(0, |t| typed + 12 * t)
+                + bricks * (12 + typed * BRICK_VOXELS as u128)
         }
         _ => voxels * typed,
     };
@@ -437,6 +518,7 @@ pub fn decode_limited(
         ));
     }
     let bad = |e: String| malformed("vxl", e);
+    let (bricks, tiles) = (h.bricks.unwrap_or(0) as usize, h.tiles.map(|t| t as usize));
     let v = match kind {
         VolumeKind::Bits => Volume::Bits(read_bits(grid, &payload).map_err(bad)?),
         VolumeKind::Density => {
@@ -469,15 +551,15 @@ pub fn decode_limited(
             }
             Volume::Channels(a)
         }
-        VolumeKind::SparseDistance => Volume::SparseDistance(
-            read_sparse(grid, &payload, h.bricks.unwrap_or(0) as usize).map_err(bad)?,
-        ),
-        VolumeKind::SparseMaterial => Volume::SparseMaterial(
-            read_sparse(grid, &payload, h.bricks.unwrap_or(0) as usize).map_err(bad)?,
-        ),
-        VolumeKind::SparseColour => Volume::SparseColour(
-            read_sparse(grid, &payload, h.bricks.unwrap_or(0) as usize).map_err(bad)?,
-        ),
+        VolumeKind::SparseDistance => {
+            Volume::SparseDistance(read_sparse(grid, &payload, bricks, tiles).map_err(bad)?)
+        }
+        VolumeKind::SparseMaterial => {
+            Volume::SparseMaterial(read_sparse(grid, &payload, bricks, tiles).map_err(bad)?)
+        }
+        VolumeKind::SparseColour => {
+            Volume::SparseColour(read_sparse(grid, &payload, bricks, tiles).map_err(bad)?)
+        }
     };
     Ok((v, h.meta))
 }
@@ -533,5 +615,108 @@ mod tests {
             assert_ne!(frame[4] & 0b100, 0, "{dims:?}");
             assert_eq!(decode(&bytes).unwrap().0, v, "{dims:?}");
         }
+    }
+
+    fn payload_of(bytes: &[u8]) -> (serde_json::Value, Vec<u8>) {
+        let hl = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+        let h = serde_json::from_slice(&bytes[16..16 + hl]).unwrap();
+        (h, zstd::decode_all(&bytes[16 + hl..]).unwrap())
+    }
+
+    /// Tiles are kept: the header counts them, the payload holds the tile value after the
+    /// background and the tiles' coordinates after the bricks' values (read here by the
+    /// documented offsets, not by the decoder).
+    #[test]
+    fn sparse_tiles_round_trip_in_the_documented_layout() {
+        let grid = Grid {
+            origin: [-1.0, 0.5, 2.0],
+            voxel_size: 0.125,
+            dims: [20, 9, 17],
+        };
+        let mut s = Sparse::with_tile_value(grid, 0.375f32, -0.375);
+        s.set(3, 8, 16, -0.25);
+        s.set(19, 0, 0, 0.0);
+        for t in [[2, 1, 2], [0, 0, 1], [1, 1, 0]] {
+            s.set_tile(t, true).unwrap();
+        }
+        let v = Volume::SparseDistance(s.clone());
+        let bytes = encode(&v, &Default::default()).unwrap();
+        assert_eq!(decode(&bytes).unwrap().0, v);
+        let (h, p) = payload_of(&bytes);
+        assert_eq!(
+            (h["bricks"].as_u64(), h["tiles"].as_u64()),
+            (Some(2), Some(3))
+        );
+        let f = |at: usize| f32::from_le_bytes(p[at..at + 4].try_into().unwrap());
+        let u = |at: usize| u32::from_le_bytes(p[at..at + 4].try_into().unwrap());
+        assert_eq!((f(0), f(4)), (0.375, -0.375));
+        // Bricks [0, 1, 2] (voxel (3, 8, 16)) and [2, 0, 0] (voxel (19, 0, 0)).
+        assert_eq!(
+            (8..32).step_by(4).map(u).collect::<Vec<_>>(),
+            [0, 1, 2, 2, 0, 0]
+        );
+        assert_eq!(f(32 + 4 * ((3 * 8) * 8)), -0.25);
+        assert_eq!(
+            f(32 + 4 * 512 + 4 * ((3 * 8) * 8)).to_bits(),
+            0.0f32.to_bits()
+        );
+        let tiles = 32 + 2 * 512 * 4;
+        assert_eq!(p.len(), tiles + 3 * 12);
+        let t: Vec<u32> = (tiles..p.len()).step_by(4).map(u).collect();
+        assert_eq!(t, [0, 0, 1, 1, 1, 0, 2, 1, 2]);
+        // A tile value other than the background is kept without tiles; one equal to it (and no
+        // tiles) writes the layout of before tiles.
+        let lone = Sparse::with_tile_value(grid, 1.0f32, -1.0);
+        let v = Volume::SparseDistance(lone);
+        let bytes = encode(&v, &Default::default()).unwrap();
+        assert_eq!(payload_of(&bytes).0["tiles"], 0);
+        assert_eq!(decode(&bytes).unwrap().0, v);
+        let plain = Volume::SparseMaterial(Sparse::new(grid, 7u16));
+        let bytes = encode(&plain, &Default::default()).unwrap();
+        let (h, p) = payload_of(&bytes);
+        assert!(h.get("tiles").is_none());
+        assert_eq!(p, 7u16.to_le_bytes());
+        assert_eq!(decode(&bytes).unwrap().0, plain);
+    }
+
+    /// Tiles out of order, on a brick, or past the brick grid are refused.
+    #[test]
+    fn bad_tiles_are_refused() {
+        let grid = Grid {
+            origin: [0.0; 3],
+            voxel_size: 1.0,
+            dims: [16, 8, 8],
+        };
+        let mut s = Sparse::with_tile_value(grid, 3.0f32, -3.0);
+        s.set(0, 0, 0, 1.0);
+        s.set_tile([1, 0, 0], true).unwrap();
+        let v = Volume::SparseDistance(s);
+        let good = encode(&v, &Default::default()).unwrap();
+        let (h, mut p) = payload_of(&good);
+        let n = p.len();
+        let rebuild = |p: &[u8]| {
+            let json = serde_json::to_vec(&h).unwrap();
+            let mut out = MAGIC.to_vec();
+            out.extend_from_slice(&VERSION_2.to_le_bytes());
+            out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+            out.extend_from_slice(&json);
+            out.extend(zstd::encode_all(p, 3).unwrap());
+            out
+        };
+        assert_eq!(decode(&rebuild(&p)).unwrap().0, v);
+        p[n - 12] = 0; // the tile onto brick [0, 0, 0]
+        assert!(
+            decode(&rebuild(&p))
+                .unwrap_err()
+                .to_string()
+                .contains("also a brick")
+        );
+        p[n - 12] = 2; // past the brick grid (2 × 1 × 1)
+        assert!(
+            decode(&rebuild(&p))
+                .unwrap_err()
+                .to_string()
+                .contains("outside")
+        );
     }
 }

@@ -66,7 +66,9 @@ impl<T: Voxel> Sparse<T> {
     /// Is brick position `at` a tile?
     pub fn is_tile(&self, at: [u32; 3]) -> bool {
         let i = self.tile_bit(at);
-        self.tiles.get(i / 64).is_some_and(|w| w >> (i % 64) & 1 == 1)
+        self.tiles
+            .get(i / 64)
+            .is_some_and(|w| w >> (i % 64) & 1 == 1)
     }
 
     /// Makes brick position `at` a tile (dropping its brick) or not. Fails when `at` is outside
@@ -100,7 +102,11 @@ impl<T: Voxel> Sparse<T> {
             .flat_map(move |(wi, &w)| {
                 (0..64).filter(move |b| w >> b & 1 == 1).map(move |b| {
                     let i = wi * 64 + b;
-                    [(i / (by * bz)) as u32, (i / bz % by) as u32, (i % bz) as u32]
+                    [
+                        (i / (by * bz)) as u32,
+                        (i / bz % by) as u32,
+                        (i % bz) as u32,
+                    ]
                 })
             })
     }
@@ -174,7 +180,11 @@ impl<T: Voxel> Sparse<T> {
             if self.is_tile(key) {
                 for (i, b) in brick.iter_mut().enumerate() {
                     let (bx, by, bz) = (i as u32 / 64, i as u32 / 8 % 8, i as u32 % 8);
-                    let p = [key[0] * BRICK + bx, key[1] * BRICK + by, key[2] * BRICK + bz];
+                    let p = [
+                        key[0] * BRICK + bx,
+                        key[1] * BRICK + by,
+                        key[2] * BRICK + bz,
+                    ];
                     if (0..3).all(|a| p[a] < d[a]) {
                         *b = self.tile_value;
                     }
