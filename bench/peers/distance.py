@@ -328,12 +328,75 @@ def prepare_queries(a, d, g, fmt, surf, c, log):
         q = np.argwhere(inb)
         c["queries_from"] = "voxd's band"
         c["band_voxels"] = int(len(q))
+    elif fmt == "vxl" and (d / "sdf.vxl").exists():
+        q = sparse_band(read_sparse_vxl(d / "sdf.vxl"), band * s)
+        c["queries_from"] = "voxd's band"
+        c["band_voxels"] = int(len(q))
     elif surf is not None:
         q = np.argwhere(dilate(surf.astype(bool), band))
         c["queries_from"] = f"surface voxels dilated by {band} (Chebyshev; a superset of the band)"
     else:
         return
     np.save(d / "queries.npy", q.astype(np.int16 if max(g["dims"]) < 32768 else np.int32))
+
+
+def read_sparse_vxl(path):
+    """A `sparse-distance` .vxl (docs/format.md): header, background, tile value (None without
+    tiles), brick coordinates (B, 3), brick values (B, 512), tile coordinates (T, 3)."""
+    import struct
+    import zstandard
+    b = open(path, "rb").read()
+    assert b[:8] == b"\x89VXL\r\n\x1a\n", "not a .vxl file"
+    _version, hlen = struct.unpack_from("<II", b, 8)
+    h = json.loads(b[16:16 + hlen])
+    assert h["kind"] == "sparse-distance" and h["layout"] == "bricks8-f32le", (h["kind"], h["layout"])
+    raw = zstandard.ZstdDecompressor().decompress(b[16 + hlen:])
+    del b
+    nb, nt = int(h["bricks"]), h.get("tiles")
+    o = 0
+    bg = float(np.frombuffer(raw, "<f4", 1, o)[0])
+    o += 4
+    tv = None
+    if nt is not None:
+        tv = float(np.frombuffer(raw, "<f4", 1, o)[0])
+        o += 4
+    coords = np.frombuffer(raw, "<u4", 3 * nb, o).reshape(nb, 3).astype(np.int64)
+    o += 12 * nb
+    vals = np.frombuffer(raw, "<f4", 512 * nb, o).reshape(nb, 512)
+    o += 2048 * nb
+    tiles = np.frombuffer(raw, "<u4", 3 * (nt or 0), o).reshape(-1, 3).astype(np.int64)
+    return h, bg, tv, coords, vals, tiles
+
+
+def brick_key(c):
+    c = np.asarray(c, np.int64)
+    return (c[:, 0] << 42) | (c[:, 1] << 21) | c[:, 2]
+
+
+def sparse_at(sp, S):
+    """Values of a read_sparse_vxl volume at voxels S (n, 3)."""
+    _h, bg, tv, coords, vals, tiles = sp
+    out = np.full(len(S), bg, np.float64)
+    bk = brick_key(S // 8)
+    for keys, is_tile in ((brick_key(coords), False), (brick_key(tiles), True)):
+        if not len(keys):
+            continue
+        pos = np.minimum(np.searchsorted(keys, bk), len(keys) - 1)
+        hit = keys[pos] == bk
+        if is_tile:
+            out[hit] = tv
+        else:
+            r = S % 8
+            off = (r[:, 0] * 8 + r[:, 1]) * 8 + r[:, 2]
+            out[hit] = vals[pos[hit], off[hit]]
+    return out
+
+
+def sparse_band(sp, thr):
+    """Voxel indices (n, 3) of the bricks' voxels with |v| < thr."""
+    _h, _bg, _tv, coords, vals, _tiles = sp
+    b, off = np.nonzero(np.abs(vals) < np.float32(thr))
+    return coords[b] * 8 + np.stack([off // 64, (off // 8) % 8, off % 8], axis=1)
 
 
 def read_values(a, d, t, fmt, g, c, log):
@@ -343,6 +406,9 @@ def read_values(a, d, t, fmt, g, c, log):
         if fmt == "npy" and f.exists():
             v = np.load(f, mmap_mode="r")
             return np.asarray(v[S[:, 0], S[:, 1], S[:, 2]], np.float64), np.abs(v[S[:, 0], S[:, 1], S[:, 2]]) < g["band"] * g["voxel_size"]
+        if fmt == "vxl" and f.exists():
+            v = sparse_at(read_sparse_vxl(f), S)
+            return v, np.abs(v) < g["band"] * g["voxel_size"]
         if fmt == "vdb" and f.exists():
             r = peers.run_child([SYS_PY, __file__, "probe", str(f), str(d / "sample.npy"), str(d / "voxd-sample.npy")],
                                 a.timeout, 2**40, log)
@@ -545,8 +611,8 @@ def main():
     r.add_argument("--resolutions", default="256,512")
     r.add_argument("--big", type=int, default=2048, help="voxd alone at this resolution (0: none)")
     r.add_argument("--big-meshes", default="igea-subdiv4")
-    r.add_argument("--big-format", default="vdb", help="voxd's output at --big (vdb, vxl)")
-    r.add_argument("--voxd-format", default="npy", help="voxd's sdf output at --resolutions (npy: values read back)")
+    r.add_argument("--big-format", default="vxl", help="voxd's output at --big (vxl, vdb)")
+    r.add_argument("--voxd-format", default="vxl", help="voxd's sdf output at --resolutions (vxl, npy, vdb; values read back)")
     r.add_argument("--distance-res", default="512", help="grids where voxd distance and surface are timed too")
     r.add_argument("--band", type=int, default=3)
     r.add_argument("--peers", default=",".join(PEERS))
