@@ -525,7 +525,7 @@ def report(doc):
          + ", ".join(f"{k} {v}" for k, v in doc["versions"].items()) + ".", ""]
     for p, why in doc.get("skipped_peers", {}).items():
         L.append(f"- {p}: {why}")
-    L += ["", "| mesh | grid | tool | time | × voxd sdf | peak RSS | band voxels | max \\|err\\| / s | sign errors | notes |",
+    L += ["", "| mesh | grid | tool | time | time ÷ voxd sdf | peak RSS | band voxels | max \\|err\\| / s | sign errors | notes |",
           "|---|---|---|---|---|---|---|---|---|---|"]
     for c in doc["cells"]:
         n = c["resolution"] + 2 * doc["band"]
