@@ -3,7 +3,7 @@
 # ../shared/meshes, one command:
 #   bench/peers/run-distance.sh [--voxd PATH] [--meshes a,b] [--resolutions 256,512] [--big 2048]
 #                               [--sample 2000] [--runs 1] [--peers openvdb,igl,pysdf,open3d] [--out DIR]
-# (all options: bench/peers/run-distance.sh run --help is not needed: `--help` prints them).
+# (all options: bench/peers/run-distance.sh --help).
 # Provisioning: the pinned peers venv of run.sh (requirements.txt) plus pysdf
 # (requirements-distance.txt; it compiles against Eigen), and Debian's python3-openvdb for
 # /usr/bin/python3 (OpenVDB's peer runs there). A peer that does not install is skipped with a
