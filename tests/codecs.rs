@@ -5,7 +5,7 @@
 use crate::common::{Rng, random_fill};
 use voxd::codec::{VolumeFormat, binvox, npy, vxl};
 use voxd::grid::Grid;
-use voxd::volume::{BitVolume, DensityVolume, Volume};
+use voxd::volume::{BitVolume, DensityVolume, Volume, VolumeKind};
 
 fn random_bits(rng: &mut Rng, dims: [u32; 3]) -> BitVolume {
     let g = Grid {
@@ -320,9 +320,27 @@ fn new_kinds_round_trip_through_vxl_version_2_and_other_formats_refuse_them() {
         let h: serde_json::Value = serde_json::from_slice(&e[16..16 + hl]).unwrap();
         assert_eq!(h["kind"], kind.as_str());
         assert_eq!(vxl::decode(&e).unwrap().0, vol, "{kind}");
-        for f in [VolumeFormat::Npy, VolumeFormat::Binvox, VolumeFormat::Raw] {
-            let err = f.check(&vol).unwrap_err().to_string();
-            assert!(err.contains(kind.as_str()), "{f:?} {kind}: {err}");
+        for f in [
+            VolumeFormat::Npy,
+            VolumeFormat::Binvox,
+            VolumeFormat::Raw,
+            VolumeFormat::Vdb,
+        ] {
+            // npy and raw hold distances (as float32), vdb sparse distances.
+            let holds = match f {
+                VolumeFormat::Npy | VolumeFormat::Raw => {
+                    matches!(kind, VolumeKind::Distance | VolumeKind::SparseDistance)
+                }
+                VolumeFormat::Vdb => kind == VolumeKind::SparseDistance,
+                _ => false,
+            };
+            match f.check(&vol) {
+                Ok(()) => assert!(holds, "{f:?} {kind}"),
+                Err(e) => {
+                    assert!(!holds, "{f:?} {kind}: {e}");
+                    assert!(e.to_string().contains(kind.as_str()), "{f:?} {kind}: {e}");
+                }
+            }
         }
         // A version-1 header may not name a kind version 1 did not have.
         let mut v1 = e.clone();
@@ -462,4 +480,61 @@ fn nan_distances_are_refused() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("NaN"), "{e}");
+}
+
+/// A distance volume as `.npy` is `<f4`, shape (X, Y, Z), C order: every voxel of a sparse one
+/// (bricks, tiles, background) at `((x·Y + y)·Z + z)·4` after the header, read here by that
+/// offset against `get`; `.raw` is the same bytes without the header; a dense one reads back.
+#[test]
+fn distance_volumes_are_float32_arrays_in_npy_and_raw() {
+    use voxd::volume::{Dense, Sparse};
+    let g = Grid {
+        origin: [0.5, -1.0, 2.0],
+        voxel_size: 0.25,
+        dims: [19, 9, 17],
+    };
+    let mut s = Sparse::with_tile_value(g, 0.75f32, -0.75);
+    s.set(1, 8, 16, -0.5);
+    s.set(18, 0, 3, -0.0);
+    s.set(9, 2, 10, 0.125);
+    s.set_tile([1, 0, 0], true).unwrap();
+    s.set_tile([2, 1, 2], true).unwrap();
+    let vol = Volume::SparseDistance(s.clone());
+    let n = npy::encode(&vol);
+    let hl = u16::from_le_bytes([n[8], n[9]]) as usize;
+    let header = std::str::from_utf8(&n[10..10 + hl]).unwrap();
+    assert!(
+        header.contains("'descr': '<f4'") && header.contains("(19, 9, 17)"),
+        "{header}"
+    );
+    let data = &n[10 + hl..];
+    assert_eq!(data.len(), 19 * 9 * 17 * 4);
+    assert_eq!(VolumeFormat::Npy.encoded_len(&vol), Some(n.len() as u64));
+    for x in 0..19u32 {
+        for y in 0..9u32 {
+            for z in 0..17u32 {
+                let at = (((x * 9 + y) * 17 + z) * 4) as usize;
+                let v = f32::from_le_bytes(data[at..at + 4].try_into().unwrap());
+                assert_eq!(v.to_bits(), s.get(x, y, z).to_bits(), "({x}, {y}, {z})");
+            }
+        }
+    }
+    // Spot checks that do not go through `get`: a tile's voxel, the background, a brick's.
+    let f = |x: usize, y: usize, z: usize| {
+        let at = ((x * 9 + y) * 17 + z) * 4;
+        f32::from_le_bytes(data[at..at + 4].try_into().unwrap())
+    };
+    assert_eq!((f(9, 0, 0), f(0, 0, 0), f(1, 8, 16)), (-0.75, 0.75, -0.5));
+    assert_eq!(f(18, 0, 3).to_bits(), (-0.0f32).to_bits());
+    let mut raw = vec![];
+    VolumeFormat::Raw.write(&vol, &mut raw).unwrap();
+    assert_eq!(raw, data);
+    // Dense distances read back as themselves.
+    let d: Dense<f32> = s.to_dense();
+    let dv = Volume::Distance(d.clone());
+    let Volume::Distance(back) = npy::decode(&npy::encode(&dv)).unwrap() else {
+        panic!("npy kind")
+    };
+    assert_eq!(back.data(), d.data());
+    assert_eq!(&npy::encode(&dv), &n);
 }

@@ -35,6 +35,7 @@ mod service;
 mod stats;
 mod tenants;
 mod upload_memory;
+mod vdb;
 
 /// With `autotests = false` (Cargo.toml) a file of tests/ that is not declared a module here
 /// would never be compiled nor run: every one is, and so is every file of a folder module

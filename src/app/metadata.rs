@@ -4,9 +4,9 @@
 use serde_json::{Map, Value};
 
 use super::error::Result;
-use super::store::{SourceInfo, VolumeMeta, Vxl};
 use super::request::{Band, MethodSpec};
 use super::store::DistanceMeta;
+use super::store::{SourceInfo, VolumeMeta, Vxl};
 use super::voxelize::{Prepared, distance_thickness};
 use crate::codec::vxl;
 use crate::engine::fill::FillReport;
@@ -66,7 +66,11 @@ pub fn vxl_header(origin: &Origin) -> Map<String, Value> {
                     m.insert("band".into(), band_json(band));
                     m.insert(
                         "background".into(),
-                        if bg.is_finite() { bg.into() } else { "inf".into() },
+                        if bg.is_finite() {
+                            bg.into()
+                        } else {
+                            "inf".into()
+                        },
                     );
                 }
                 MethodSpec::Distance { thickness } => {

@@ -327,9 +327,12 @@ pub fn check_format(kind: VolumeKind, format: VolumeFormat) -> Result<()> {
 }
 
 /// Refuses a conversion whose output would be larger than the voxel budget, before any of it
-/// is made: binvox pads the grid to a cube (a 4096×1×1 grid becomes 4096³ voxels).
+/// is made: binvox pads the grid to a cube (a 4096×1×1 grid becomes 4096³ voxels), and npy and
+/// raw write every voxel of a sparse volume (4 bytes each for a distance). `.vxl` and `.vdb`
+/// are sparse where the volume is: not bounded here.
 pub fn check_conversion(grid: &Grid, format: VolumeFormat, limits: &Limits) -> Result<()> {
     let voxels: u128 = match format {
+        VolumeFormat::Vxl | VolumeFormat::Vdb => return Ok(()),
         VolumeFormat::Binvox => u128::from(*grid.dims.iter().max().expect("three dims")).pow(3),
         _ => grid.dims.iter().map(|&d| u128::from(d)).product(),
     };
@@ -345,6 +348,50 @@ pub fn check_conversion(grid: &Grid, format: VolumeFormat, limits: &Limits) -> R
                 crate::limits::describe_voxels(limits.max_voxels)
             ),
         ));
+    }
+    Ok(())
+}
+
+/// [`check_dense`] then [`check_conversion`]: what a download of a volume of `kind` in `format`
+/// must pass.
+pub fn check_download(
+    kind: VolumeKind,
+    grid: &Grid,
+    format: VolumeFormat,
+    limits: &Limits,
+) -> Result<()> {
+    check_dense(kind, grid, format, limits)?;
+    check_conversion(grid, format, limits)
+}
+
+/// A dense copy of a sparse distance volume (`.npy`, `.raw`) is refused when its grid is over
+/// the dense limit (`max_voxels`), with its size in bytes against the limit's (4 bytes a voxel),
+/// and pointed at the formats that stay sparse.
+pub fn check_dense(
+    kind: VolumeKind,
+    grid: &Grid,
+    format: VolumeFormat,
+    limits: &Limits,
+) -> Result<()> {
+    let dense = matches!(format, VolumeFormat::Npy | VolumeFormat::Raw);
+    if kind == VolumeKind::SparseDistance && dense {
+        let voxels: u128 = grid.dims.iter().map(|&d| u128::from(d)).product();
+        if voxels > u128::from(limits.max_voxels) {
+            let per = u128::from(crate::codec::npy::value_bytes(kind));
+            return Err(Error::new(
+                ErrorKind::GridTooLarge,
+                format!(
+                    "as {} this {}x{}x{} sparse distance volume would be dense: {voxels} voxels, {} bytes of float32, over the dense limit of {} ({} bytes); download it as vdb or vxl",
+                    format.name(),
+                    grid.dims[0],
+                    grid.dims[1],
+                    grid.dims[2],
+                    voxels * per,
+                    crate::limits::describe_voxels(limits.max_voxels),
+                    u128::from(limits.max_voxels) * per
+                ),
+            ));
+        }
     }
     Ok(())
 }

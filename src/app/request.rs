@@ -590,7 +590,9 @@ mod tests {
         };
         assert_eq!(
             MethodSpec::with("sdf", p(None, None, None)).unwrap(),
-            MethodSpec::Sdf { band: Band::Voxels(3) }
+            MethodSpec::Sdf {
+                band: Band::Voxels(3)
+            }
         );
         assert_eq!(
             MethodSpec::with("sdf", p(None, None, Some(Band::All))).unwrap(),
@@ -598,12 +600,24 @@ mod tests {
         );
         assert_eq!(
             MethodSpec::with("distance", p(None, Some(0.25), None)).unwrap(),
-            MethodSpec::Distance { thickness: Some(0.25) }
+            MethodSpec::Distance {
+                thickness: Some(0.25)
+            }
         );
         let e = MethodSpec::with("solid", p(None, None, Some(Band::Voxels(2)))).unwrap_err();
-        assert!(e.detail.contains("band=2 is given with method=solid: band applies only to method=sdf"), "{}", e.detail);
+        assert!(
+            e.detail
+                .contains("band=2 is given with method=solid: band applies only to method=sdf"),
+            "{}",
+            e.detail
+        );
         let e = MethodSpec::with("sdf", p(None, Some(1.0), None)).unwrap_err();
-        assert!(e.detail.contains("thickness applies only to method=distance"), "{}", e.detail);
+        assert!(
+            e.detail
+                .contains("thickness applies only to method=distance"),
+            "{}",
+            e.detail
+        );
         assert!(MethodSpec::with("sdf", p(Some(2), None, None)).is_err());
         for bad in [-1.0, f64::NAN, f64::INFINITY] {
             assert!(MethodSpec::with("distance", p(None, Some(bad), None)).is_err());
@@ -613,13 +627,25 @@ mod tests {
         let sdf = MethodSpec::Sdf { band: Band::All };
         assert_eq!(sdf.fill(Some(Fill::Winding)).unwrap(), Fill::Winding);
         let bytes = Bytes::from_static(crate::app::testing::TETRA_OBJ);
-        for method in [sdf, MethodSpec::Sdf { band: Band::Voxels(7) }, distance, MethodSpec::Distance { thickness: Some(0.5) }] {
+        for method in [
+            sdf,
+            MethodSpec::Sdf {
+                band: Band::Voxels(7),
+            },
+            distance,
+            MethodSpec::Distance {
+                thickness: Some(0.5),
+            },
+        ] {
             let req = VoxelizeRequest {
                 source: MeshSource::Bytes {
                     bytes: bytes.clone(),
                     format: Some(Format::Obj),
                 },
-                grid: GridSpec::Resolution { n: 16, cubic: false },
+                grid: GridSpec::Resolution {
+                    n: 16,
+                    cubic: false,
+                },
                 padding: 1,
                 method,
                 fill: Fill::Winding,
@@ -627,7 +653,13 @@ mod tests {
             };
             let json = serde_json::to_string(&JobSpec::of(&req)).unwrap();
             let back: JobSpec = serde_json::from_str(&json).unwrap();
-            assert_eq!(back.request(bytes.clone(), &Limits::SERVICE).unwrap().method, method, "{json}");
+            assert_eq!(
+                back.request(bytes.clone(), &Limits::SERVICE)
+                    .unwrap()
+                    .method,
+                method,
+                "{json}"
+            );
         }
     }
 

@@ -8,9 +8,10 @@ use super::error::{Error, Result};
 use super::request::{MeshSource, MethodSpec, VoxelizeRequest};
 use crate::cancel::Control;
 use crate::engine::density::{self, DensityError};
+use crate::engine::distance;
+use crate::engine::fill::{self, Fill, FillReport};
 use crate::engine::sdf::{self, Band};
 use crate::engine::{Engine, GridMesh};
-use crate::engine::fill::{self, Fill, FillReport};
 use crate::grid::{Grid, GridLimits};
 use crate::limits::Limits;
 use crate::mesh::{self, Format, LoadOptions, Mesh, MeshDiagnostics, MeshError};
@@ -263,21 +264,13 @@ pub fn run(p: &Prepared, engine: &dyn Engine, ctl: &Control) -> Result<Voxelized
     })
 }
 
-/// distance's thickness in lattice units: `t·256/s` rounded half away from zero (`None`: half
-/// the voxel diagonal, 222); over 32 voxels is refused.
+/// distance's thickness in lattice units ([`distance::thickness_lattice`]; `None`: half the
+/// voxel diagonal, 222).
 pub fn distance_thickness(thickness: Option<f64>, voxel_size: f64) -> Result<i64> {
-    const MAX: i64 = 32 * crate::engine::FIXED_ONE;
-    let Some(t) = thickness else {
-        return Ok((crate::engine::FIXED_HALF as f64 * 3f64.sqrt()).round() as i64);
-    };
-    let l = (t * crate::engine::FIXED_ONE as f64 / voxel_size).round();
-    if !(t.is_finite() && t >= 0.0) || l > MAX as f64 {
-        return Err(Error::invalid(format!(
-            "thickness={t} is {:.2} voxels of {voxel_size}; it must be from 0 to 32 voxels",
-            t / voxel_size
-        )));
+    match thickness {
+        None => Ok(distance::DEFAULT_LATTICE),
+        Some(t) => distance::thickness_lattice(t, voxel_size).map_err(Error::invalid),
     }
-    Ok(l as i64)
 }
 
 /// [`prepare`] then [`run`].

@@ -140,7 +140,7 @@ pub struct VoxelizeArgs {
     pub output: PathBuf,
     #[arg(long, default_value_t = MethodName::Bits(Method::Solid), value_parser = named::<MethodName>())]
     pub method: MethodName,
-    /// How solid-based methods (solid, conservative, interior, density) decide inside: parity
+    /// How solid-based methods (solid, conservative, interior, density, sdf) decide inside: parity
     /// (exact for watertight meshes), vote (parity along x, y and z, majority), winding
     /// (generalised winding number ≥ ½), flood (exterior flood fill outside the surface) or auto
     /// (parity when the mesh is watertight, else winding; the default). Not with surface.

@@ -73,6 +73,7 @@ pub fn write_volume(
 ) -> Result<(), String> {
     let err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
     ops::check_format(v.kind(), f).map_err(|e| err(&e))?;
+    ops::check_dense(v.kind(), v.grid(), f, &voxd::limits::Limits::LOCAL).map_err(|e| err(&e))?;
     if let Some(w) = ops::conversion_warning(v.grid(), f) {
         eprintln!("{}: {w}", path.display());
     }

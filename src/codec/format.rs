@@ -14,8 +14,12 @@ pub enum VolumeFormat {
     Vxl,
     Binvox,
     Npy,
-    /// One byte per voxel, C order of (X, Y, Z), no header: written, never read back.
+    /// One byte per voxel (a `f32` for distances), C order of (X, Y, Z), no header: written,
+    /// never read back.
     Raw,
+    /// OpenVDB: a sparse distance volume as a level-set FloatGrid, a bit volume as a BoolGrid.
+    /// Written, never read back.
+    Vdb,
 }
 
 /// One format's row.
@@ -36,8 +40,17 @@ pub struct FormatSpec {
     pub magic: Option<&'static [u8]>,
 }
 
-/// One byte per voxel: a bit's 0/1 or a density's level.
-const BYTE_KINDS: &[VolumeKind] = &[VolumeKind::Bits, VolumeKind::Density];
+/// A dense array: one byte per voxel (a bit's 0/1 or a density's level) or one `f32` (a
+/// distance, dense or sparse: every voxel written).
+const ARRAY_KINDS: &[VolumeKind] = &[
+    VolumeKind::Bits,
+    VolumeKind::Density,
+    VolumeKind::Distance,
+    VolumeKind::SparseDistance,
+];
+
+/// OpenVDB grids: a level set of a sparse distance volume, a BoolGrid of a bit volume.
+const VDB_KINDS: &[VolumeKind] = &[VolumeKind::SparseDistance, VolumeKind::Bits];
 
 /// The formats, in the order messages list them; row `i` is `VolumeFormat` value `i`.
 pub const FORMATS: &[FormatSpec] = &[
@@ -63,7 +76,7 @@ pub const FORMATS: &[FormatSpec] = &[
         format: VolumeFormat::Npy,
         name: "npy",
         media_type: "application/x-npy",
-        holds: BYTE_KINDS,
+        holds: ARRAY_KINDS,
         streams: true,
         reads: true,
         magic: Some(super::npy::MAGIC),
@@ -72,10 +85,19 @@ pub const FORMATS: &[FormatSpec] = &[
         format: VolumeFormat::Raw,
         name: "raw",
         media_type: "application/octet-stream",
-        holds: BYTE_KINDS,
+        holds: ARRAY_KINDS,
         streams: true,
         reads: false,
         magic: None,
+    },
+    FormatSpec {
+        format: VolumeFormat::Vdb,
+        name: "vdb",
+        media_type: "application/x-vdb",
+        holds: VDB_KINDS,
+        streams: false,
+        reads: false,
+        magic: Some(super::vdb::MAGIC),
     },
 ];
 
@@ -97,6 +119,7 @@ impl Named for VolumeFormat {
         VolumeFormat::Binvox,
         VolumeFormat::Npy,
         VolumeFormat::Raw,
+        VolumeFormat::Vdb,
     ];
     fn name(self) -> &'static str {
         self.spec().name
@@ -135,7 +158,7 @@ impl VolumeFormat {
     pub fn from_path(p: &std::path::Path) -> Option<VolumeFormat> {
         VolumeFormat::from_name(p.extension()?.to_str()?)
     }
-    /// The names, comma-separated ("vxl, binvox, npy, raw"), for messages.
+    /// The names, comma-separated ("vxl, binvox, npy, raw, vdb"), for messages.
     pub fn names() -> String {
         FORMATS
             .iter()
@@ -164,7 +187,7 @@ mod tests {
 
     #[test]
     fn rows_name_their_formats() {
-        assert_eq!(VolumeFormat::names(), "vxl, binvox, npy, raw");
+        assert_eq!(VolumeFormat::names(), "vxl, binvox, npy, raw, vdb");
         assert_eq!(VolumeFormat::readable_extensions(), ".vxl, .binvox or .npy");
         for &f in <VolumeFormat as Named>::ALL {
             assert_eq!(VolumeFormat::from_name(&f.name().to_uppercase()), Some(f));
@@ -172,6 +195,17 @@ mod tests {
         }
         assert!(VolumeFormat::Npy.holds().contains(&VolumeKind::Density));
         assert!(!VolumeFormat::Binvox.holds().contains(&VolumeKind::Density));
+        assert!(
+            VolumeFormat::Vdb
+                .holds()
+                .contains(&VolumeKind::SparseDistance)
+        );
+        assert!(!VolumeFormat::Vdb.holds().contains(&VolumeKind::Density));
+        assert!(
+            VolumeFormat::Npy
+                .holds()
+                .contains(&VolumeKind::SparseDistance)
+        );
     }
 
     /// The contract's `?format=` of a download lists this table's names, in its order.

@@ -1,5 +1,5 @@
-//! Volumes to bytes and back: the native `.vxl` (zstd), `.binvox` and `.npy`, and `.png`
-//! pictures. Which formats there are, and what each holds, is the table of `format.rs`; every
+//! Volumes to bytes and back: the native `.vxl` (zstd), `.binvox` and `.npy`, `.png`
+//! pictures, and OpenVDB's `.vdb` (written only). Which formats there are, and what each holds, is the table of `format.rs`; every
 //! format states its axis and bit order in its own module docs. Nothing here knows about meshes
 //! or engines.
 
@@ -7,6 +7,7 @@ pub mod binvox;
 pub mod format;
 pub mod npy;
 pub mod png;
+pub mod vdb;
 pub mod vxl;
 
 pub use format::{FORMATS, FormatSpec, VolumeFormat};
@@ -65,6 +66,7 @@ impl VolumeFormat {
         let mut out = vec![];
         match self {
             VolumeFormat::Vxl => return vxl::encode(v, &serde_json::Map::new()),
+            VolumeFormat::Vdb => return Ok(vdb::encode(v).expect("checked above")),
             _ => self.write(v, &mut out).expect("writing to memory"),
         }
         Ok(out)
@@ -82,6 +84,13 @@ impl VolumeFormat {
                     .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidInput, e))?;
                 out.write_all(&b)
             }
+            VolumeFormat::Vdb => match vdb::encode(v) {
+                Some(b) => out.write_all(&b),
+                None => Err(std::io::Error::new(
+                    std::io::ErrorKind::InvalidInput,
+                    format!("vdb holds sparse distance or bit volumes, not {}", v.kind()),
+                )),
+            },
             VolumeFormat::Binvox => binvox::write(v, out),
             VolumeFormat::Npy => npy::write(v, out),
             VolumeFormat::Raw => npy::write_data(v, out),
@@ -91,11 +100,14 @@ impl VolumeFormat {
     /// The exact length of `v` in this format, where it is known without encoding (`.npy`,
     /// `.raw`).
     pub fn encoded_len(self, v: &Volume) -> Option<u64> {
-        let n = v.grid().voxel_count();
+        let n = v
+            .grid()
+            .voxel_count()
+            .saturating_mul(npy::value_bytes(v.kind()));
         match self {
-            VolumeFormat::Npy => Some(npy::header(v.grid().dims).len() as u64 + n),
+            VolumeFormat::Npy => Some(npy::header_of(v).len() as u64 + n),
             VolumeFormat::Raw => Some(n),
-            VolumeFormat::Vxl | VolumeFormat::Binvox => None,
+            VolumeFormat::Vxl | VolumeFormat::Binvox | VolumeFormat::Vdb => None,
         }
     }
 
@@ -114,6 +126,10 @@ impl VolumeFormat {
             VolumeFormat::Raw => Err(CodecError::Unsupported {
                 format: "raw",
                 detail: "a .raw file has no header (no dims, no grid), so it cannot be read back; use .vxl or .npy".into(),
+            }),
+            VolumeFormat::Vdb => Err(CodecError::Unsupported {
+                format: "vdb",
+                detail: "voxd writes .vdb files but does not read them; use .vxl".into(),
             }),
         }
     }

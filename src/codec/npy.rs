@@ -1,11 +1,14 @@
 //! NumPy `.npy` (format 1.0): dtype `|u1`, shape (X, Y, Z), C order, so `np.load` gives
-//! `a[x, y, z]`. Bit volumes hold 0/1, density volumes their occupancy. The file carries no grid:
-//! decoding gives origin 0 and voxel size 1. A decoded array holding only 0 and 1 is a bit volume;
-//! any larger value makes it a density volume (maximum 8, or 64 when a value exceeds 8).
+//! `a[x, y, z]`. Bit volumes hold 0/1, density volumes their occupancy. Distance volumes, dense
+//! or sparse, are dtype `<f4` (every voxel: a sparse volume's tiles and background written out).
+//! The file carries no grid: decoding gives origin 0 and voxel size 1. A decoded `u1` array
+//! holding only 0 and 1 is a bit volume; any larger value makes it a density volume (maximum 8,
+//! or 64 when a value exceeds 8); a `<f4` array is a (dense) distance volume.
 
 use super::{CodecError, malformed};
 use crate::grid::Grid;
-use crate::volume::{BitVolume, DensityVolume, Volume};
+use crate::volume::sparse::{BRICK, BRICK_VOXELS, Sparse};
+use crate::volume::{BitVolume, Dense, DensityVolume, Volume, VolumeKind};
 
 pub const MAGIC: &[u8; 6] = b"\x93NUMPY";
 
@@ -15,10 +18,32 @@ pub fn encode(v: &Volume) -> Vec<u8> {
     out
 }
 
-/// The `.npy` header of an array of `dims` (magic to the padding newline).
+/// Bytes per voxel of `kind` in `.npy` and `.raw`: 4 for distances, else 1.
+pub fn value_bytes(kind: VolumeKind) -> u64 {
+    match kind {
+        VolumeKind::Distance | VolumeKind::SparseDistance => 4,
+        _ => 1,
+    }
+}
+
+/// The `.npy` header of an array of `dims` (magic to the padding newline), dtype `|u1`.
 pub fn header(dims: [u32; 3]) -> Vec<u8> {
+    typed_header(dims, "|u1")
+}
+
+/// The `.npy` header `v` is written with.
+pub fn header_of(v: &Volume) -> Vec<u8> {
+    let descr = if value_bytes(v.kind()) == 4 {
+        "<f4"
+    } else {
+        "|u1"
+    };
+    typed_header(v.grid().dims, descr)
+}
+
+fn typed_header(dims: [u32; 3], descr: &str) -> Vec<u8> {
     let mut header = format!(
-        "{{'descr': '|u1', 'fortran_order': False, 'shape': ({}, {}, {}), }}",
+        "{{'descr': '{descr}', 'fortran_order': False, 'shape': ({}, {}, {}), }}",
         dims[0], dims[1], dims[2]
     );
     // Magic (6) + version (2) + length (2) + header + '\n' must be a multiple of 64.
@@ -36,15 +61,28 @@ pub fn header(dims: [u32; 3]) -> Vec<u8> {
 
 /// Streams the `.npy` to `out` (a 2048³ volume is 8 GiB as bytes: no need to hold it).
 pub fn write(v: &Volume, out: &mut impl std::io::Write) -> std::io::Result<()> {
-    out.write_all(&header(v.grid().dims))?;
+    out.write_all(&header_of(v))?;
     write_data(v, out)
 }
 
-/// The array's bytes alone, one byte per voxel in C order (the `.raw` format), a column at a
-/// time.
+/// The array's bytes alone, one byte (distances: a little-endian `f32`) per voxel in C order
+/// (the `.raw` format), a column at a time.
 pub fn write_data(v: &Volume, out: &mut impl std::io::Write) -> std::io::Result<()> {
     match v {
         Volume::Density(dv) => out.write_all(dv.data()),
+        Volume::Distance(d) => {
+            let z = v.grid().dims[2] as usize;
+            let mut buf = Vec::with_capacity(4 * z);
+            for col in d.data().chunks_exact(z) {
+                buf.clear();
+                for x in col {
+                    buf.extend_from_slice(&x.to_le_bytes());
+                }
+                out.write_all(&buf)?;
+            }
+            Ok(())
+        }
+        Volume::SparseDistance(s) => write_sparse(s, out),
         Volume::Bits(b) => {
             let z = v.grid().dims[2] as usize;
             let mut buf = vec![0u8; z];
@@ -58,9 +96,42 @@ pub fn write_data(v: &Volume, out: &mut impl std::io::Write) -> std::io::Result<
         }
         other => Err(std::io::Error::new(
             std::io::ErrorKind::InvalidInput,
-            format!("npy and raw hold bits or density, not {}", other.kind()),
+            format!(
+                "npy and raw hold bits, density or distances, not {}",
+                other.kind()
+            ),
         )),
     }
+}
+
+/// A sparse volume's every voxel as little-endian `f32`s, a Z-column at a time: each column
+/// looks up its bricks once (one per 8 voxels), not every voxel.
+fn write_sparse(s: &Sparse<f32>, out: &mut impl std::io::Write) -> std::io::Result<()> {
+    let [nx, ny, nz] = s.grid().dims;
+    let bd = s.brick_dims();
+    let bricks: std::collections::HashMap<[u32; 3], &[f32; BRICK_VOXELS]> = s.bricks().collect();
+    let mut buf = Vec::with_capacity(4 * nz as usize);
+    for x in 0..nx {
+        for y in 0..ny {
+            buf.clear();
+            for bz in 0..bd[2] {
+                let at = [x / BRICK, y / BRICK, bz];
+                let base = ((x % BRICK) * BRICK + y % BRICK) * BRICK;
+                let brick = bricks.get(&at);
+                let fill = if s.is_tile(at) {
+                    s.tile_value()
+                } else {
+                    s.background()
+                };
+                for z in bz * BRICK..((bz + 1) * BRICK).min(nz) {
+                    let v = brick.map_or(fill, |b| b[(base + z % BRICK) as usize]);
+                    buf.extend_from_slice(&v.to_le_bytes());
+                }
+            }
+            out.write_all(&buf)?;
+        }
+    }
+    Ok(())
 }
 
 pub fn decode(bytes: &[u8]) -> Result<Volume, CodecError> {
@@ -80,18 +151,20 @@ pub fn decode(bytes: &[u8]) -> Result<Volume, CodecError> {
         .ok_or_else(|| malformed("npy", "truncated header"))?;
     let header = std::str::from_utf8(header).map_err(|_| malformed("npy", "header is not text"))?;
     let compact: String = header.chars().filter(|c| !c.is_whitespace()).collect();
-    if ![
-        "'descr':'|u1'",
-        "'descr':'<u1'",
-        "'descr':'u1'",
-        "'descr':'|b1'",
-    ]
-    .iter()
-    .any(|d| compact.contains(d))
+    let float = compact.contains("'descr':'<f4'");
+    if !float
+        && ![
+            "'descr':'|u1'",
+            "'descr':'<u1'",
+            "'descr':'u1'",
+            "'descr':'|b1'",
+        ]
+        .iter()
+        .any(|d| compact.contains(d))
     {
         return Err(malformed(
             "npy",
-            format!("dtype must be uint8 or bool, header is {header:?}"),
+            format!("dtype must be uint8, bool or little-endian float32, header is {header:?}"),
         ));
     }
     if !compact.contains("'fortran_order':False") {
@@ -123,6 +196,23 @@ pub fn decode(bytes: &[u8]) -> Result<Volume, CodecError> {
     // bytes).
     let voxels = grid.voxel_count();
     let data = &bytes[start + hlen..];
+    if float {
+        if data.len() as u64 != voxels.saturating_mul(4) || voxels == 0 {
+            return Err(malformed(
+                "npy",
+                format!(
+                    "expected {} data bytes for shape ({shape}) of float32, got {}",
+                    voxels.saturating_mul(4),
+                    data.len()
+                ),
+            ));
+        }
+        let values =
+            crate::volume::kind::valid_from_le_bytes(data).map_err(|e| malformed("npy", e))?;
+        return Dense::from_data(grid, values)
+            .map(Volume::Distance)
+            .map_err(|e| malformed("npy", e));
+    }
     if data.len() as u64 != voxels || voxels == 0 {
         return Err(malformed(
             "npy",

@@ -85,7 +85,7 @@ fn booleans_and_parse_errors_name_the_parameter() {
             "method=sculpt",
             &[
                 "method",
-                "solid, surface, conservative, interior or density",
+                "solid, surface, conservative, interior, density, distance or sdf",
             ],
         ),
         ("origin=1,2&dims=2,2,2&voxel_size=1", &["origin", "X,Y,Z"]),

@@ -22,7 +22,11 @@ pub fn key(at: [u32; 3], bd: [u32; 3]) -> u64 {
 
 pub fn unkey(k: u64, bd: [u32; 3]) -> [u32; 3] {
     let (by, bz) = (u64::from(bd[1]), u64::from(bd[2]));
-    [(k / (by * bz)) as u32, (k / bz % by) as u32, (k % bz) as u32]
+    [
+        (k / (by * bz)) as u32,
+        (k / bz % by) as u32,
+        (k % bz) as u32,
+    ]
 }
 
 /// The bricks triangle `t` may reach within `r` (lattice units), each once, by key.
@@ -156,10 +160,7 @@ impl Bins {
         if let Some(&(k, _)) = pairs.last() {
             groups.push((k, start, pairs.len()));
         }
-        Bins {
-            groups,
-            tris: list,
-        }
+        Bins { groups, tris: list }
     }
 
     pub fn groups(&self) -> &[(u64, usize, usize)] {

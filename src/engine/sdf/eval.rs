@@ -205,10 +205,8 @@ pub(super) fn uniform_brick(
     let dims = solid.grid().dims;
     let mut values = Box::new([background; BRICK_VOXELS]);
     for (i, v) in values.iter_mut().enumerate() {
-        if let Some(vx) = voxel(at, i, dims) {
-            if solid.get(vx[0], vx[1], vx[2]) {
-                *v = -background;
-            }
+        if voxel(at, i, dims).is_some_and(|vx| solid.get(vx[0], vx[1], vx[2])) {
+            *v = -background;
         }
     }
     values

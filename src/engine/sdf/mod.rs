@@ -109,7 +109,9 @@ pub fn lattice_triangles(
         .with_min_len(crate::PAR_PIECE)
         .map(|&p| to_lattice(grid, p))
         .collect();
-    let hi_centre = grid.dims.map(|d| (i64::from(d) - 1) * FIXED_ONE + FIXED_HALF);
+    let hi_centre = grid
+        .dims
+        .map(|d| (i64::from(d) - 1) * FIXED_ONE + FIXED_HALF);
     let snap = |tri: &[u32; 3]| -> Result<Option<[[i32; 3]; 3]>, EngineError> {
         let v = tri.map(|i| snapped[i as usize]);
         if let Some(r) = reach {
@@ -215,7 +217,19 @@ pub fn signed_distance(
     let (background, tile) = band.values(grid.voxel_size);
     let mut out = Sparse::with_tile_value(grid, background, tile);
     let scale = grid.voxel_size / FIXED_ONE as f64;
-    let bricks: Vec<Brick> = match band.reach() {
+    // Pieces of bricks, inserted piece by piece (not gathered into one list first: a large
+    // grid has millions of tiles).
+    let mut insert = |pieces: Vec<Vec<Brick>>| {
+        for b in pieces.into_iter().flatten() {
+            match b {
+                Brick::Stored(at, values) => out
+                    .insert_brick(at, *values)
+                    .expect("a brick inside the brick grid, background past the grid"),
+                Brick::Tile(at) => out.set_tile(at, true).expect("inside the brick grid"),
+            }
+        }
+    };
+    match band.reach() {
         Some(r) => {
             ctl.check()?;
             let bins = bins::Bins::new(tris, bd, r);
@@ -231,14 +245,16 @@ pub fn signed_distance(
                     for &(key, lo, hi) in chunk {
                         let at = bins::unkey(key, bd);
                         let list = &bins.tris()[lo..hi];
-                        out.extend(eval::band_brick(tris, list, solid, at, r, scale, background));
+                        out.extend(eval::band_brick(
+                            tris, list, solid, at, r, scale, background,
+                        ));
                     }
                     counter.add(chunk.len() as u64);
                     Ok(out)
                 })
                 .collect::<Result<_, EngineError>>()?;
-            let far = far_bricks(solid, &bins, background, &ctl.stage(0.9, 1.0))?;
-            near.into_iter().flatten().chain(far).collect()
+            insert(near);
+            insert(far_bricks(solid, &bins, background, &ctl.stage(0.9, 1.0))?);
         }
         None => {
             let bins = bins::Bins::all(tris, bd);
@@ -260,15 +276,7 @@ pub fn signed_distance(
                     Ok(v)
                 })
                 .collect::<Result<_, EngineError>>()?;
-            all.into_iter().flatten().collect()
-        }
-    };
-    for b in bricks {
-        match b {
-            Brick::Stored(at, values) => out
-                .insert_brick(at, *values)
-                .expect("a brick inside the brick grid, background past the grid"),
-            Brick::Tile(at) => out.set_tile(at, true).expect("inside the brick grid"),
+            insert(all);
         }
     }
     ctl.complete();
@@ -282,7 +290,7 @@ fn far_bricks(
     bins: &bins::Bins,
     background: f32,
     ctl: &Control,
-) -> Result<Vec<Brick>, EngineError> {
+) -> Result<Vec<Vec<Brick>>, EngineError> {
     let grid = *solid.grid();
     let bd = brick_dims(&grid);
     let counter = ctl.counter(u64::from(bd[0]));
@@ -313,7 +321,7 @@ fn far_bricks(
             Ok(out)
         })
         .collect::<Result<_, EngineError>>()?;
-    Ok(slabs.into_iter().flatten().collect())
+    Ok(slabs)
 }
 
 /// Is `p` strictly closer than `r` to some triangle of `list`, exactly?

@@ -90,7 +90,8 @@ fn snapped(mesh: &Mesh, grid: &Grid) -> Vec<[P; 3]> {
     (0..mesh.triangles().len())
         .map(|t| {
             mesh.triangle(t).map(|v| {
-                [0, 1, 2].map(|a| ((v[a] - grid.origin[a]) * 256.0 / grid.voxel_size).round() as i128)
+                [0, 1, 2]
+                    .map(|a| ((v[a] - grid.origin[a]) * 256.0 / grid.voxel_size).round() as i128)
             })
         })
         .collect()
@@ -211,11 +212,17 @@ fn check(mesh: &Mesh, g: &Grid, band: Band, fills: &[Fill]) -> f64 {
     let mut worst = 0.0f64;
     let [nx, ny, nz] = g.dims;
     for &fill in fills {
-        let (sdf, _) =
-            sdf_with(&CpuEngine, mesh, g, band, fill, &diag, &Control::none()).unwrap();
-        let (solid, _) =
-            fill::voxelize_with(&CpuEngine, mesh, g, Method::Solid, fill, &diag, &Control::none())
-                .unwrap();
+        let (sdf, _) = sdf_with(&CpuEngine, mesh, g, band, fill, &diag, &Control::none()).unwrap();
+        let (solid, _) = fill::voxelize_with(
+            &CpuEngine,
+            mesh,
+            g,
+            Method::Solid,
+            fill,
+            &diag,
+            &Control::none(),
+        )
+        .unwrap();
         assert_eq!((sdf.background(), sdf.tile_value()), (bg, tile));
         // Per brick: (any voxel in band, any inside, all inside).
         let bd = brick_dims(g);
@@ -275,7 +282,13 @@ fn check(mesh: &Mesh, g: &Grid, band: Band, fills: &[Fill]) -> f64 {
     worst
 }
 
-const FILLS: [Fill; 5] = [Fill::Parity, Fill::Vote, Fill::Winding, Fill::Flood, Fill::Auto];
+const FILLS: [Fill; 5] = [
+    Fill::Parity,
+    Fill::Vote,
+    Fill::Winding,
+    Fill::Flood,
+    Fill::Auto,
+];
 
 #[test]
 fn a_closed_an_open_and_an_inverted_box_match_the_oracle_with_every_fill() {
@@ -289,7 +302,12 @@ fn a_closed_an_open_and_an_inverted_box_match_the_oracle_with_every_fill() {
     // A wide box: voxels deep inside, out of band, make tiles.
     let wide = grid([-0.13, -0.21, -0.07], 0.1, [34, 30, 33]);
     let big = cuboid([0.05, 0.02, 0.11], [3.13, 2.81, 3.09], false);
-    worst = worst.max(check(&big, &wide, Band::Voxels(1), &[Fill::Parity, Fill::Winding]));
+    worst = worst.max(check(
+        &big,
+        &wide,
+        Band::Voxels(1),
+        &[Fill::Parity, Fill::Winding],
+    ));
     eprintln!("boxes: max |d − d_exact| = {worst:.3e}·s");
 }
 
@@ -300,7 +318,12 @@ fn random_triangles_of_every_size_match_the_oracle() {
     for seed in 1..4 {
         let m = soup(0x9e37_79b9 * seed, 60, &g);
         for k in [1, 2, 5] {
-            worst = worst.max(check(&m, &g, Band::Voxels(k), &[Fill::Winding, Fill::Parity]));
+            worst = worst.max(check(
+                &m,
+                &g,
+                Band::Voxels(k),
+                &[Fill::Winding, Fill::Parity],
+            ));
         }
     }
     eprintln!("random: max |d − d_exact| = {worst:.3e}·s");
@@ -347,7 +370,15 @@ fn the_band_parses_and_a_canceled_control_stops_the_work() {
     let m = cuboid([0.3; 3], [1.2; 3], false);
     let ctl = Control::new();
     ctl.cancel();
-    let r = sdf_with(&CpuEngine, &m, &g, Band::DEFAULT, Fill::Parity, &m.diagnostics(), &ctl);
+    let r = sdf_with(
+        &CpuEngine,
+        &m,
+        &g,
+        Band::DEFAULT,
+        Fill::Parity,
+        &m.diagnostics(),
+        &ctl,
+    );
     assert!(matches!(r, Err(EngineError::Canceled(_))));
     // The candidate count bounds the bricks stored near the surface.
     let tris = lattice_triangles(&m, &g, Band::DEFAULT.reach()).unwrap();
@@ -362,5 +393,9 @@ fn the_band_parses_and_a_canceled_control_stops_the_work() {
         &Control::none(),
     )
     .unwrap();
-    assert!(v.brick_count() as u64 <= n && n <= 8, "{} of {n}", v.brick_count());
+    assert!(
+        v.brick_count() as u64 <= n && n <= 8,
+        "{} of {n}",
+        v.brick_count()
+    );
 }

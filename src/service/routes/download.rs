@@ -46,7 +46,7 @@ pub async fn data(
     };
     let meta = meta_of(&app, &caller, &id).await?;
     ops::check_format(meta.kind, format)?;
-    ops::check_conversion(&meta.grid, format, &app.limits)?;
+    ops::check_download(meta.kind, &meta.grid, format, &app.limits)?;
     // The coding is chosen before anything else, so that a 304 carries the ETag the 200 would.
     // A range asks for bytes of the identity representation (`.vxl` is compressed already):
     // clients resume a download without negotiating a coding, and the parts of one file must
