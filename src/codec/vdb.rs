@@ -419,6 +419,7 @@ mod tests {
 
     /// Slots by OpenVDB's `coordToOffset`, spelt out for voxel coordinates.
     #[test]
+    #[allow(clippy::identity_op)] // the slots spelt out axis by axis
     fn bricks_go_to_openvdbs_slots() {
         // Voxel (4100, 130, 9): root key (4096, 0, 0); upper slot ((4100 & 4095) >> 7 = 0,
         // 130 >> 7 = 1, 0); lower slot ((4100 & 127) >> 3 = 0, (130 & 127) >> 3 = 0, 9 >> 3 = 1).
