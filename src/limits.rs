@@ -138,6 +138,14 @@ pub mod serve {
     pub const JOB_TIMEOUT_S: f64 = 600.0;
 }
 
+/// Voxels of a narrow-band `sdf` grid at most, for a voxel limit of `max_voxels`: 64 times
+/// it, and at most 4096³. The voxel limit itself counts the band's candidate voxels (8³ per
+/// brick some triangle may reach); the grid's own cost is the solid's bits (one per voxel:
+/// 8 GiB at 4096³), which the memory budget admits.
+pub fn sdf_grid_voxels(max_voxels: u64) -> u64 {
+    max_voxels.saturating_mul(64).min(4096 * 4096 * 4096)
+}
+
 /// Human form of a voxel budget: `1024³` when it is a cube, else the count.
 pub fn describe_voxels(v: u64) -> String {
     let c = (v as f64).cbrt().round() as u64;

@@ -55,6 +55,7 @@ fn meta(id: &str, data: &[u8]) -> VolumeMeta {
         bytes: data.len() as u64,
         sha256: sha256_hex(data),
         provenance: None,
+        distance: None,
         owner: None,
     }
 }

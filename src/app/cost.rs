@@ -127,9 +127,16 @@ pub fn conversion(meta: &VolumeMeta) -> u64 {
 /// A voxelization job on `grid` (not counting the mesh, which its loading admits): the
 /// surface and solid bit grids and the encoded result for bit methods; for density, the fine
 /// bit grid (`factor`³ voxels a voxel) and the byte-per-voxel result with its encoding.
-pub fn voxelize_job(grid: &Grid, method: &MethodSpec) -> u64 {
+///
+/// sdf: the solid's bit grid twice (the fill's working copy), and per candidate brick
+/// (`candidate_bricks`) its 2 KiB of values twice (computed, then in the volume) with 2 KiB
+/// for its encoding, plus the triangle bins (16 bytes a pair, counted as 64 a brick).
+pub fn voxelize_job(grid: &Grid, method: &MethodSpec, candidate_bricks: u64) -> u64 {
     match method {
-        MethodSpec::Bits(_) => bits_bytes(grid).saturating_mul(3),
+        MethodSpec::Bits(_) | MethodSpec::Distance { .. } => bits_bytes(grid).saturating_mul(3),
+        MethodSpec::Sdf { .. } => bits_bytes(grid)
+            .saturating_mul(2)
+            .saturating_add(candidate_bricks.saturating_mul(3 * 2048 + 64)),
         MethodSpec::Density { factor } => {
             let f = u64::from(*factor).pow(3);
             let voxels = grid.voxel_count();
@@ -155,7 +162,7 @@ mod tests {
         assert_eq!(bits_bytes(&grid(64)), 64 * 64 * 8);
         assert_eq!(bits_bytes(&grid(65)), 65 * 65 * 2 * 8);
         assert_eq!(
-            voxelize_job(&grid(1024), &MethodSpec::Density { factor: 2 }),
+            voxelize_job(&grid(1024), &MethodSpec::Density { factor: 2 }, 0),
             (1u64 << 30) + (2u64 << 30)
         );
     }

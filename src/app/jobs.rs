@@ -235,7 +235,7 @@ pub async fn work(
 /// grid and method ([`cost::voxelize_job`]) and its mesh (positions and triangles).
 pub fn job_bytes(work: &Prepared) -> u64 {
     let mesh = (24 * work.mesh.positions().len() + 12 * work.mesh.triangles().len()) as u64;
-    cost::voxelize_job(&work.grid, &work.method).saturating_add(mesh)
+    cost::voxelize_job(&work.grid, &work.method, work.candidate_bricks).saturating_add(mesh)
 }
 
 /// Holds job `claim`'s memory before it runs ([`job_bytes`]): it waits in its worker while other

@@ -4,8 +4,10 @@
 use serde_json::{Map, Value};
 
 use super::error::Result;
+use super::request::{Band, MethodSpec};
+use super::store::DistanceMeta;
 use super::store::{SourceInfo, VolumeMeta, Vxl};
-use super::voxelize::Prepared;
+use super::voxelize::{Prepared, distance_thickness};
 use crate::codec::vxl;
 use crate::engine::fill::FillReport;
 use crate::volume::Volume;
@@ -58,6 +60,26 @@ pub fn vxl_header(origin: &Origin) -> Map<String, Value> {
                 m.insert("source_sha256".into(), sha.clone().into());
             }
             m.insert("triangles".into(), p.diagnostics.triangles.into());
+            match p.method {
+                MethodSpec::Sdf { band } => {
+                    let (bg, _) = band.values(p.grid.voxel_size);
+                    m.insert("band".into(), band_json(band));
+                    m.insert(
+                        "background".into(),
+                        if bg.is_finite() {
+                            bg.into()
+                        } else {
+                            "inf".into()
+                        },
+                    );
+                }
+                MethodSpec::Distance { thickness } => {
+                    if let Ok(t) = distance_thickness(thickness, p.grid.voxel_size) {
+                        m.insert("thickness".into(), snapped_thickness(t, &p.grid).into());
+                    }
+                }
+                _ => {}
+            }
             if let Some(job) = job {
                 m.insert("job".into(), (*job).into());
             }
@@ -67,6 +89,38 @@ pub fn vxl_header(origin: &Origin) -> Map<String, Value> {
         }
     }
     m
+}
+
+fn band_json(band: Band) -> Value {
+    match band {
+        Band::Voxels(k) => k.into(),
+        Band::All => "all".into(),
+    }
+}
+
+/// A lattice thickness in world units.
+fn snapped_thickness(t: i64, grid: &crate::grid::Grid) -> f64 {
+    t as f64 * grid.voxel_size / crate::engine::FIXED_ONE as f64
+}
+
+/// The distance facts of `volume` made as `origin` says.
+fn distance_meta(volume: &Volume, origin: &Origin) -> Option<DistanceMeta> {
+    let mut d = match volume {
+        Volume::SparseDistance(s) => DistanceMeta::of_sparse(s),
+        _ => DistanceMeta::default(),
+    };
+    if let Origin::Mesh { prepared: p, .. } = origin {
+        match p.method {
+            MethodSpec::Sdf { band } => d.band = Some(band_json(band)),
+            MethodSpec::Distance { thickness } => {
+                d.thickness = distance_thickness(thickness, p.grid.voxel_size)
+                    .ok()
+                    .map(|t| snapped_thickness(t, &p.grid));
+            }
+            _ => {}
+        }
+    }
+    (d != DistanceMeta::default()).then_some(d)
 }
 
 /// Set voxels (density: non-zero voxels) and occupied voxels (density: the sum of fractions).
@@ -144,6 +198,7 @@ pub fn build(
             Origin::Derived { provenance, .. } => Some((*provenance).clone()),
             Origin::Mesh { .. } => None,
         },
+        distance: distance_meta(volume, origin),
         // The caller sets it (a job's tenant, an operation's).
         owner: None,
     };

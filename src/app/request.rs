@@ -10,6 +10,7 @@ use serde::{Deserialize, Serialize};
 use super::error::{Error, Result};
 use crate::engine::Method;
 use crate::engine::fill::Fill;
+pub use crate::engine::sdf::Band;
 use crate::grid::GridSpec;
 use crate::limits::Limits;
 use crate::mesh::{ExternalResources, Format};
@@ -17,11 +18,22 @@ use crate::names::Named;
 use crate::volume::csg::CsgOp;
 use crate::volume::morph::{Kernel, MorphOp};
 
-/// A bit method, or density with its sub-voxel factor (2 or 4).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// A bit method, density with its sub-voxel factor (2 or 4), distance with its thickness
+/// (world units; `None`: half the voxel diagonal), or sdf with its band.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum MethodSpec {
     Bits(Method),
     Density { factor: u32 },
+    Distance { thickness: Option<f64> },
+    Sdf { band: Band },
+}
+
+/// The parameters a method may take beside its name, each valid with one method only.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MethodParams {
+    pub density_factor: Option<u32>,
+    pub thickness: Option<f64>,
+    pub band: Option<Band>,
 }
 
 impl MethodSpec {
@@ -30,14 +42,47 @@ impl MethodSpec {
     /// The method named `name`, with `density_factor` for density (2 when not given); a
     /// `density_factor` given with another method is refused (it applies only to density).
     pub fn new(name: &str, density_factor: Option<u32>) -> Result<MethodSpec> {
-        match crate::names::parse::<MethodName>(name).map_err(Error::invalid)? {
-            MethodName::Bits(m) => match density_factor {
-                None => Ok(MethodSpec::Bits(m)),
-                Some(f) => Err(Error::invalid(format!(
-                    "density_factor={f} is given with method={}: density_factor applies only to method=density",
-                    m.name()
-                ))),
+        MethodSpec::with(
+            name,
+            MethodParams {
+                density_factor,
+                ..MethodParams::default()
             },
+        )
+    }
+
+    /// The method named `name` with its parameters: `density_factor` only with density,
+    /// `thickness` only with distance (finite, ≥ 0), `band` only with sdf (3 when not given).
+    pub fn with(name: &str, params: MethodParams) -> Result<MethodSpec> {
+        let method = crate::names::parse::<MethodName>(name).map_err(Error::invalid)?;
+        let misplaced = |param: String, only: &str| {
+            Error::invalid(format!(
+                "{param} is given with method={}: {} applies only to method={only}",
+                method.name(),
+                param.split('=').next().unwrap_or_default()
+            ))
+        };
+        if let (Some(f), false) = (params.density_factor, method == MethodName::Density) {
+            return Err(misplaced(format!("density_factor={f}"), "density"));
+        }
+        if let (Some(t), false) = (params.thickness, method == MethodName::Distance) {
+            return Err(misplaced(format!("thickness={t}"), "distance"));
+        }
+        if let (Some(b), false) = (params.band, method == MethodName::Sdf) {
+            return Err(misplaced(format!("band={b}"), "sdf"));
+        }
+        let density_factor = params.density_factor;
+        match method {
+            MethodName::Bits(m) => Ok(MethodSpec::Bits(m)),
+            MethodName::Distance => match params.thickness {
+                Some(t) if !(t.is_finite() && t >= 0.0) => Err(Error::invalid(format!(
+                    "thickness must be a finite number ≥ 0 (world units), got {t}"
+                ))),
+                thickness => Ok(MethodSpec::Distance { thickness }),
+            },
+            MethodName::Sdf => Ok(MethodSpec::Sdf {
+                band: params.band.unwrap_or(Band::DEFAULT),
+            }),
             MethodName::Density => {
                 match density_factor.unwrap_or(MethodSpec::DEFAULT_DENSITY_FACTOR) {
                     f @ (2 | 4) => Ok(MethodSpec::Density { factor: f }),
@@ -53,9 +98,12 @@ impl MethodSpec {
     /// fill given with it is refused.
     pub fn fill(self, fill: Option<Fill>) -> Result<Fill> {
         match (self, fill) {
-            (MethodSpec::Bits(Method::Surface), Some(f)) => Err(Error::invalid(format!(
-                "fill={f} is given with method=surface, which has no inside: fill applies only to method=solid, conservative, interior or density"
-            ))),
+            (MethodSpec::Bits(Method::Surface) | MethodSpec::Distance { .. }, Some(f)) => {
+                Err(Error::invalid(format!(
+                    "fill={f} is given with method={}, which has no inside: fill applies only to method=solid, conservative, interior, density or sdf",
+                    self.name()
+                )))
+            }
             (_, f) => Ok(f.unwrap_or(Fill::DEFAULT)),
         }
     }
@@ -64,23 +112,28 @@ impl MethodSpec {
         match self {
             MethodSpec::Bits(m) => m.name(),
             MethodSpec::Density { .. } => MethodName::Density.name(),
+            MethodSpec::Distance { .. } => MethodName::Distance.name(),
+            MethodSpec::Sdf { .. } => MethodName::Sdf.name(),
         }
     }
 
     /// Voxels the engine classifies per voxel of the grid.
     pub fn voxels_per_voxel(self) -> u64 {
         match self {
-            MethodSpec::Bits(_) => 1,
+            MethodSpec::Bits(_) | MethodSpec::Distance { .. } | MethodSpec::Sdf { .. } => 1,
             MethodSpec::Density { factor } => u64::from(factor).pow(3),
         }
     }
 }
 
-/// The names a user may give as a method: the bit methods ([`Method`]'s table) and `density`.
+/// The names a user may give as a method: the bit methods ([`Method`]'s table), `density`,
+/// `distance` and `sdf`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MethodName {
     Bits(Method),
     Density,
+    Distance,
+    Sdf,
 }
 
 impl MethodName {
@@ -90,20 +143,26 @@ impl MethodName {
 
 impl Named for MethodName {
     const WHAT: &'static str = "method";
-    /// [`Method::ALL`], then `density`: a bit method added there is a name here.
+    /// [`Method::ALL`], then `density`, `distance` and `sdf`: a bit method added there is a
+    /// name here.
     const ALL: &'static [MethodName] = &{
-        let mut all = [MethodName::Density; Method::ALL.len() + 1];
+        let n = Method::ALL.len();
+        let mut all = [MethodName::Density; Method::ALL.len() + 3];
         let mut i = 0;
-        while i < Method::ALL.len() {
+        while i < n {
             all[i] = MethodName::Bits(Method::ALL[i]);
             i += 1;
         }
+        all[n + 1] = MethodName::Distance;
+        all[n + 2] = MethodName::Sdf;
         all
     };
     fn name(self) -> &'static str {
         match self {
             MethodName::Bits(m) => m.name(),
             MethodName::Density => "density",
+            MethodName::Distance => "distance",
+            MethodName::Sdf => "sdf",
         }
     }
 }
@@ -173,6 +232,12 @@ pub struct JobSpec {
     pub method: String,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub density_factor: Option<u32>,
+    /// distance's thickness (world units), when given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub thickness: Option<f64>,
+    /// sdf's band: `3`, …, or `all`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub band: Option<String>,
     pub fill: Fill,
     /// The limits loading, fitting and running are held to (a request may lower the server's).
     pub max_voxels: u64,
@@ -191,7 +256,15 @@ impl JobSpec {
             method: req.method.name().into(),
             density_factor: match req.method {
                 MethodSpec::Density { factor } => Some(factor),
-                MethodSpec::Bits(_) => None,
+                _ => None,
+            },
+            thickness: match req.method {
+                MethodSpec::Distance { thickness } => thickness,
+                _ => None,
+            },
+            band: match req.method {
+                MethodSpec::Sdf { band } => Some(band.to_string()),
+                _ => None,
             },
             fill: req.fill,
             max_voxels: req.limits.max_voxels,
@@ -214,7 +287,17 @@ impl JobSpec {
             source: MeshSource::Bytes { bytes, format },
             grid: self.grid,
             padding: self.padding,
-            method: MethodSpec::new(&self.method, self.density_factor)?,
+            method: MethodSpec::with(
+                &self.method,
+                MethodParams {
+                    density_factor: self.density_factor,
+                    thickness: self.thickness,
+                    band: match &self.band {
+                        Some(b) => Some(Band::parse(b).map_err(Error::invalid)?),
+                        None => None,
+                    },
+                },
+            )?,
             fill: self.fill,
             limits: Limits {
                 max_voxels: self.max_voxels.min(server.max_voxels),
@@ -462,11 +545,19 @@ mod tests {
         let names: Vec<&str> = MethodName::ALL.iter().map(|m| m.name()).collect();
         assert_eq!(
             names,
-            ["solid", "surface", "conservative", "interior", "density"]
+            [
+                "solid",
+                "surface",
+                "conservative",
+                "interior",
+                "density",
+                "distance",
+                "sdf"
+            ]
         );
         assert_eq!(
             MethodSpec::new("voxel", None).unwrap_err().detail,
-            "unknown method \"voxel\"; expected solid, surface, conservative, interior or density"
+            "unknown method \"voxel\"; expected solid, surface, conservative, interior, density, distance or sdf"
         );
         assert_eq!(
             MethodSpec::new("density", None).unwrap(),
@@ -486,6 +577,90 @@ mod tests {
         assert_eq!(solid.fill(None).unwrap(), Fill::Auto);
         assert_eq!(solid.fill(Some(Fill::Parity)).unwrap(), Fill::Parity);
         assert_eq!(MethodName::DEFAULT.to_string(), "solid");
+    }
+
+    /// thickness only with distance, band only with sdf; each checked; both round trip
+    /// through a job spec.
+    #[test]
+    fn distance_and_sdf_take_their_own_parameters() {
+        let p = |density_factor, thickness, band| MethodParams {
+            density_factor,
+            thickness,
+            band,
+        };
+        assert_eq!(
+            MethodSpec::with("sdf", p(None, None, None)).unwrap(),
+            MethodSpec::Sdf {
+                band: Band::Voxels(3)
+            }
+        );
+        assert_eq!(
+            MethodSpec::with("sdf", p(None, None, Some(Band::All))).unwrap(),
+            MethodSpec::Sdf { band: Band::All }
+        );
+        assert_eq!(
+            MethodSpec::with("distance", p(None, Some(0.25), None)).unwrap(),
+            MethodSpec::Distance {
+                thickness: Some(0.25)
+            }
+        );
+        let e = MethodSpec::with("solid", p(None, None, Some(Band::Voxels(2)))).unwrap_err();
+        assert!(
+            e.detail
+                .contains("band=2 is given with method=solid: band applies only to method=sdf"),
+            "{}",
+            e.detail
+        );
+        let e = MethodSpec::with("sdf", p(None, Some(1.0), None)).unwrap_err();
+        assert!(
+            e.detail
+                .contains("thickness applies only to method=distance"),
+            "{}",
+            e.detail
+        );
+        assert!(MethodSpec::with("sdf", p(Some(2), None, None)).is_err());
+        for bad in [-1.0, f64::NAN, f64::INFINITY] {
+            assert!(MethodSpec::with("distance", p(None, Some(bad), None)).is_err());
+        }
+        let distance = MethodSpec::with("distance", p(None, None, None)).unwrap();
+        assert!(distance.fill(Some(Fill::Winding)).is_err());
+        let sdf = MethodSpec::Sdf { band: Band::All };
+        assert_eq!(sdf.fill(Some(Fill::Winding)).unwrap(), Fill::Winding);
+        let bytes = Bytes::from_static(crate::app::testing::TETRA_OBJ);
+        for method in [
+            sdf,
+            MethodSpec::Sdf {
+                band: Band::Voxels(7),
+            },
+            distance,
+            MethodSpec::Distance {
+                thickness: Some(0.5),
+            },
+        ] {
+            let req = VoxelizeRequest {
+                source: MeshSource::Bytes {
+                    bytes: bytes.clone(),
+                    format: Some(Format::Obj),
+                },
+                grid: GridSpec::Resolution {
+                    n: 16,
+                    cubic: false,
+                },
+                padding: 1,
+                method,
+                fill: Fill::Winding,
+                limits: Limits::SERVICE,
+            };
+            let json = serde_json::to_string(&JobSpec::of(&req)).unwrap();
+            let back: JobSpec = serde_json::from_str(&json).unwrap();
+            assert_eq!(
+                back.request(bytes.clone(), &Limits::SERVICE)
+                    .unwrap()
+                    .method,
+                method,
+                "{json}"
+            );
+        }
     }
 
     /// A request kept as a job spec (JSON, as a shared queue stores it) comes back as the same

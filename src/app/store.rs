@@ -47,10 +47,64 @@ pub struct VolumeMeta {
     /// For volumes computed from others: how (the CSG expression, the morphology).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub provenance: Option<serde_json::Value>,
+    /// For distance volumes (and `method=distance`'s bits): the band, background, bricks,
+    /// tiles and active voxels, or the thickness.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub distance: Option<DistanceMeta>,
     /// The tenant that owns the volume (the API key's tenant that made it); none for volumes
     /// made without keys (or before volumes had owners): only admin keys see those.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub owner: Option<String>,
+}
+
+/// What a distance volume's metadata says of it (docs/methods.md, "sdf").
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct DistanceMeta {
+    /// The band's half width in voxels, or `"all"`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub band: Option<serde_json::Value>,
+    /// The value outside the band (outside the solid): `band·voxel_size`, or `"inf"`. Inside,
+    /// out of band, it is its negation.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub background: Option<serde_json::Value>,
+    /// Stored 8³ bricks, tiles (brick positions inside and out of band), and voxels in band.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bricks: Option<u64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tiles: Option<u64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub active_voxels: Option<u64>,
+    /// `method=distance`: the thickness used, snapped to the lattice (world units).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub thickness: Option<f64>,
+}
+
+impl DistanceMeta {
+    /// The facts of a sparse distance volume.
+    pub fn of_sparse(v: &crate::volume::Sparse<f32>) -> DistanceMeta {
+        let bg = v.background();
+        let band = if bg.is_finite() {
+            serde_json::json!((f64::from(bg) / v.grid().voxel_size).round() as u64)
+        } else {
+            serde_json::json!("all")
+        };
+        let active = v
+            .bricks()
+            .map(|(_, b)| b.iter().filter(|x| x.abs() < bg).count() as u64)
+            .sum();
+        DistanceMeta {
+            band: Some(band),
+            background: Some(if bg.is_finite() {
+                serde_json::json!(bg)
+            } else {
+                serde_json::json!("inf")
+            }),
+            bricks: Some(v.brick_count() as u64),
+            tiles: Some(v.tile_count() as u64),
+            active_voxels: Some(active),
+            thickness: None,
+        }
+    }
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

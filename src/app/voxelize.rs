@@ -7,9 +7,11 @@ use std::time::Instant;
 use super::error::{Error, Result};
 use super::request::{MeshSource, MethodSpec, VoxelizeRequest};
 use crate::cancel::Control;
-use crate::engine::Engine;
 use crate::engine::density::{self, DensityError};
+use crate::engine::distance;
 use crate::engine::fill::{self, Fill, FillReport};
+use crate::engine::sdf::{self, Band};
+use crate::engine::{Engine, GridMesh};
 use crate::grid::{Grid, GridLimits};
 use crate::limits::Limits;
 use crate::mesh::{self, Format, LoadOptions, Mesh, MeshDiagnostics, MeshError};
@@ -26,6 +28,9 @@ pub struct Prepared {
     pub fill: Fill,
     pub limits: Limits,
     pub source: Source,
+    /// sdf: the bricks the engine evaluates (those some triangle may reach within the band;
+    /// every brick for `band=all`), counted when the request is prepared; 0 for other methods.
+    pub candidate_bricks: u64,
     /// Seconds spent loading and diagnosing the mesh.
     pub load_s: f64,
     pub diagnose_s: f64,
@@ -56,8 +61,14 @@ impl Prepared {
     /// The engine's work in classified voxels plus a share per triangle: what the scheduler
     /// orders jobs by.
     pub fn cost(&self) -> f64 {
+        let near = match self.method {
+            // Each candidate voxel takes the distances to a few triangles.
+            MethodSpec::Sdf { .. } => 16.0 * 512.0 * self.candidate_bricks as f64,
+            _ => 0.0,
+        };
         self.method.voxels_per_voxel() as f64 * self.grid.voxel_count() as f64
             + 64.0 * self.mesh.triangles().len() as f64
+            + near
     }
 }
 
@@ -128,16 +139,49 @@ impl Loaded {
         let grid_limits = GridLimits {
             max_voxels: req.limits.max_voxels,
         };
+        // A narrow band's voxel limit counts its candidate voxels; its grid has a cap of its own.
+        let fit_limits = match req.method {
+            MethodSpec::Sdf {
+                band: Band::Voxels(_),
+            } => GridLimits {
+                max_voxels: crate::limits::sdf_grid_voxels(req.limits.max_voxels),
+            },
+            _ => grid_limits,
+        };
         let grid = Grid::fit(
             self.diagnostics.bbox_min,
             self.diagnostics.bbox_max,
             req.grid,
             req.padding,
-            grid_limits,
+            fit_limits,
         )?;
-        if let MethodSpec::Density { factor } = req.method {
-            density::fine_grid(&grid, factor, grid_limits)
-                .map_err(|source| DensityError::Grid { factor, source })?;
+        let mut candidate_bricks = 0;
+        match req.method {
+            MethodSpec::Density { factor } => {
+                density::fine_grid(&grid, factor, grid_limits)
+                    .map_err(|source| DensityError::Grid { factor, source })?;
+            }
+            MethodSpec::Distance { thickness } => {
+                distance_thickness(thickness, grid.voxel_size)?;
+            }
+            MethodSpec::Sdf { band } => {
+                let tris = sdf::lattice_triangles(&self.mesh, &grid, band.reach())?;
+                candidate_bricks = sdf::candidate_bricks(&tris, &grid, band);
+                let voxels = candidate_bricks.saturating_mul(512);
+                if voxels > req.limits.max_voxels {
+                    return Err(Error::new(
+                        super::ErrorKind::GridTooLarge,
+                        format!(
+                            "method=sdf with band={band} on the {}x{}x{} grid evaluates {candidate_bricks} bricks of 8³ ({voxels} voxels), over the limit of {}; use a narrower band or a coarser grid",
+                            grid.dims[0],
+                            grid.dims[1],
+                            grid.dims[2],
+                            crate::limits::describe_voxels(req.limits.max_voxels)
+                        ),
+                    ));
+                }
+            }
+            MethodSpec::Bits(_) => {}
         }
         Ok(Prepared {
             mesh: self.mesh,
@@ -147,6 +191,7 @@ impl Loaded {
             fill: req.fill,
             limits: req.limits,
             source: self.source,
+            candidate_bricks,
             load_s: self.load_s,
             diagnose_s: self.diagnose_s,
         })
@@ -186,6 +231,24 @@ pub fn run(p: &Prepared, engine: &dyn Engine, ctl: &Control) -> Result<Voxelized
             )?;
             (Volume::Density(d), r)
         }
+        MethodSpec::Distance { thickness } => {
+            let t = distance_thickness(thickness, p.grid.voxel_size)?;
+            // Every triangle within reach, none flattened (GridMesh::new culls for the
+            // crossing methods, which changes distances near the grid's faces).
+            let mesh = GridMesh {
+                grid: p.grid,
+                triangles: sdf::lattice_triangles(&p.mesh, &p.grid, Some(t))?,
+            };
+            let v = engine.distance_with(&mesh, t, ctl)?;
+            let mut r = FillReport::new(p.fill, &p.mesh, &p.grid, &p.diagnostics);
+            r.warning = None;
+            (Volume::Bits(v), r)
+        }
+        MethodSpec::Sdf { band } => {
+            let (v, r) =
+                sdf::sdf_with(engine, &p.mesh, &p.grid, band, p.fill, &p.diagnostics, ctl)?;
+            (Volume::SparseDistance(v), r)
+        }
     };
     ctl.complete();
     // The warning is the result's (the CLI prints it, the service puts it in the volume's
@@ -199,6 +262,15 @@ pub fn run(p: &Prepared, engine: &dyn Engine, ctl: &Control) -> Result<Voxelized
         fill,
         voxelize_s: t.elapsed().as_secs_f64(),
     })
+}
+
+/// distance's thickness in lattice units ([`distance::thickness_lattice`]; `None`: half the
+/// voxel diagonal, 222).
+pub fn distance_thickness(thickness: Option<f64>, voxel_size: f64) -> Result<i64> {
+    match thickness {
+        None => Ok(distance::DEFAULT_LATTICE),
+        Some(t) => distance::thickness_lattice(t, voxel_size).map_err(Error::invalid),
+    }
 }
 
 /// [`prepare`] then [`run`].

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
-use voxd::app::request::MethodName;
+use voxd::app::request::{Band, MethodName, MethodParams};
 use voxd::app::{GridOptions, Limits, MeshSource, MethodSpec, VoxelizeRequest};
 use voxd::engine::fill::Fill;
 use voxd::engine::gpu::SolidStrategy;
@@ -36,6 +36,10 @@ fn parse_u32x3(s: &str) -> Result<[u32; 3], String> {
 /// Seconds from a flag (negative or NaN counts as 0).
 fn secs(s: f64) -> std::time::Duration {
     std::time::Duration::from_secs_f64(if s.is_finite() { s.max(0.0) } else { 0.0 })
+}
+
+fn parse_band(s: &str) -> Result<Band, String> {
+    Band::parse(s)
 }
 
 fn parse_format(s: &str) -> Result<Format, String> {
@@ -145,6 +149,13 @@ pub struct VoxelizeArgs {
     /// Sub-voxels per axis for density only: 2 (values 0..8; the default) or 4 (0..64).
     #[arg(long, value_parser = clap::value_parser!(u32).range(2..=4))]
     pub density_factor: Option<u32>,
+    /// distance only: voxels whose centre is within this distance (mesh units) of the surface
+    /// (default half the voxel diagonal; at most 32 voxels).
+    #[arg(long, allow_hyphen_values = true)]
+    pub thickness: Option<f64>,
+    /// sdf only: the narrow band's half width in voxels, 1..=64 (default 3), or all.
+    #[arg(long, value_parser = parse_band)]
+    pub band: Option<Band>,
     /// Voxels along the mesh's longest axis (default 256 when no other grid option is given).
     #[arg(long, conflicts_with = "voxel_size")]
     pub resolution: Option<u32>,
@@ -186,7 +197,14 @@ impl VoxelizeArgs {
             max_voxels: self.max_voxels,
             ..Limits::LOCAL
         };
-        let method = MethodSpec::new(self.method.name(), self.density_factor)?;
+        let method = MethodSpec::with(
+            self.method.name(),
+            MethodParams {
+                density_factor: self.density_factor,
+                thickness: self.thickness,
+                band: self.band,
+            },
+        )?;
         Ok(VoxelizeRequest {
             source: MeshSource::File {
                 path: self.mesh.clone(),

@@ -142,6 +142,26 @@ pub fn info(p: &Path) -> Result<(), String> {
                 d.occupied_voxels()
             );
         }
+        Volume::SparseDistance(s) => {
+            let d = voxd::app::store::DistanceMeta::of_sparse(s);
+            let show = |v: Option<serde_json::Value>| v.map(|v| v.to_string()).unwrap_or_default();
+            outln!(
+                out,
+                "distance:   signed, band {} voxels, background {} (inside: {})",
+                show(d.band).trim_matches('"'),
+                s.background(),
+                s.tile_value()
+            );
+            outln!(
+                out,
+                "bricks:     {} of 8³ stored ({} voxels in band), {} tiles inside",
+                d.bricks.unwrap_or(0),
+                d.active_voxels.unwrap_or(0),
+                d.tiles.unwrap_or(0)
+            );
+            let n = s.count_occupied();
+            outln!(out, "inside:     {n} voxels, volume {}", g.volume_of(n));
+        }
         other => outln!(out, "occupied:   {} voxels", other.count_occupied()),
     }
     emit(out)

@@ -6,9 +6,11 @@
 
 pub mod cpu;
 pub mod density;
+pub mod distance;
 pub mod fill;
 mod geom;
 pub mod gpu;
+pub mod sdf;
 mod snap;
 pub mod winding;
 
@@ -87,6 +89,17 @@ pub trait Engine: Send + Sync {
             vol.subtract(&surface);
         }
         Ok(())
+    }
+    /// `distance`: the voxels whose centres lie within `thickness` lattice units (0..=
+    /// [`distance::MAX_LATTICE`], from [`distance::thickness_lattice`]) of a triangle, exactly
+    /// (ties set). By default the CPU engine's; checks `ctl` like [`Engine::voxelize_with`].
+    fn distance_with(
+        &self,
+        mesh: &GridMesh,
+        thickness: i64,
+        ctl: &Control,
+    ) -> Result<BitVolume, EngineError> {
+        Ok(cpu::distance::voxelize(mesh, thickness, ctl)?)
     }
     /// The GPU engine's submissions and buffer reuse (for metrics); `None` for other engines.
     fn gpu_stats(&self) -> Option<gpu::GpuStats> {

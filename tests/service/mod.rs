@@ -19,6 +19,7 @@ use voxd::grid::{Grid, GridSpec};
 use voxd::volume::Volume;
 
 mod contract;
+mod distance;
 mod http;
 mod inputs;
 mod jobs;

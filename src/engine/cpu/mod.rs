@@ -2,6 +2,7 @@
 //! GPU. Work is split into bands of x-rows; each band owns a contiguous slice of the volume's
 //! words, so threads never share a word. Triangles are binned to the bands their columns touch.
 
+pub mod distance;
 mod solid;
 mod surface;
 

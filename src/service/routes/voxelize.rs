@@ -14,7 +14,7 @@ use super::super::problem::Problem;
 use super::{AppState, check_name, created, set_location};
 use crate::app::jobs::{self, Jobs, Submission, Submitted};
 use crate::app::queue::Owner;
-use crate::app::request::MethodName;
+use crate::app::request::{Band, MethodName, MethodParams};
 use crate::app::{self, Error, ErrorKind, GridOptions, MethodSpec};
 use crate::engine::fill::Fill;
 use crate::mesh::Format;
@@ -25,6 +25,10 @@ use crate::names::Named;
 pub struct VoxelizeQuery {
     method: Option<MethodName>,
     density_factor: Option<u32>,
+    /// distance: world units.
+    thickness: Option<f64>,
+    /// sdf: voxels (1..=64) or `all`.
+    band: Option<String>,
     fill: Option<Fill>,
     resolution: Option<u32>,
     voxel_size: Option<f64>,
@@ -128,7 +132,18 @@ pub async fn submit(
 ) -> Result<Response, Problem> {
     let owner = owner.map(|axum::Extension(o)| o);
     let method = q.method.unwrap_or(MethodName::DEFAULT);
-    let method = MethodSpec::new(method.name(), q.density_factor)?;
+    let band = match &q.band {
+        Some(b) => Some(Band::parse(b).map_err(Problem::invalid)?),
+        None => None,
+    };
+    let method = MethodSpec::with(
+        method.name(),
+        MethodParams {
+            density_factor: q.density_factor,
+            thickness: q.thickness,
+            band,
+        },
+    )?;
     if !(0.0..=app.limits.max_wait_s).contains(&q.wait) {
         return Err(Problem::invalid(format!(
             "wait must be between 0 and {} seconds",

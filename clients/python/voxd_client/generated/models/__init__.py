@@ -12,6 +12,9 @@ from .get_v1_volumes_id_stats_response_200 import GetV1VolumesIdStatsResponse200
 from .get_v1_volumes_response_200 import GetV1VolumesResponse200
 from .grid import Grid
 from .job import Job
+from .job_distance import JobDistance
+from .job_distance_background_type_1 import JobDistanceBackgroundType1
+from .job_distance_band_type_1 import JobDistanceBandType1
 from .job_state import JobState
 from .job_timings import JobTimings
 from .post_v1_volumes_id_morphology_body import PostV1VolumesIdMorphologyBody
@@ -30,6 +33,7 @@ from .post_v1_volumes_id_query_response_200_rays_item import (
 )
 from .post_v1_volumes_intersect_body import PostV1VolumesIntersectBody
 from .post_v1_volumes_intersect_response_200 import PostV1VolumesIntersectResponse200
+from .post_v1_voxelize_band_type_1 import PostV1VoxelizeBandType1
 from .post_v1_voxelize_content_encoding import PostV1VoxelizeContentEncoding
 from .post_v1_voxelize_density_factor import PostV1VoxelizeDensityFactor
 from .post_v1_voxelize_fill import PostV1VoxelizeFill
@@ -38,6 +42,9 @@ from .post_v1_voxelize_method import PostV1VoxelizeMethod
 from .problem import Problem
 from .volume import Volume
 from .volume_diagnostics_type_0 import VolumeDiagnosticsType0
+from .volume_distance import VolumeDistance
+from .volume_distance_background_type_1 import VolumeDistanceBackgroundType1
+from .volume_distance_band_type_1 import VolumeDistanceBandType1
 from .volume_fill import VolumeFill
 from .volume_fill_requested import VolumeFillRequested
 from .volume_fill_used import VolumeFillUsed
@@ -59,6 +66,9 @@ __all__ = (
     "GetV1VolumesResponse200",
     "Grid",
     "Job",
+    "JobDistance",
+    "JobDistanceBackgroundType1",
+    "JobDistanceBandType1",
     "JobState",
     "JobTimings",
     "PostV1VolumesIdMorphologyBody",
@@ -71,6 +81,7 @@ __all__ = (
     "PostV1VolumesIdQueryResponse200RaysItem",
     "PostV1VolumesIntersectBody",
     "PostV1VolumesIntersectResponse200",
+    "PostV1VoxelizeBandType1",
     "PostV1VoxelizeContentEncoding",
     "PostV1VoxelizeDensityFactor",
     "PostV1VoxelizeFill",
@@ -79,6 +90,9 @@ __all__ = (
     "Problem",
     "Volume",
     "VolumeDiagnosticsType0",
+    "VolumeDistance",
+    "VolumeDistanceBackgroundType1",
+    "VolumeDistanceBandType1",
     "VolumeFill",
     "VolumeFillRequested",
     "VolumeFillUsed",

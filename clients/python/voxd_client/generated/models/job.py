@@ -12,6 +12,7 @@ from ..types import UNSET, Unset
 
 if TYPE_CHECKING:
     from ..models.grid import Grid
+    from ..models.job_distance import JobDistance
     from ..models.job_timings import JobTimings
     from ..models.problem import Problem
 
@@ -33,6 +34,8 @@ class Job:
         position (int | Unset): 1-based queue position while queued
         name (None | str | Unset):
         key_name (str | Unset): with API keys: the name of the key that submitted the job (never the key)
+        distance (JobDistance | Unset): distance volumes (kind sparse-distance) and method=distance: how the distances
+            were kept
         owner (str | Unset): with API keys: the tenant that owns the job and its volume (the key's tenant)
         request_id (str | Unset): the id of the request that submitted the job (its X-Request-Id, or the id the server
             gave it): on the job's log lines too
@@ -65,6 +68,7 @@ class Job:
     position: int | Unset = UNSET
     name: None | str | Unset = UNSET
     key_name: str | Unset = UNSET
+    distance: JobDistance | Unset = UNSET
     owner: str | Unset = UNSET
     request_id: str | Unset = UNSET
     volume_id: str | Unset = UNSET
@@ -97,6 +101,10 @@ class Job:
 
         key_name = self.key_name
 
+        distance: dict[str, Any] | Unset = UNSET
+        if not isinstance(self.distance, Unset):
+            distance = self.distance.to_dict()
+
         owner = self.owner
 
         request_id = self.request_id
@@ -128,6 +136,8 @@ class Job:
             field_dict["name"] = name
         if key_name is not UNSET:
             field_dict["key_name"] = key_name
+        if distance is not UNSET:
+            field_dict["distance"] = distance
         if owner is not UNSET:
             field_dict["owner"] = owner
         if request_id is not UNSET:
@@ -144,6 +154,7 @@ class Job:
     @classmethod
     def from_dict(cls, src_dict: Mapping[str, Any]) -> Self:
         from ..models.grid import Grid
+        from ..models.job_distance import JobDistance
         from ..models.job_timings import JobTimings
         from ..models.problem import Problem
 
@@ -175,6 +186,13 @@ class Job:
 
         key_name = d.pop("key_name", UNSET)
 
+        _distance = d.pop("distance", UNSET)
+        distance: JobDistance | Unset
+        if isinstance(_distance, Unset):
+            distance = UNSET
+        else:
+            distance = JobDistance.from_dict(_distance)
+
         owner = d.pop("owner", UNSET)
 
         request_id = d.pop("request_id", UNSET)
@@ -201,6 +219,7 @@ class Job:
             position=position,
             name=name,
             key_name=key_name,
+            distance=distance,
             owner=owner,
             request_id=request_id,
             volume_id=volume_id,

@@ -13,6 +13,7 @@ from ..types import UNSET, Unset
 if TYPE_CHECKING:
     from ..models.grid import Grid
     from ..models.volume_diagnostics_type_0 import VolumeDiagnosticsType0
+    from ..models.volume_distance import VolumeDistance
     from ..models.volume_fill import VolumeFill
     from ..models.volume_source import VolumeSource
 
@@ -39,6 +40,8 @@ class Volume:
         diagnostics (None | Unset | VolumeDiagnosticsType0):
         fill (VolumeFill | Unset): how the solid was filled (absent for volumes derived by CSG or morphology)
         provenance (Any | Unset): how a derived volume was made: a CSG expression or {morphology: {...}}
+        distance (VolumeDistance | Unset): distance volumes (kind sparse-distance) and method=distance: how the
+            distances were kept
         owner (str | Unset): with API keys: the tenant that owns the volume; another tenant's volume is 404
             (docs/security.md, Tenants)
     """
@@ -58,6 +61,7 @@ class Volume:
     diagnostics: None | Unset | VolumeDiagnosticsType0 = UNSET
     fill: VolumeFill | Unset = UNSET
     provenance: Any | Unset = UNSET
+    distance: VolumeDistance | Unset = UNSET
     owner: str | Unset = UNSET
     additional_properties: dict[str, Any] = _attrs_field(init=False, factory=dict)
 
@@ -106,6 +110,10 @@ class Volume:
 
         provenance = self.provenance
 
+        distance: dict[str, Any] | Unset = UNSET
+        if not isinstance(self.distance, Unset):
+            distance = self.distance.to_dict()
+
         owner = self.owner
 
         field_dict: dict[str, Any] = {}
@@ -133,6 +141,8 @@ class Volume:
             field_dict["fill"] = fill
         if provenance is not UNSET:
             field_dict["provenance"] = provenance
+        if distance is not UNSET:
+            field_dict["distance"] = distance
         if owner is not UNSET:
             field_dict["owner"] = owner
 
@@ -142,6 +152,7 @@ class Volume:
     def from_dict(cls, src_dict: Mapping[str, Any]) -> Self:
         from ..models.grid import Grid
         from ..models.volume_diagnostics_type_0 import VolumeDiagnosticsType0
+        from ..models.volume_distance import VolumeDistance
         from ..models.volume_fill import VolumeFill
         from ..models.volume_source import VolumeSource
 
@@ -203,6 +214,13 @@ class Volume:
 
         provenance = d.pop("provenance", UNSET)
 
+        _distance = d.pop("distance", UNSET)
+        distance: VolumeDistance | Unset
+        if isinstance(_distance, Unset):
+            distance = UNSET
+        else:
+            distance = VolumeDistance.from_dict(_distance)
+
         owner = d.pop("owner", UNSET)
 
         volume = cls(
@@ -221,6 +239,7 @@ class Volume:
             diagnostics=diagnostics,
             fill=fill,
             provenance=provenance,
+            distance=distance,
             owner=owner,
         )
 

@@ -4,6 +4,7 @@ from enum import StrEnum
 class VolumeKind(StrEnum):
     BITS = "bits"
     DENSITY = "density"
+    SPARSE_DISTANCE = "sparse-distance"
 
     def __str__(self) -> str:
         return str(self.value)

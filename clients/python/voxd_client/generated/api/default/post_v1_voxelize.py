@@ -6,6 +6,7 @@ import httpx
 from ... import errors
 from ...client import AuthenticatedClient, Client
 from ...models.job import Job
+from ...models.post_v1_voxelize_band_type_1 import PostV1VoxelizeBandType1
 from ...models.post_v1_voxelize_content_encoding import PostV1VoxelizeContentEncoding
 from ...models.post_v1_voxelize_density_factor import PostV1VoxelizeDensityFactor
 from ...models.post_v1_voxelize_fill import PostV1VoxelizeFill
@@ -21,6 +22,8 @@ def _get_kwargs(
     body: File,
     method: PostV1VoxelizeMethod | Unset = PostV1VoxelizeMethod.SOLID,
     density_factor: PostV1VoxelizeDensityFactor | Unset = UNSET,
+    thickness: float | Unset = UNSET,
+    band: int | PostV1VoxelizeBandType1 | Unset = UNSET,
     resolution: int | Unset = UNSET,
     voxel_size: float | Unset = UNSET,
     origin: str | Unset = UNSET,
@@ -51,6 +54,17 @@ def _get_kwargs(
         json_density_factor = density_factor.value
 
     params["density_factor"] = json_density_factor
+
+    params["thickness"] = thickness
+
+    json_band: int | str | Unset
+    if isinstance(band, Unset):
+        json_band = UNSET
+    elif isinstance(band, PostV1VoxelizeBandType1):
+        json_band = band.value
+    else:
+        json_band = band
+    params["band"] = json_band
 
     params["resolution"] = resolution
 
@@ -183,6 +197,8 @@ def sync_detailed(
     body: File,
     method: PostV1VoxelizeMethod | Unset = PostV1VoxelizeMethod.SOLID,
     density_factor: PostV1VoxelizeDensityFactor | Unset = UNSET,
+    thickness: float | Unset = UNSET,
+    band: int | PostV1VoxelizeBandType1 | Unset = UNSET,
     resolution: int | Unset = UNSET,
     voxel_size: float | Unset = UNSET,
     origin: str | Unset = UNSET,
@@ -201,6 +217,8 @@ def sync_detailed(
     Args:
         method (PostV1VoxelizeMethod | Unset):  Default: PostV1VoxelizeMethod.SOLID.
         density_factor (PostV1VoxelizeDensityFactor | Unset):
+        thickness (float | Unset):
+        band (int | PostV1VoxelizeBandType1 | Unset):
         resolution (int | Unset):
         voxel_size (float | Unset): world units per voxel; a positive normal number
         origin (str | Unset):  Example: 0,0,0.
@@ -227,6 +245,8 @@ def sync_detailed(
         body=body,
         method=method,
         density_factor=density_factor,
+        thickness=thickness,
+        band=band,
         resolution=resolution,
         voxel_size=voxel_size,
         origin=origin,
@@ -254,6 +274,8 @@ def sync(
     body: File,
     method: PostV1VoxelizeMethod | Unset = PostV1VoxelizeMethod.SOLID,
     density_factor: PostV1VoxelizeDensityFactor | Unset = UNSET,
+    thickness: float | Unset = UNSET,
+    band: int | PostV1VoxelizeBandType1 | Unset = UNSET,
     resolution: int | Unset = UNSET,
     voxel_size: float | Unset = UNSET,
     origin: str | Unset = UNSET,
@@ -272,6 +294,8 @@ def sync(
     Args:
         method (PostV1VoxelizeMethod | Unset):  Default: PostV1VoxelizeMethod.SOLID.
         density_factor (PostV1VoxelizeDensityFactor | Unset):
+        thickness (float | Unset):
+        band (int | PostV1VoxelizeBandType1 | Unset):
         resolution (int | Unset):
         voxel_size (float | Unset): world units per voxel; a positive normal number
         origin (str | Unset):  Example: 0,0,0.
@@ -299,6 +323,8 @@ def sync(
         body=body,
         method=method,
         density_factor=density_factor,
+        thickness=thickness,
+        band=band,
         resolution=resolution,
         voxel_size=voxel_size,
         origin=origin,
@@ -320,6 +346,8 @@ async def asyncio_detailed(
     body: File,
     method: PostV1VoxelizeMethod | Unset = PostV1VoxelizeMethod.SOLID,
     density_factor: PostV1VoxelizeDensityFactor | Unset = UNSET,
+    thickness: float | Unset = UNSET,
+    band: int | PostV1VoxelizeBandType1 | Unset = UNSET,
     resolution: int | Unset = UNSET,
     voxel_size: float | Unset = UNSET,
     origin: str | Unset = UNSET,
@@ -338,6 +366,8 @@ async def asyncio_detailed(
     Args:
         method (PostV1VoxelizeMethod | Unset):  Default: PostV1VoxelizeMethod.SOLID.
         density_factor (PostV1VoxelizeDensityFactor | Unset):
+        thickness (float | Unset):
+        band (int | PostV1VoxelizeBandType1 | Unset):
         resolution (int | Unset):
         voxel_size (float | Unset): world units per voxel; a positive normal number
         origin (str | Unset):  Example: 0,0,0.
@@ -364,6 +394,8 @@ async def asyncio_detailed(
         body=body,
         method=method,
         density_factor=density_factor,
+        thickness=thickness,
+        band=band,
         resolution=resolution,
         voxel_size=voxel_size,
         origin=origin,
@@ -389,6 +421,8 @@ async def asyncio(
     body: File,
     method: PostV1VoxelizeMethod | Unset = PostV1VoxelizeMethod.SOLID,
     density_factor: PostV1VoxelizeDensityFactor | Unset = UNSET,
+    thickness: float | Unset = UNSET,
+    band: int | PostV1VoxelizeBandType1 | Unset = UNSET,
     resolution: int | Unset = UNSET,
     voxel_size: float | Unset = UNSET,
     origin: str | Unset = UNSET,
@@ -407,6 +441,8 @@ async def asyncio(
     Args:
         method (PostV1VoxelizeMethod | Unset):  Default: PostV1VoxelizeMethod.SOLID.
         density_factor (PostV1VoxelizeDensityFactor | Unset):
+        thickness (float | Unset):
+        band (int | PostV1VoxelizeBandType1 | Unset):
         resolution (int | Unset):
         voxel_size (float | Unset): world units per voxel; a positive normal number
         origin (str | Unset):  Example: 0,0,0.
@@ -435,6 +471,8 @@ async def asyncio(
             body=body,
             method=method,
             density_factor=density_factor,
+            thickness=thickness,
+            band=band,
             resolution=resolution,
             voxel_size=voxel_size,
             origin=origin,

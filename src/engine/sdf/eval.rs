@@ -1,0 +1,213 @@
+//! One brick's 512 voxels: the least distance over a list of triangles, the band decided
+//! exactly, the sign from the solid.
+
+use super::bins::{self, Bins};
+use super::{Brick, in_band_exact};
+use crate::engine::geom::lattice;
+use crate::engine::snap::{FIXED_HALF, FIXED_ONE};
+use crate::engine::{axis_bounds, widen};
+use crate::volume::BitVolume;
+use crate::volume::sparse::{BRICK, BRICK_VOXELS};
+
+/// Voxel `i` of brick `at`, when it lies inside `dims`.
+#[inline]
+fn voxel(at: [u32; 3], i: usize, dims: [u32; 3]) -> Option<[u32; 3]> {
+    let o = [i as u32 / 64, i as u32 / 8 % 8, i as u32 % 8];
+    let p = [0, 1, 2].map(|a| at[a] * BRICK + o[a]);
+    (0..3).all(|a| p[a] < dims[a]).then_some(p)
+}
+
+#[inline]
+fn centre(v: [u32; 3]) -> [i64; 3] {
+    v.map(|c| i64::from(c) * FIXED_ONE + FIXED_HALF)
+}
+
+/// The squared distance from `p` to the box `[lo, hi]` (a lower bound of the distance to
+/// anything inside it), in f64 (exact below 2⁵³).
+#[inline]
+fn box_distance2(p: [i64; 3], lo: [i64; 3], hi: [i64; 3]) -> f64 {
+    let mut s = 0.0;
+    for a in 0..3 {
+        let d = (lo[a] - p[a]).max(p[a] - hi[a]).max(0) as f64;
+        s += d * d;
+    }
+    s
+}
+
+/// Lowers `best2` (squared lattice distances, per voxel of brick `at`) by triangle `tri`.
+#[inline]
+fn lower(best2: &mut [f64; BRICK_VOXELS], at: [u32; 3], dims: [u32; 3], tri: &[[i32; 3]; 3]) {
+    let v = widen(tri);
+    let bounds = [0, 1, 2].map(|a| axis_bounds(&v, a));
+    let (lo, hi) = (bounds.map(|b| b.0), bounds.map(|b| b.1));
+    for (i, b) in best2.iter_mut().enumerate() {
+        let Some(vx) = voxel(at, i, dims) else {
+            continue;
+        };
+        let p = centre(vx);
+        if box_distance2(p, lo, hi) >= *b {
+            continue;
+        }
+        let d2 = lattice::distance2(p, tri);
+        if d2 < *b {
+            *b = d2;
+        }
+    }
+}
+
+/// Brick `at` in the band `r` (lattice units) over its triangles `list`: stored when it holds
+/// an in-band voxel or both signs, a tile when all its voxels are inside and none in band.
+/// `scale` is the voxel size over 256.
+pub(super) fn band_brick(
+    tris: &[[[i32; 3]; 3]],
+    list: &[u32],
+    solid: &BitVolume,
+    at: [u32; 3],
+    r: i64,
+    scale: f64,
+    background: f32,
+) -> Option<Brick> {
+    let dims = solid.grid().dims;
+    // Triangles farther than this settle nothing: the voxel is out of band whatever they are.
+    let slack = (r + 2) as f64;
+    let mut best2 = [slack * slack; BRICK_VOXELS];
+    for &t in list {
+        lower(&mut best2, at, dims, &tris[t as usize]);
+    }
+    let rf = r as f64;
+    let mut values = Box::new([background; BRICK_VOXELS]);
+    let (mut any_band, mut any_in, mut all_in) = (false, false, true);
+    for (i, &b2) in best2.iter().enumerate() {
+        let Some(vx) = voxel(at, i, dims) else {
+            continue;
+        };
+        let inside = solid.get(vx[0], vx[1], vx[2]);
+        any_in |= inside;
+        all_in &= inside;
+        let d = b2.sqrt();
+        // `distance` is within 2⁻⁵⁰ of the exact value: far from r, the f64 decides.
+        let in_band = if d < rf * (1.0 - 1e-9) {
+            true
+        } else if d > rf * (1.0 + 1e-9) {
+            false
+        } else {
+            in_band_exact(tris, list, centre(vx), r)
+        };
+        any_band |= in_band;
+        values[i] = match (in_band, inside) {
+            (true, false) => (d * scale) as f32,
+            (true, true) => (-(d * scale)) as f32,
+            (false, false) => background,
+            (false, true) => -background,
+        };
+    }
+    if any_band || (any_in && !all_in) {
+        Some(Brick::Stored(at, values))
+    } else if all_in {
+        Some(Brick::Tile(at))
+    } else {
+        None
+    }
+}
+
+/// Brick `at` with every voxel in band (`band=all`): rings of bricks around it, outward, until
+/// no triangle not yet seen can be closer to one of its centres than what it has.
+pub(super) fn all_brick(
+    tris: &[[[i32; 3]; 3]],
+    bins: &Bins,
+    solid: &BitVolume,
+    at: [u32; 3],
+    scale: f64,
+) -> Box<[f32; BRICK_VOXELS]> {
+    let dims = solid.grid().dims;
+    let bd = super::brick_dims(solid.grid());
+    let mut best2 = [f64::INFINITY; BRICK_VOXELS];
+    let span = i64::from(BRICK) * FIXED_ONE;
+    for r in 0u32.. {
+        let lo = at.map(|c| c.saturating_sub(r));
+        let hi = [0, 1, 2].map(|a| (at[a] + r).min(bd[a] - 1));
+        for bx in lo[0]..=hi[0] {
+            for by in lo[1]..=hi[1] {
+                let edge = bx.abs_diff(at[0]) == r || by.abs_diff(at[1]) == r;
+                let mut bz = lo[2];
+                while bz <= hi[2] {
+                    for &t in bins.get(bins::key([bx, by, bz], bd)) {
+                        lower(&mut best2, at, dims, &tris[t as usize]);
+                    }
+                    // Inside the shell, only its two faces in z.
+                    bz = if edge || bz >= at[2] + r || r == 0 {
+                        bz + 1
+                    } else {
+                        at[2] + r
+                    };
+                }
+            }
+        }
+        let whole = (0..3).all(|a| lo[a] == 0 && hi[a] == bd[a] - 1);
+        // A triangle in no brick of the cube of rings ≤ r lies beyond one of its faces: at
+        // least SPAN·r + 128 from every centre of this brick.
+        let bound = (span * i64::from(r) + FIXED_HALF) as f64;
+        let worst = (0..BRICK_VOXELS)
+            .filter(|&i| voxel(at, i, dims).is_some())
+            .map(|i| best2[i])
+            .fold(0.0, f64::max);
+        if whole || worst <= bound * bound {
+            break;
+        }
+    }
+    let mut values = Box::new([f32::INFINITY; BRICK_VOXELS]);
+    for (i, v) in values.iter_mut().enumerate() {
+        if let Some(vx) = voxel(at, i, dims) {
+            let d = best2[i].sqrt() * scale;
+            *v = if solid.get(vx[0], vx[1], vx[2]) {
+                (-d) as f32
+            } else {
+                d as f32
+            };
+        }
+    }
+    values
+}
+
+/// For brick row (bx, by, ·): per bz, whether some voxel of the brick is inside and whether all
+/// (inside the grid) are, from the solid's column words (a brick's 8 z voxels are one byte).
+pub(super) fn brick_row_signs(solid: &BitVolume, bx: u32, by: u32) -> (Vec<bool>, Vec<bool>) {
+    let dims = solid.grid().dims;
+    let bz_n = dims[2].div_ceil(BRICK) as usize;
+    let mut any = vec![0u8; bz_n];
+    let mut all = vec![0xffu8; bz_n];
+    let mask = |bz: usize| -> u8 {
+        let left = dims[2] as usize - bz * 8;
+        if left >= 8 { 0xff } else { (1u8 << left) - 1 }
+    };
+    for x in bx * BRICK..(bx * BRICK + BRICK).min(dims[0]) {
+        for y in by * BRICK..(by * BRICK + BRICK).min(dims[1]) {
+            let col = solid.column(x, y);
+            for bz in 0..bz_n {
+                let byte = (col[bz / 8] >> ((bz % 8) * 8)) as u8 & mask(bz);
+                any[bz] |= byte;
+                all[bz] &= byte | !mask(bz);
+            }
+        }
+    }
+    (
+        any.iter().map(|&b| b != 0).collect(),
+        all.iter().map(|&b| b == 0xff).collect(),
+    )
+}
+
+/// Brick `at` out of band everywhere: ±background by the solid's sign.
+pub(super) fn uniform_brick(
+    solid: &BitVolume,
+    at: [u32; 3],
+    background: f32,
+) -> Box<[f32; BRICK_VOXELS]> {
+    let dims = solid.grid().dims;
+    let mut values = Box::new([background; BRICK_VOXELS]);
+    for (i, v) in values.iter_mut().enumerate() {
+        if voxel(at, i, dims).is_some_and(|vx| solid.get(vx[0], vx[1], vx[2])) {
+            *v = -background;
+        }
+    }
+    values
+}
