@@ -440,3 +440,105 @@ fn sparse_distance_volumes_download_as_vdb_and_npy() {
     assert_eq!(r.status, 400);
     drop(server);
 }
+
+/// Checks that OpenVDB reads `vdb` as the sparse distance volume `s`: every voxel's value and
+/// state (every third z, all x and y), world positions, the active count.
+fn check_level_set(python: &str, vdb: &[u8], s: &Sparse<f32>, name: &str) {
+    let g = *s.grid();
+    let bg = s.background();
+    let mut queries = vec![];
+    for x in 0..g.dims[0] as i64 {
+        for y in 0..g.dims[1] as i64 {
+            for z in (x % 3..g.dims[2] as i64).step_by(3) {
+                queries.push([x, y, z]);
+            }
+        }
+    }
+    let got = openvdb_read(python, vdb, &queries, name);
+    assert_eq!(
+        (&got["name"], &got["class"]),
+        (&"sdf".into(), &"level set".into())
+    );
+    assert_eq!(f32_of(&got["background"]).to_bits(), bg.to_bits());
+    for (p, a) in queries.iter().zip(got["queries"].as_array().unwrap()) {
+        let want = s.get(p[0] as u32, p[1] as u32, p[2] as u32);
+        assert_eq!(f32_of(&a[0]).to_bits(), want.to_bits(), "{name} {p:?}");
+        assert_eq!(a[1].as_bool(), Some(want.abs() < bg), "{name} {p:?}");
+    }
+    check_world(&g, &queries, &got);
+    let [nx, ny, nz] = g.dims;
+    let mut active = 0u64;
+    for x in 0..nx {
+        for y in 0..ny {
+            for z in 0..nz {
+                active += u64::from(s.get(x, y, z).abs() < bg);
+            }
+        }
+    }
+    assert!(active > 100, "{name}: {active}");
+    assert_eq!(got["active"].as_u64(), Some(active), "{name}");
+}
+
+/// End to end, both fronts: `method=sdf` of a real mesh over HTTP downloaded as `.vdb`, and
+/// `voxd voxelize --method sdf -o x.vdb`, each read by OpenVDB as the volume its `.vxl` holds.
+#[test]
+fn sdf_downloads_and_cli_output_read_back_in_openvdb() {
+    let Some(python) = openvdb_python() else {
+        return;
+    };
+    let dir = crate::common::tmpdir("vdb-sdf");
+    let mesh = crate::common::data("spot.obj");
+    let server = crate::service::Server::start(&dir, &[]);
+    let body = std::fs::read(&mesh).unwrap();
+    let r = crate::common::request(
+        &server.addr,
+        "POST",
+        "/v1/voxelize?method=sdf&band=3&fill=winding&resolution=40&padding=2&wait=120",
+        &[("Content-Type", "model/obj")],
+        &body,
+    );
+    assert_eq!(r.status, 201, "{}", String::from_utf8_lossy(&r.body));
+    let id = r.json()["id"].as_str().unwrap().to_string();
+    let get = |f: &str| {
+        let r = crate::common::request(
+            &server.addr,
+            "GET",
+            &format!("/v1/volumes/{id}/data?format={f}"),
+            &[],
+            b"",
+        );
+        assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+        r.body
+    };
+    let Volume::SparseDistance(s) = VolumeFormat::Vxl.decode(&get("vxl")).unwrap() else {
+        panic!("not a sparse distance volume")
+    };
+    check_level_set(python, &get("vdb"), &s, "http");
+    drop(server);
+
+    let (vxl, vdb) = (dir.join("spot.vxl"), dir.join("spot.vdb"));
+    for out in [&vxl, &vdb] {
+        let o = crate::common::run_voxd(&[
+            "voxelize",
+            mesh.to_str().unwrap(),
+            "--method",
+            "sdf",
+            "--band",
+            "2",
+            "--fill",
+            "winding",
+            "--resolution",
+            "36",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let Volume::SparseDistance(s) = VolumeFormat::Vxl
+        .decode(&std::fs::read(&vxl).unwrap())
+        .unwrap()
+    else {
+        panic!("not a sparse distance volume")
+    };
+    check_level_set(python, &std::fs::read(&vdb).unwrap(), &s, "cli");
+}
