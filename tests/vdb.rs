@@ -121,7 +121,9 @@ fn check_world(g: &Grid, queries: &[[i64; 3]], got: &serde_json::Value) {
 /// A random sparse distance volume: bricks of in-band values, ±background, ±0 (voxels past the
 /// grid the background), tiles inside the grid and at its high faces, across OpenVDB's node
 /// boundaries (voxel 128 on y, 4096 on x).
-fn random_sparse(rng: &mut Rng, background: f32) -> Sparse<f32> {
+/// With `odd`, some voxels hold an out-of-band value that is not ±background (no level set:
+/// OpenVDB's nodes holding one are written with every value).
+fn random_sparse(rng: &mut Rng, background: f32, odd: bool) -> Sparse<f32> {
     let grid = Grid {
         origin: [-2.5, 1.25, 0.3],
         voxel_size: 0.1,
@@ -152,6 +154,7 @@ fn random_sparse(rng: &mut Rng, background: f32) -> Sparse<f32> {
                 continue;
             }
             *v = match rng.below(6) {
+                0 if odd && rng.below(8) == 0 => background * 1.5,
                 0 => background,
                 1 => -background,
                 2 => [0.0, -0.0][rng.below(2) as usize],
@@ -177,9 +180,13 @@ fn openvdb_reads_a_sparse_distance_volume_as_our_level_set() {
     let Some(python) = openvdb_python() else {
         return;
     };
-    for (seed, background) in [(1, 0.3f32), (2, f32::INFINITY)] {
+    for (seed, background, odd) in [
+        (1, 0.3f32, false),
+        (2, f32::INFINITY, false),
+        (3, 0.3, true),
+    ] {
         let mut rng = Rng::new(seed);
-        let s = random_sparse(&mut rng, background);
+        let s = random_sparse(&mut rng, background, odd);
         assert!(s.tile_count() >= 3, "seed {seed}");
         let g = *s.grid();
         let d = g.dims;
@@ -203,7 +210,8 @@ fn openvdb_reads_a_sparse_distance_volume_as_our_level_set() {
         );
         assert_eq!(got["grids"], 1);
         assert_eq!(got["name"], "sdf");
-        assert_eq!(got["class"], "level set");
+        let class = if odd { "unknown" } else { "level set" };
+        assert_eq!(got["class"], class, "seed {seed}");
         assert_eq!(got["type"], "float");
         assert_eq!(f32_of(&got["background"]).to_bits(), background.to_bits());
         let vs = got["voxel_size"].as_array().unwrap();
