@@ -29,11 +29,17 @@ need_venv_support() {
   if ! python3 -c 'import ensurepip, venv' 2>/dev/null && can_apt; then apt_install python3-venv || true; fi
 }
 
-# python: numpy + zstandard, so the tests check that Python reads what voxd writes.
+# python: numpy + zstandard, so the tests check that Python reads what voxd writes; and
+# Debian's python3-openvdb (OpenVDB 10, for /usr/bin/python3), which reads voxd's .vdb files
+# back in tests/vdb.rs.
 part_python() {
   if ! has_py 'numpy, zstandard' && can_apt; then
     echo "installing python3-numpy python3-zstandard for the Python checks"
     apt_install python3-numpy python3-zstandard || true
+  fi
+  if ! /usr/bin/python3 -c 'import pyopenvdb' 2>/dev/null && can_apt; then
+    echo "installing python3-openvdb for the OpenVDB read-back tests"
+    apt_install python3-openvdb || true
   fi
 }
 

@@ -16,6 +16,9 @@ eval "$(./scripts/leftovers.sh snapshot)"
 # had, the Python checks are required (VOXD_REQUIRE_PYTHON=1); elsewhere they skip with a notice.
 has_py() { for py in python3 /usr/bin/python3; do "$py" -c "import $1" 2>/dev/null && return 0; done; return 1; }
 if has_py 'numpy, zstandard'; then export VOXD_REQUIRE_PYTHON=1; else echo "NOTICE: no python3 with numpy and zstandard; Python checks will skip"; fi
+# OpenVDB reads voxd's .vdb files back (tests/vdb.rs) once python3-openvdb is installed
+# (VOXD_REQUIRE_OPENVDB=1); elsewhere, and not in CI, those tests skip with a notice.
+if /usr/bin/python3 -c 'import pyopenvdb' 2>/dev/null; then export VOXD_REQUIRE_OPENVDB=1; else echo "NOTICE: no pyopenvdb (python3-openvdb); OpenVDB read-back tests will skip"; fi
 # The shared-queue tests (tests/redis_queue.rs) start their own redis-server (Debian's package)
 # on 127.0.0.1; once it is installed they are required (VOXD_REQUIRE_REDIS=1), else they skip.
 if command -v redis-server >/dev/null; then export VOXD_REQUIRE_REDIS=1; else echo "NOTICE: no redis-server; shared-queue tests will skip"; fi

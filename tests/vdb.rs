@@ -121,7 +121,9 @@ fn check_world(g: &Grid, queries: &[[i64; 3]], got: &serde_json::Value) {
 /// A random sparse distance volume: bricks of in-band values, ±background, ±0 (voxels past the
 /// grid the background), tiles inside the grid and at its high faces, across OpenVDB's node
 /// boundaries (voxel 128 on y, 4096 on x).
-fn random_sparse(rng: &mut Rng, background: f32) -> Sparse<f32> {
+/// With `odd`, some voxels hold an out-of-band value that is not ±background (no level set:
+/// OpenVDB's nodes holding one are written with every value).
+fn random_sparse(rng: &mut Rng, background: f32, odd: bool) -> Sparse<f32> {
     let grid = Grid {
         origin: [-2.5, 1.25, 0.3],
         voxel_size: 0.1,
@@ -152,6 +154,7 @@ fn random_sparse(rng: &mut Rng, background: f32) -> Sparse<f32> {
                 continue;
             }
             *v = match rng.below(6) {
+                0 if odd && rng.below(8) == 0 => background * 1.5,
                 0 => background,
                 1 => -background,
                 2 => [0.0, -0.0][rng.below(2) as usize],
@@ -177,9 +180,13 @@ fn openvdb_reads_a_sparse_distance_volume_as_our_level_set() {
     let Some(python) = openvdb_python() else {
         return;
     };
-    for (seed, background) in [(1, 0.3f32), (2, f32::INFINITY)] {
+    for (seed, background, odd) in [
+        (1, 0.3f32, false),
+        (2, f32::INFINITY, false),
+        (3, 0.3, true),
+    ] {
         let mut rng = Rng::new(seed);
-        let s = random_sparse(&mut rng, background);
+        let s = random_sparse(&mut rng, background, odd);
         assert!(s.tile_count() >= 3, "seed {seed}");
         let g = *s.grid();
         let d = g.dims;
@@ -203,7 +210,8 @@ fn openvdb_reads_a_sparse_distance_volume_as_our_level_set() {
         );
         assert_eq!(got["grids"], 1);
         assert_eq!(got["name"], "sdf");
-        assert_eq!(got["class"], "level set");
+        let class = if odd { "unknown" } else { "level set" };
+        assert_eq!(got["class"], class, "seed {seed}");
         assert_eq!(got["type"], "float");
         assert_eq!(f32_of(&got["background"]).to_bits(), background.to_bits());
         let vs = got["voxel_size"].as_array().unwrap();
@@ -439,4 +447,106 @@ fn sparse_distance_volumes_download_as_vdb_and_npy() {
     let r = get(&format!("/v1/volumes/{id}/data?format=binvox"));
     assert_eq!(r.status, 400);
     drop(server);
+}
+
+/// Checks that OpenVDB reads `vdb` as the sparse distance volume `s`: every voxel's value and
+/// state (every third z, all x and y), world positions, the active count.
+fn check_level_set(python: &str, vdb: &[u8], s: &Sparse<f32>, name: &str) {
+    let g = *s.grid();
+    let bg = s.background();
+    let mut queries = vec![];
+    for x in 0..g.dims[0] as i64 {
+        for y in 0..g.dims[1] as i64 {
+            for z in (x % 3..g.dims[2] as i64).step_by(3) {
+                queries.push([x, y, z]);
+            }
+        }
+    }
+    let got = openvdb_read(python, vdb, &queries, name);
+    assert_eq!(
+        (&got["name"], &got["class"]),
+        (&"sdf".into(), &"level set".into())
+    );
+    assert_eq!(f32_of(&got["background"]).to_bits(), bg.to_bits());
+    for (p, a) in queries.iter().zip(got["queries"].as_array().unwrap()) {
+        let want = s.get(p[0] as u32, p[1] as u32, p[2] as u32);
+        assert_eq!(f32_of(&a[0]).to_bits(), want.to_bits(), "{name} {p:?}");
+        assert_eq!(a[1].as_bool(), Some(want.abs() < bg), "{name} {p:?}");
+    }
+    check_world(&g, &queries, &got);
+    let [nx, ny, nz] = g.dims;
+    let mut active = 0u64;
+    for x in 0..nx {
+        for y in 0..ny {
+            for z in 0..nz {
+                active += u64::from(s.get(x, y, z).abs() < bg);
+            }
+        }
+    }
+    assert!(active > 100, "{name}: {active}");
+    assert_eq!(got["active"].as_u64(), Some(active), "{name}");
+}
+
+/// End to end, both fronts: `method=sdf` of a real mesh over HTTP downloaded as `.vdb`, and
+/// `voxd voxelize --method sdf -o x.vdb`, each read by OpenVDB as the volume its `.vxl` holds.
+#[test]
+fn sdf_downloads_and_cli_output_read_back_in_openvdb() {
+    let Some(python) = openvdb_python() else {
+        return;
+    };
+    let dir = crate::common::tmpdir("vdb-sdf");
+    let mesh = crate::common::data("spot.obj");
+    let server = crate::service::Server::start(&dir, &[]);
+    let body = std::fs::read(&mesh).unwrap();
+    let r = crate::common::request(
+        &server.addr,
+        "POST",
+        "/v1/voxelize?method=sdf&band=3&fill=winding&resolution=40&padding=2&wait=120",
+        &[("Content-Type", "model/obj")],
+        &body,
+    );
+    assert_eq!(r.status, 201, "{}", String::from_utf8_lossy(&r.body));
+    let id = r.json()["id"].as_str().unwrap().to_string();
+    let get = |f: &str| {
+        let r = crate::common::request(
+            &server.addr,
+            "GET",
+            &format!("/v1/volumes/{id}/data?format={f}"),
+            &[],
+            b"",
+        );
+        assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+        r.body
+    };
+    let Volume::SparseDistance(s) = VolumeFormat::Vxl.decode(&get("vxl")).unwrap() else {
+        panic!("not a sparse distance volume")
+    };
+    check_level_set(python, &get("vdb"), &s, "http");
+    drop(server);
+
+    let (vxl, vdb) = (dir.join("spot.vxl"), dir.join("spot.vdb"));
+    for out in [&vxl, &vdb] {
+        let o = crate::common::run_voxd(&[
+            "voxelize",
+            mesh.to_str().unwrap(),
+            "--method",
+            "sdf",
+            "--band",
+            "2",
+            "--fill",
+            "winding",
+            "--resolution",
+            "36",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let Volume::SparseDistance(s) = VolumeFormat::Vxl
+        .decode(&std::fs::read(&vxl).unwrap())
+        .unwrap()
+    else {
+        panic!("not a sparse distance volume")
+    };
+    check_level_set(python, &std::fs::read(&vdb).unwrap(), &s, "cli");
 }

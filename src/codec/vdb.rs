@@ -31,9 +31,17 @@ pub const MAGIC: &[u8; 8] = b"\x20\x42\x44\x56\0\0\0\0";
 pub const FILE_VERSION: u32 = 224;
 /// The library version the header names.
 const LIBRARY_VERSION: (u32, u32) = (10, 0);
-/// `io::COMPRESS_NONE`.
+/// `io::COMPRESS_NONE`, and `io::COMPRESS_ACTIVE_MASK` (only the active values of a node are
+/// written, its inactive ones being ±background).
 const COMPRESS_NONE: u32 = 0;
-/// The per-node flag of `io::writeCompressedValues`: every value follows.
+const COMPRESS_ACTIVE_MASK: u32 = 2;
+/// The per-node flags of `io::writeCompressedValues`: every inactive value is +background
+/// (`NO_MASK_OR_INACTIVE_VALS`), −background (`NO_MASK_AND_MINUS_BG`), or one of the two as a
+/// selection mask says (`MASK_AND_NO_INACTIVE_VALS`, set: +background), and only the active
+/// values follow; or every value follows (`NO_MASK_AND_ALL_VALS`).
+const NO_MASK_OR_INACTIVE_VALS: u8 = 0;
+const NO_MASK_AND_MINUS_BG: u8 = 1;
+const MASK_AND_NO_INACTIVE_VALS: u8 = 3;
 const NO_MASK_AND_ALL_VALS: u8 = 6;
 /// Bytes of the file header: magic, versions, the offsets flag, the UUID.
 const HEADER_BYTES: usize = 8 + 4 * 3 + 1 + 36;
@@ -42,16 +50,25 @@ const HEADER_BYTES: usize = 8 + 4 * 3 + 1 + 36;
 const LOWER_LOG2: u32 = 4;
 const UPPER_LOG2: u32 = 5;
 
-/// A value OpenVDB stores: its bytes, and the zero written at a child's slot.
+/// A value OpenVDB stores: its bytes, the zero written at a child's slot, its negation and
+/// equality by bits (for mask compression).
 trait VdbValue: Copy {
     const ZERO: Self;
     fn put(self, out: &mut Vec<u8>);
+    fn neg(self) -> Self;
+    fn same(self, other: Self) -> bool;
 }
 
 impl VdbValue for f32 {
     const ZERO: f32 = 0.0;
     fn put(self, out: &mut Vec<u8>) {
         out.extend_from_slice(&self.to_le_bytes());
+    }
+    fn neg(self) -> f32 {
+        -self
+    }
+    fn same(self, other: f32) -> bool {
+        self.to_bits() == other.to_bits()
     }
 }
 
@@ -60,16 +77,83 @@ impl VdbValue for bool {
     fn put(self, out: &mut Vec<u8>) {
         out.push(self as u8);
     }
+    fn neg(self) -> bool {
+        self
+    }
+    fn same(self, other: bool) -> bool {
+        self == other
+    }
+}
+
+/// A node's values as `io::writeCompressedValues` writes them: without mask compression the
+/// flag `NO_MASK_AND_ALL_VALS` and every value; with it, the flag that says what the inactive
+/// values are (a selection mask when both ±background occur) and the active values alone, or
+/// every value when an inactive one is neither. `active` is the value mask; `skip` marks slots
+/// whose value does not matter (children), taken as +background.
+fn put_values<V: VdbValue>(
+    out: &mut Vec<u8>,
+    values: &[V],
+    active: &[u64],
+    skip: &[u64],
+    background: V,
+    compress: bool,
+) {
+    let on = |m: &[u64], i: usize| m.get(i / 64).is_some_and(|w| w >> (i % 64) & 1 == 1);
+    if !compress {
+        out.push(NO_MASK_AND_ALL_VALS);
+        values.iter().for_each(|v| v.put(out));
+        return;
+    }
+    let (mut plus, mut minus, mut other) = (false, false, false);
+    for (i, v) in values.iter().enumerate() {
+        if on(active, i) || on(skip, i) {
+            continue;
+        }
+        if v.same(background) {
+            plus = true;
+        } else if v.same(background.neg()) {
+            minus = true;
+        } else {
+            other = true;
+        }
+    }
+    let flag = match (other, plus, minus) {
+        (true, _, _) => NO_MASK_AND_ALL_VALS,
+        (false, _, false) => NO_MASK_OR_INACTIVE_VALS,
+        (false, false, true) => NO_MASK_AND_MINUS_BG,
+        (false, true, true) => MASK_AND_NO_INACTIVE_VALS,
+    };
+    out.push(flag);
+    if flag == NO_MASK_AND_ALL_VALS {
+        values.iter().for_each(|v| v.put(out));
+        return;
+    }
+    if flag == MASK_AND_NO_INACTIVE_VALS {
+        let mut selection = vec![0u64; values.len().div_ceil(64)];
+        for (i, v) in values.iter().enumerate() {
+            let inactive = !on(active, i);
+            if inactive && (on(skip, i) || v.same(background)) {
+                selection[i / 64] |= 1 << (i % 64);
+            }
+        }
+        put_words(out, &selection);
+    }
+    for (i, v) in values.iter().enumerate() {
+        if on(active, i) {
+            v.put(out);
+        }
+    }
 }
 
 /// A leaf's two sections: its topology (the value mask) and its buffers.
 trait Leaf {
     fn topology(&self, out: &mut Vec<u8>);
-    fn buffers(&self, out: &mut Vec<u8>);
+    fn buffers(&self, out: &mut Vec<u8>, compress: bool);
 }
 
 /// A float leaf: the active mask and the 512 values (a brick's, or a tile's made into a leaf).
 struct FloatLeaf<'a> {
+    background: f32,
     active: [u64; 8],
     values: std::borrow::Cow<'a, [f32; BRICK_VOXELS]>,
 }
@@ -78,12 +162,16 @@ impl Leaf for FloatLeaf<'_> {
     fn topology(&self, out: &mut Vec<u8>) {
         put_words(out, &self.active);
     }
-    fn buffers(&self, out: &mut Vec<u8>) {
+    fn buffers(&self, out: &mut Vec<u8>, compress: bool) {
         put_words(out, &self.active);
-        out.push(NO_MASK_AND_ALL_VALS);
-        for v in self.values.iter() {
-            v.put(out);
-        }
+        put_values(
+            out,
+            &self.values[..],
+            &self.active,
+            &[],
+            self.background,
+            compress,
+        );
     }
 }
 
@@ -97,7 +185,7 @@ impl Leaf for BoolLeaf {
     fn topology(&self, out: &mut Vec<u8>) {
         put_words(out, &self.bits);
     }
-    fn buffers(&self, out: &mut Vec<u8>) {
+    fn buffers(&self, out: &mut Vec<u8>, _compress: bool) {
         put_words(out, &self.bits);
         for c in self.origin {
             out.extend_from_slice(&c.to_le_bytes());
@@ -159,54 +247,63 @@ fn mask(bits: usize, on: impl Iterator<Item = u32>) -> Vec<u64> {
 }
 
 /// The tree's topology then its buffers (`Tree::writeTopology`, `Tree::writeBuffers`): the
-/// root with no tiles, each internal node's child mask, value mask and values, each leaf's.
-/// Returns the offset of the buffers within `out`.
+/// root with no tiles, each internal node's child mask, value mask and values, each leaf's;
+/// `compress`: mask compression (see [`put_values`]). Returns the offset of the buffers.
 fn write_tree<V: VdbValue, L: Leaf>(
     out: &mut Vec<u8>,
     background: V,
     tile: V,
     tile_active: bool,
     roots: &Roots<L>,
+    compress: bool,
 ) -> usize {
     out.extend_from_slice(&1i32.to_le_bytes()); // buffer count
     background.put(out);
     out.extend_from_slice(&0u32.to_le_bytes()); // root tiles
     out.extend_from_slice(&(roots.len() as u32).to_le_bytes());
+    let on = |m: &[u64], i: usize| m[i / 64] >> (i % 64) & 1 == 1;
     for (key, uppers) in roots {
         for c in key {
             out.extend_from_slice(&c.to_le_bytes());
         }
         let n = 1usize << (3 * UPPER_LOG2);
         let children = mask(n, uppers.keys().copied());
+        let none = vec![0u64; n / 64];
         put_words(out, &children);
-        put_words(out, &vec![0u64; n / 64]);
-        out.push(NO_MASK_AND_ALL_VALS);
-        for i in 0..n {
-            let child = children[i / 64] >> (i % 64) & 1 == 1;
-            if child { V::ZERO } else { background }.put(out);
-        }
+        put_words(out, &none);
+        let values: Vec<V> = (0..n)
+            .map(|i| {
+                if on(&children, i) {
+                    V::ZERO
+                } else {
+                    background
+                }
+            })
+            .collect();
+        put_values(out, &values, &none, &children, background, compress);
         for lower in uppers.values() {
             let n = 1usize << (3 * LOWER_LOG2);
             let children = mask(n, lower.leaves.keys().copied());
             let tiles = mask(n, lower.tiles.iter().copied());
-            put_words(out, &children);
-            if tile_active {
-                put_words(out, &tiles);
+            let active = if tile_active {
+                tiles.clone()
             } else {
-                put_words(out, &vec![0u64; n / 64]);
-            }
-            out.push(NO_MASK_AND_ALL_VALS);
-            for i in 0..n {
-                let on = |m: &[u64]| m[i / 64] >> (i % 64) & 1 == 1;
-                let v = if on(&children) {
-                    V::ZERO
-                } else if on(&tiles) {
-                    tile
-                } else {
-                    background
-                };
-                v.put(out);
-            }
+                vec![0u64; n / 64]
+            };
+            put_words(out, &children);
+            put_words(out, &active);
+            let values: Vec<V> = (0..n)
+                .map(|i| {
+                    if on(&children, i) {
+                        V::ZERO
+                    } else if on(&tiles, i) {
+                        tile
+                    } else {
+                        background
+                    }
+                })
+                .collect();
+            put_values(out, &values, &active, &children, background, compress);
             for leaf in lower.leaves.values() {
                 leaf.topology(out);
             }
@@ -216,7 +313,7 @@ fn write_tree<V: VdbValue, L: Leaf>(
     for uppers in roots.values() {
         for lower in uppers.values() {
             for leaf in lower.leaves.values() {
-                leaf.buffers(out);
+                leaf.buffers(out, compress);
             }
         }
     }
@@ -229,6 +326,8 @@ struct GridHead<'a> {
     tree_type: &'a str,
     class: &'a str,
     grid: &'a Grid,
+    /// `COMPRESS_NONE` or `COMPRESS_ACTIVE_MASK`.
+    compression: u32,
 }
 
 /// The whole file around a tree written by `tree` (which returns the buffers' offset).
@@ -250,7 +349,7 @@ fn file(head: &GridHead, tree: impl FnOnce(&mut Vec<u8>) -> usize) -> Vec<u8> {
     let offsets = out.len();
     out.extend_from_slice(&[0; 24]);
     let grid_pos = out.len();
-    out.extend_from_slice(&COMPRESS_NONE.to_le_bytes());
+    out.extend_from_slice(&head.compression.to_le_bytes());
     // Metadata, by name: each a name, a type name, a byte count and the bytes.
     let meta = [
         ("class", head.class),
@@ -333,6 +432,7 @@ pub fn encode_sparse(s: &Sparse<f32>) -> Vec<u8> {
         lower.leaves.insert(
             slot,
             FloatLeaf {
+                background: bg,
                 active: float_mask(values, bg),
                 values: std::borrow::Cow::Borrowed(values),
             },
@@ -354,6 +454,7 @@ pub fn encode_sparse(s: &Sparse<f32>) -> Vec<u8> {
         lower.leaves.insert(
             slot,
             FloatLeaf {
+                background: bg,
                 active: float_mask(&values, bg),
                 values: std::borrow::Cow::Owned(*values),
             },
@@ -369,9 +470,12 @@ pub fn encode_sparse(s: &Sparse<f32>) -> Vec<u8> {
         tree_type: "Tree_float_5_4_3",
         class: if level_set { "level set" } else { "unknown" },
         grid: s.grid(),
+        compression: COMPRESS_ACTIVE_MASK,
     };
     let tile_active = !outside(&tile);
-    file(&head, |out| write_tree(out, bg, tile, tile_active, &roots))
+    file(&head, |out| {
+        write_tree(out, bg, tile, tile_active, &roots, true)
+    })
 }
 
 /// A bit volume as an OpenVDB BoolGrid named `mask`: the set voxels active and true.
@@ -392,8 +496,11 @@ pub fn encode_bits(b: &BitVolume) -> Vec<u8> {
         tree_type: "Tree_bool_5_4_3",
         class: "unknown",
         grid: b.grid(),
+        compression: COMPRESS_NONE,
     };
-    file(&head, |out| write_tree(out, false, false, false, &roots))
+    file(&head, |out| {
+        write_tree(out, false, false, false, &roots, false)
+    })
 }
 
 /// `v` as a `.vdb`: sparse distance volumes and bit volumes (the format's row says which).
@@ -419,6 +526,7 @@ mod tests {
 
     /// Slots by OpenVDB's `coordToOffset`, spelt out for voxel coordinates.
     #[test]
+    #[allow(clippy::identity_op)] // the slots spelt out axis by axis
     fn bricks_go_to_openvdbs_slots() {
         // Voxel (4100, 130, 9): root key (4096, 0, 0); upper slot ((4100 & 4095) >> 7 = 0,
         // 130 >> 7 = 1, 0); lower slot ((4100 & 127) >> 3 = 0, (130 & 127) >> 3 = 0, 9 >> 3 = 1).
