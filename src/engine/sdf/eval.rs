@@ -5,7 +5,7 @@ use super::bins::{self, Bins};
 use super::{Brick, in_band_exact};
 use crate::engine::geom::lattice;
 use crate::engine::snap::{FIXED_HALF, FIXED_ONE};
-use crate::engine::{axis_bounds, widen};
+use crate::engine::{axis_bounds, centre_range, widen};
 use crate::volume::BitVolume;
 use crate::volume::sparse::{BRICK, BRICK_VOXELS};
 
@@ -35,22 +35,52 @@ fn box_distance2(p: [i64; 3], lo: [i64; 3], hi: [i64; 3]) -> f64 {
 }
 
 /// Lowers `best2` (squared lattice distances, per voxel of brick `at`) by triangle `tri`.
+/// `reach`: when given, no voxel's `best2` exceeds `reach²`, so only the voxels whose centres
+/// lie within `reach` of the triangle's bounding box can be lowered and only they are visited
+/// (a few hundred of the brick's 512 for a small triangle, where a triangle is in up to 8
+/// bricks' lists).
 #[inline]
-fn lower(best2: &mut [f64; BRICK_VOXELS], at: [u32; 3], dims: [u32; 3], tri: &[[i32; 3]; 3]) {
+fn lower(
+    best2: &mut [f64; BRICK_VOXELS],
+    at: [u32; 3],
+    dims: [u32; 3],
+    tri: &[[i32; 3]; 3],
+    reach: Option<i64>,
+) {
     let v = widen(tri);
     let bounds = [0, 1, 2].map(|a| axis_bounds(&v, a));
     let (lo, hi) = (bounds.map(|b| b.0), bounds.map(|b| b.1));
-    for (i, b) in best2.iter_mut().enumerate() {
-        let Some(vx) = voxel(at, i, dims) else {
-            continue;
+    let mut range = [(0u32, 0u32); 3];
+    for a in 0..3 {
+        let first = at[a] * BRICK;
+        let last = (first + BRICK).min(dims[a]) - 1;
+        let (l, h) = match reach {
+            Some(r) => match centre_range(lo[a] - r, hi[a] + r, dims[a]) {
+                Some(c) => c,
+                None => return,
+            },
+            None => (first, last),
         };
-        let p = centre(vx);
-        if box_distance2(p, lo, hi) >= *b {
-            continue;
+        let (l, h) = (l.max(first), h.min(last));
+        if l > h {
+            return;
         }
-        let d2 = lattice::distance2(p, tri);
-        if d2 < *b {
-            *b = d2;
+        range[a] = (l, h);
+    }
+    for x in range[0].0..=range[0].1 {
+        for y in range[1].0..=range[1].1 {
+            for z in range[2].0..=range[2].1 {
+                let i = (((x % BRICK) * BRICK + y % BRICK) * BRICK + z % BRICK) as usize;
+                let b = &mut best2[i];
+                let p = centre([x, y, z]);
+                if box_distance2(p, lo, hi) >= *b {
+                    continue;
+                }
+                let d2 = lattice::distance2(p, tri);
+                if d2 < *b {
+                    *b = d2;
+                }
+            }
         }
     }
 }
@@ -69,10 +99,10 @@ pub(super) fn band_brick(
 ) -> Option<Brick> {
     let dims = solid.grid().dims;
     // Triangles farther than this settle nothing: the voxel is out of band whatever they are.
-    let slack = (r + 2) as f64;
-    let mut best2 = [slack * slack; BRICK_VOXELS];
+    let slack = r + 2;
+    let mut best2 = [(slack * slack) as f64; BRICK_VOXELS];
     for &t in list {
-        lower(&mut best2, at, dims, &tris[t as usize]);
+        lower(&mut best2, at, dims, &tris[t as usize], Some(slack));
     }
     let rf = r as f64;
     let mut values = Box::new([background; BRICK_VOXELS]);
@@ -132,7 +162,7 @@ pub(super) fn all_brick(
                 let mut bz = lo[2];
                 while bz <= hi[2] {
                     for &t in bins.get(bins::key([bx, by, bz], bd)) {
-                        lower(&mut best2, at, dims, &tris[t as usize]);
+                        lower(&mut best2, at, dims, &tris[t as usize], None);
                     }
                     // Inside the shell, only its two faces in z.
                     bz = if edge || bz >= at[2] + r || r == 0 {
