@@ -11,7 +11,7 @@
 //!
 //! [`compare`] decides `dist(p, T)` against a threshold with integers only (squared values; the
 //! plane's case in 256-bit products), so a threshold test is exact and the same on every engine;
-//! [`distance`] gives the value in `f64` from the same exact integers with a few roundings
+//! [`distance2`] gives the squared value in `f64` from the same exact integers with a few roundings
 //! (relative error below 2⁻⁵⁰).
 //!
 //! Magnitudes, with coordinates ≤ 2²⁹ (differences ≤ 2³⁰): edge and cross products ≤ 2⁶¹ (i64);
@@ -100,12 +100,6 @@ pub fn within(p: V, tri: &[[i32; 3]; 3], t: i64) -> bool {
     compare(p, tri, t) != Ordering::Greater
 }
 
-/// `dist(p, T)` in lattice units, from the exact squared distances of the features (relative
-/// error below 2⁻⁵⁰).
-pub fn distance(p: V, tri: &[[i32; 3]; 3]) -> f64 {
-    distance2(p, tri).sqrt()
-}
-
 /// `dist(p, T)²` in lattice units² (relative error below 2⁻⁵¹): vertices exactly (below 2⁵³,
 /// else one rounding), edges and the plane as one division of two exact integers.
 pub fn distance2(p: V, tri: &[[i32; 3]; 3]) -> f64 {
@@ -147,7 +141,7 @@ mod tests {
         // Triangle in z = 0: (0,0,0), (8,0,0), (0,8,0).
         let t = [[0, 0, 0], [8, 0, 0], [0, 8, 0]];
         // Above the face: the plane.
-        assert_eq!(distance([1, 1, 5], &t), 5.0);
+        assert_eq!(distance2([1, 1, 5], &t), 25.0);
         assert_eq!(compare([1, 1, 5], &t, 5), Ordering::Equal);
         assert_eq!(compare([1, 1, 5], &t, 4), Ordering::Greater);
         // Beyond the hypotenuse: its edge, distance √2·… : p = (6,6,0) → foot (4,4,0).
@@ -170,7 +164,7 @@ mod tests {
         let m = crate::engine::snap::MAX_FIXED as i32;
         let t = [[-m, -m, -m], [m, -m, m], [-m, m, m]];
         let p = [m as i64, m as i64, -m as i64];
-        let d = distance(p, &t);
+        let d = distance2(p, &t).sqrt();
         assert!(d.is_finite() && d > 0.0);
         let ti = d as i64;
         assert_eq!(compare(p, &t, (ti - 1).min(1 << 32)), Ordering::Greater);

@@ -5,7 +5,7 @@
 //! * a voxel is in the band iff some triangle is strictly closer than `R` to its centre, decided
 //!   exactly ([`lattice::compare`]; the f64 distance settles every voxel clearly inside or
 //!   outside and only the rest take the exact test);
-//! * its value is the least [`lattice::distance`] over the triangles, times `s/256`, in f64,
+//! * its value is the least [`lattice::distance2`]'s square root over the triangles, times `s/256`, in f64,
 //!   negated when the voxel is set in the `solid` volume of the same mesh, grid and fill,
 //!   rounded once to f32;
 //! * out of the band: `+k·s` (the background) or `−k·s` (the tile value); a brick is stored
