@@ -3,8 +3,8 @@
 //! bit volume as a `BoolGrid` (`Tree_bool_5_4_3`), one grid a file, file format version 224
 //! (OpenVDB 10), no compression but OpenVDB's active-mask one (level sets: only the active
 //! values of a node, its inactive ones ±background). `docs/format.md` ("OpenVDB") lists what is
-//! written and what is not; the layout follows OpenVDB's `io/Archive.cc`, `tree/RootNode.h`, `InternalNode.h`,
-//! `LeafNode.h`, `LeafNodeBool.h` and `io/Compression.h`.
+//! written and what is not; the layout follows OpenVDB's `io/Archive.cc`, `tree/RootNode.h`,
+//! `InternalNode.h`, `LeafNode.h`, `LeafNodeBool.h` and `io/Compression.h`.
 //!
 //! Everything is little-endian. A voxd brick is an OpenVDB leaf: brick (bx, by, bz) is the leaf
 //! at index (8bx, 8by, 8bz), its 512 values in the same order (`((x%8)·8 + y%8)·8 + z%8`).
