@@ -1,9 +1,10 @@
 //! OpenVDB `.vdb` files, written (never read): a sparse distance volume as a `FloatGrid` (tree
 //! `Tree_float_5_4_3`, grid class `level set` when every inactive value is ±background) and a
 //! bit volume as a `BoolGrid` (`Tree_bool_5_4_3`), one grid a file, file format version 224
-//! (OpenVDB 10), no compression. `docs/format.md` ("OpenVDB") lists what is written and what is
-//! not; the layout follows OpenVDB's `io/Archive.cc`, `tree/RootNode.h`, `InternalNode.h`,
-//! `LeafNode.h`, `LeafNodeBool.h` and `io/Compression.h`.
+//! (OpenVDB 10), no compression but OpenVDB's active-mask one (level sets: only the active
+//! values of a node, its inactive ones ±background). `docs/format.md` ("OpenVDB") lists what is
+//! written and what is not; the layout follows OpenVDB's `io/Archive.cc`, `tree/RootNode.h`,
+//! `InternalNode.h`, `LeafNode.h`, `LeafNodeBool.h` and `io/Compression.h`.
 //!
 //! Everything is little-endian. A voxd brick is an OpenVDB leaf: brick (bx, by, bz) is the leaf
 //! at index (8bx, 8by, 8bz), its 512 values in the same order (`((x%8)·8 + y%8)·8 + z%8`).
