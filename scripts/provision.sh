@@ -171,6 +171,11 @@ part_readme() {
     apt_install curl jq wget || true
   fi
   need_venv_support
+  # The distance-field session opens voxd's .vdb with OpenVDB's own Python module.
+  if ! /usr/bin/python3 -c 'import pyopenvdb' 2>/dev/null && can_apt; then
+    echo "installing python3-openvdb for the README's distance-field session"
+    apt_install python3-openvdb || true
+  fi
 }
 
 # fuzz: cargo-fuzz, pinned, for scripts/fuzz.sh.

@@ -101,18 +101,24 @@ pub enum Command {
     /// A distance volume's voxels below LEVEL (under IEEE totalOrder), as a bit volume: level 0
     /// gives the inside, negative levels erode, positive ones dilate.
     Threshold {
+        /// A distance volume (.vxl of `voxelize --method sdf` or `voxd sdf`).
         input: PathBuf,
+        /// The level L, in world units: a voxel is set iff its distance is below L.
         #[arg(long, allow_hyphen_values = true)]
         level: f64,
+        /// The bit volume (.vxl .binvox .npy .vdb).
         #[arg(short, long)]
         output: PathBuf,
     },
     /// The exact signed distance transform of a bit volume, in a sparse band of BAND voxels
     /// (negative at its set voxels; docs/methods.md).
     Sdf {
+        /// A bit volume (.vxl .binvox .npy).
         input: PathBuf,
+        /// The band's half width in voxels, 1..=64.
         #[arg(long, default_value_t = voxd::volume::levelset::DEFAULT_BAND)]
         band: u32,
+        /// The distance volume (.vxl .vdb .npy .raw).
         #[arg(short, long)]
         output: PathBuf,
     },
