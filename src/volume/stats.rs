@@ -264,7 +264,16 @@ pub fn distance_stats(s: &super::Sparse<f32>) -> DistanceStats {
     note(bg, nx * ny * nz - covered - tiles);
     let finite = |v: f32| v.is_finite().then_some(v);
     DistanceStats {
-        band_voxels: bg.is_finite().then(|| f64::from(bg) / g.voxel_size),
+        // The background is band·s rounded to f32: a whole band within f32's precision is that
+        // whole number, not 3.0000000071.
+        band_voxels: bg.is_finite().then(|| {
+            let b = f64::from(bg) / g.voxel_size;
+            if (b - b.round()).abs() <= b * f64::from(f32::EPSILON) {
+                b.round()
+            } else {
+                b
+            }
+        }),
         background: finite(bg),
         active_voxels: n_active,
         inside_voxels: n_inside,
@@ -308,5 +317,14 @@ mod distance_tests {
         assert_eq!((st.band_voxels, st.background), (Some(3.0), Some(1.5)));
         assert_eq!((st.bricks, st.tiles), (2, 1));
         assert_eq!((st.min, st.max), (Some(-1.5), Some(1.5)));
+        // A voxel size whose band·s is not a float32: still a whole band.
+        let g = Grid {
+            voxel_size: 0.050265625,
+            ..g
+        };
+        let bg = (3.0 * g.voxel_size) as f32;
+        assert_ne!(f64::from(bg) / g.voxel_size, 3.0);
+        let st = distance_stats(&Sparse::with_tile_value(g, bg, -bg));
+        assert_eq!(st.band_voxels, Some(3.0));
     }
 }
