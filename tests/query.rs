@@ -134,8 +134,11 @@ fn values_come_in_their_own_type_and_other_kinds_are_refused_by_name() {
     assert_eq!(
         a["points"],
         serde_json::json!([
+            // A dense distance volume reads +∞ outside the grid: no interpolation where a
+            // sample is infinite (beside the top face), a flat field's value and zero gradient
+            // at the first centre.
             {"inside": true, "value": -0.25},
-            {"inside": false, "value": 1.5},
+            {"inside": false, "value": 1.5, "distance": 1.5, "gradient": [0.0, 0.0, 0.0]},
             {"inside": false, "value": null}
         ])
     );
