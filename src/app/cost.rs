@@ -38,8 +38,33 @@ pub fn decoded_bytes(kind: VolumeKind, grid: &Grid) -> u64 {
 /// plus the idle server (bench/hostile, docs/security.md).
 pub fn load(meta: &VolumeMeta) -> u64 {
     meta.bytes
-        .saturating_add(decoded_bytes(meta.kind, &meta.grid).saturating_mul(2))
+        .saturating_add(stored_decoded_bytes(meta).saturating_mul(2))
 }
+
+/// Bytes a stored volume takes decoded: [`decoded_bytes`], except a sparse distance volume
+/// whose metadata counts its bricks, which takes its bricks (512 f32 and the map's entry each)
+/// and its tile bits, not the dense grid (a 2048³ band is ~0.7 GB, its grid 32 GiB).
+pub fn stored_decoded_bytes(meta: &VolumeMeta) -> u64 {
+    match (meta.kind, meta.distance.as_ref().and_then(|d| d.bricks)) {
+        (VolumeKind::SparseDistance, Some(bricks)) => {
+            let positions: u64 = meta
+                .grid
+                .dims
+                .iter()
+                .map(|&d| u64::from(d.div_ceil(8)))
+                .product();
+            bricks
+                .saturating_mul(SPARSE_BRICK_BYTES)
+                .saturating_add(positions.div_ceil(8))
+                .min(decoded_bytes(meta.kind, &meta.grid).saturating_add(positions / 8))
+        }
+        _ => decoded_bytes(meta.kind, &meta.grid),
+    }
+}
+
+/// One stored brick of a sparse f32 volume decoded: its 512 values and its map entry (key,
+/// pointer and the map's node share, generously).
+pub const SPARSE_BRICK_BYTES: u64 = 512 * 4 + 64;
 
 /// Runs of set voxels along z that statistics' component labelling is estimated to keep: at
 /// most one per set voxel, and assumed at most this many per column (a column crossing a
@@ -148,6 +173,25 @@ pub fn voxelize_job(grid: &Grid, method: &MethodSpec, candidate_bricks: u64) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A sparse distance volume's load counts its bricks, not its grid: a 2048³ band of
+    /// 300,000 bricks is ~1.3 GB to load, where its dense grid would be 64 GiB.
+    #[test]
+    fn a_sparse_distance_volume_loads_its_bricks() {
+        let json = |distance: &str| {
+            format!(
+                r#"{{"id":"8cdf143699eff06e","name":"s","kind":"sparse-distance","method":"sdf","grid":{{"origin":[0,0,0],"voxel_size":1,"dims":[2048,2048,2048]}},"solid_voxels":1,"volume":1,"source":{{"format":"obj","sha256":"ab12","triangles":1}},"diagnostics":null,"engine":"cpu","created":"2026-01-02T03:04:05Z","bytes":1000,"sha256":"cd34"{distance}}}"#
+            )
+        };
+        let m: VolumeMeta =
+            serde_json::from_str(&json(r#","distance":{"bricks":300000}"#)).unwrap();
+        let bricks = 300_000 * SPARSE_BRICK_BYTES + (256u64 * 256 * 256) / 8;
+        assert_eq!(load(&m), 1000 + 2 * bricks);
+        assert!(load(&m) < 1_400_000_000);
+        // Without the count (metadata from before it): the dense bound.
+        let m: VolumeMeta = serde_json::from_str(&json("")).unwrap();
+        assert_eq!(load(&m), 1000 + 2 * (4u64 << 33));
+    }
 
     fn grid(n: u32) -> Grid {
         Grid {

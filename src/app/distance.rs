@@ -149,7 +149,7 @@ pub fn csg_cost(metas: &HashMap<String, VolumeMeta>) -> u64 {
     let loads = metas.values().map(cost::load).fold(0, u64::saturating_add);
     let out = metas
         .values()
-        .map(|m| cost::decoded_bytes(m.kind, &m.grid))
+        .map(cost::stored_decoded_bytes)
         .fold(0, u64::saturating_add);
     loads.saturating_add(out.saturating_mul(2))
 }
