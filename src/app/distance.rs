@@ -60,13 +60,9 @@ pub async fn check_csg(
     }
     let mut first: Option<Grid> = None;
     for id in expr.volume_ids() {
-        let meta = store
-            .get(&id)
-            .await?
-            .ok_or_else(|| Error::not_found("volume", &id))?;
-        meta.kind
-            .require(DISTANCE_KINDS, "CSG with a distance volume")
-            .map_err(|e| Error::from(e).context(format!("volume {id}")))?;
+        let meta =
+            super::ops::csg_operand(store, &id, DISTANCE_KINDS, "CSG with a distance volume")
+                .await?;
         match first {
             None => first = Some(meta.grid),
             Some(g) if g != meta.grid => {

@@ -122,28 +122,37 @@ impl GridMesh {
             }
             Ok(Some(out))
         };
-        // Pieces in parallel, each in order up to its first error: the first error of the
-        // first piece that has one is the mesh's first, in triangle order.
-        let pieces: Vec<Result<Vec<[[i32; 3]; 3]>, EngineError>> = mesh
-            .triangles()
-            .par_chunks(crate::PAR_PIECE)
-            .map(|piece| {
-                let mut out = Vec::with_capacity(piece.len());
-                for tri in piece {
-                    out.extend(snap(tri)?);
-                }
-                Ok(out)
-            })
-            .collect();
-        let mut triangles = Vec::with_capacity(mesh.triangles().len());
-        for p in pieces {
-            triangles.extend_from_slice(&p?);
-        }
+        let triangles = snap_in_pieces(mesh, snap)?;
         Ok(GridMesh {
             grid: *grid,
             triangles,
         })
     }
+}
+
+/// `snap` of every triangle of `mesh`, in parallel pieces, the kept ones in triangle order; the
+/// first error in triangle order (each piece stops at its first, and the first piece with one
+/// is the mesh's first).
+pub(crate) fn snap_in_pieces<F>(mesh: &Mesh, snap: F) -> Result<Vec<[[i32; 3]; 3]>, EngineError>
+where
+    F: Fn(&[u32; 3]) -> Result<Option<[[i32; 3]; 3]>, EngineError> + Sync,
+{
+    let pieces: Vec<Result<Vec<[[i32; 3]; 3]>, EngineError>> = mesh
+        .triangles()
+        .par_chunks(crate::PAR_PIECE)
+        .map(|piece| {
+            let mut out = Vec::with_capacity(piece.len());
+            for tri in piece {
+                out.extend(snap(tri)?);
+            }
+            Ok(out)
+        })
+        .collect();
+    let mut triangles = Vec::with_capacity(mesh.triangles().len());
+    for p in pieces {
+        triangles.extend_from_slice(&p?);
+    }
+    Ok(triangles)
 }
 
 #[cfg(test)]

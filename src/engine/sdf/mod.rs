@@ -139,22 +139,7 @@ pub fn lattice_triangles(
         }
         Ok(Some(out))
     };
-    let pieces: Vec<Result<Vec<[[i32; 3]; 3]>, EngineError>> = mesh
-        .triangles()
-        .par_chunks(crate::PAR_PIECE)
-        .map(|piece| {
-            let mut out = Vec::with_capacity(piece.len());
-            for tri in piece {
-                out.extend(snap(tri)?);
-            }
-            Ok(out)
-        })
-        .collect();
-    let mut tris = Vec::with_capacity(mesh.triangles().len());
-    for p in pieces {
-        tris.extend_from_slice(&p?);
-    }
-    Ok(tris)
+    super::snap::snap_in_pieces(mesh, snap)
 }
 
 /// Bricks along each axis of `grid`.
