@@ -102,7 +102,16 @@ const u = await expect("post /v1/volumes/csg", 201, client.POST("/v1/volumes/csg
 const m = await expect("post /v1/volumes/{id}/morphology", 201, client.POST("/v1/volumes/{id}/morphology", {
   ...id, body: { op: "dilate", radius: 1, kernel: "cross" },
 }));
-for (const v of [u, m]) {
+// A bit volume's signed distance, thresholded at 0: the volume again.
+const d = await expect("post /v1/volumes/{id}/sdf", 201, client.POST("/v1/volumes/{id}/sdf", {
+  params: { path: { id: a.id }, query: { band: 2 } },
+}));
+if (d?.kind !== "sparse-distance") throw new Error(`sdf made a ${d?.kind} volume`);
+const t = await expect("post /v1/volumes/{id}/threshold", 201, client.POST("/v1/volumes/{id}/threshold", {
+  params: { path: { id: d.id }, query: { level: 0 } },
+}));
+if (t?.solid_voxels !== a.solid_voxels) throw new Error("threshold(sdf(a), 0) is not a");
+for (const v of [u, m, d, t]) {
   await expect("delete /v1/volumes/{id}", 204, client.DELETE("/v1/volumes/{id}", { params: { path: { id: v!.id } } }));
 }
 

@@ -37,6 +37,8 @@ from voxd_client.generated.api.default import (
     post_v1_volumes_csg,
     post_v1_volumes_id_morphology,
     post_v1_volumes_id_query,
+    post_v1_volumes_id_sdf,
+    post_v1_volumes_id_threshold,
     post_v1_volumes_intersect,
     post_v1_voxelize,
 )
@@ -304,6 +306,23 @@ def test_csg(vox, client, box):
     # A bare volume id is an expression too.
     copy = ran(post_v1_volumes_csg).sync(client=client, body=a.id)
     assert copy.solid_voxels == a.solid_voxels
+
+
+def test_distance_volumes(vox, client, box):
+    a, _ = box
+    # The bit volume's signed distance transform, and back: threshold at 0 is the volume again.
+    sdf = ran(post_v1_volumes_id_sdf).sync(a.id, client=client, band=2, name="box sdf")
+    assert isinstance(sdf, Volume) and sdf.kind == "sparse-distance"
+    back = ran(post_v1_volumes_id_threshold).sync(sdf.id, client=client, level=0.0)
+    assert isinstance(back, Volume) and back.kind == "bits"
+    assert (vox.array(back.id) == vox.array(a.id)).all()
+    # Offsets grow outwards with the level; a bit volume is not a distance volume.
+    grown = ran(post_v1_volumes_id_threshold).sync(sdf.id, client=client, level=0.3)
+    assert grown.solid_voxels > a.solid_voxels
+    refused = post_v1_volumes_id_threshold.sync(a.id, client=client, level=0.0)
+    assert isinstance(refused, ProblemModel) and refused.status == 422 and refused.type_.endswith("wrong-volume-kind")
+    d = vox.download(sdf.id, format="npy")
+    assert len(d) > 0
 
 
 # ---- problems come back typed ----
