@@ -60,9 +60,7 @@ pub async fn check_csg(
     }
     let mut first: Option<Grid> = None;
     for id in expr.volume_ids() {
-        let meta =
-            super::ops::csg_operand(store, &id, DISTANCE_KINDS, "CSG with a distance volume")
-                .await?;
+        let meta = csg_operand(store, &id, DISTANCE_KINDS, "CSG with a distance volume").await?;
         match first {
             None => first = Some(meta.grid),
             Some(g) if g != meta.grid => {
@@ -264,4 +262,22 @@ pub async fn stats_stored_with(
 ) -> Result<DistanceStats> {
     let v = load_distance(store, id, "statistics").await?;
     blocking_with(ctl, move |_| Ok(crate::volume::stats::distance_stats(&v))).await
+}
+
+/// A CSG operand's metadata: `not-found` when there is none, `wrong-volume-kind` (naming the
+/// operand) when its kind is not in `accepts`.
+pub(crate) async fn csg_operand(
+    store: &dyn VolumeStore,
+    id: &str,
+    accepts: &'static [crate::volume::VolumeKind],
+    what: &str,
+) -> Result<VolumeMeta> {
+    let meta = store
+        .get(id)
+        .await?
+        .ok_or_else(|| Error::not_found("volume", id))?;
+    meta.kind
+        .require(accepts, what)
+        .map_err(|e| Error::from(e).context(format!("volume {id}")))?;
+    Ok(meta)
 }

@@ -526,24 +526,6 @@ pub async fn csg_stored(
     csg_stored_with(store, expr, label, &Control::new()).await
 }
 
-/// A CSG operand's metadata: `not-found` when there is none, `wrong-volume-kind` (naming the
-/// operand) when its kind is not in `accepts`.
-pub(crate) async fn csg_operand(
-    store: &dyn VolumeStore,
-    id: &str,
-    accepts: &'static [crate::volume::VolumeKind],
-    what: &str,
-) -> Result<VolumeMeta> {
-    let meta = store
-        .get(id)
-        .await?
-        .ok_or_else(|| Error::not_found("volume", id))?;
-    meta.kind
-        .require(accepts, what)
-        .map_err(|e| Error::from(e).context(format!("volume {id}")))?;
-    Ok(meta)
-}
-
 /// Checks a CSG expression's cost before anything is read: every node's result grid (from the
 /// operands' stored grids) must be within the voxel limit, and the voxels all nodes produce
 /// together within [`Limits::max_csg_work`] grids of that size.
@@ -553,7 +535,7 @@ pub async fn check_csg(store: &dyn VolumeStore, expr: &CsgExpr, limits: &Limits)
     }
     let mut grids = HashMap::new();
     for id in expr.volume_ids() {
-        let meta = csg_operand(store, &id, csg::ACCEPTS, "CSG").await?;
+        let meta = super::distance::csg_operand(store, &id, csg::ACCEPTS, "CSG").await?;
         grids.insert(id, meta.grid);
     }
     fn grid_of(
