@@ -136,6 +136,9 @@ pub fn encode(
         meta: meta.clone(),
     };
     let owned: Vec<u8>;
+    // A large sparse payload (a copy of every brick) is written straight into the encoder,
+    // never held whole: at 2048³ it is as large as the volume.
+    let mut streamed = None;
     let payload: &[u8] = match v {
         Volume::Bits(b) => words_as_bytes(b.words()),
         Volume::Density(d) => {
@@ -174,18 +177,33 @@ pub fn encode(
         }
         Volume::SparseDistance(s) => {
             (header.bricks, header.tiles) = sparse_counts(s);
-            owned = sparse_payload(s);
-            &owned
+            if sparse_len(s) <= ONE_SHOT_MAX {
+                owned = sparse_payload(s);
+                &owned
+            } else {
+                streamed = Some(sparse_len(s));
+                &[]
+            }
         }
         Volume::SparseMaterial(s) => {
             (header.bricks, header.tiles) = sparse_counts(s);
-            owned = sparse_payload(s);
-            &owned
+            if sparse_len(s) <= ONE_SHOT_MAX {
+                owned = sparse_payload(s);
+                &owned
+            } else {
+                streamed = Some(sparse_len(s));
+                &[]
+            }
         }
         Volume::SparseColour(s) => {
             (header.bricks, header.tiles) = sparse_counts(s);
-            owned = sparse_payload(s);
-            &owned
+            if sparse_len(s) <= ONE_SHOT_MAX {
+                owned = sparse_payload(s);
+                &owned
+            } else {
+                streamed = Some(sparse_len(s));
+                &[]
+            }
         }
     };
     let json = serde_json::to_vec(&header).expect("header serialises");
@@ -194,6 +212,20 @@ pub fn encode(
     out.extend_from_slice(&version_of(kind).to_le_bytes());
     out.extend_from_slice(&(json.len() as u32).to_le_bytes());
     out.extend_from_slice(&json);
+    if let Some(len) = streamed {
+        let mut enc = zstd::Encoder::new(out, ZSTD_LEVEL).expect("zstd encoder");
+        enc.include_checksum(true).expect("zstd option");
+        enc.set_pledged_src_size(Some(len as u64))
+            .expect("zstd option");
+        match v {
+            Volume::SparseDistance(s) => write_sparse(s, &mut enc),
+            Volume::SparseMaterial(s) => write_sparse(s, &mut enc),
+            Volume::SparseColour(s) => write_sparse(s, &mut enc),
+            _ => unreachable!("only sparse payloads are streamed"),
+        }
+        .expect("writing to memory");
+        return Ok(enc.finish().expect("writing to memory"));
+    }
     if payload.len() <= ONE_SHOT_MAX {
         let start = out.len();
         out.resize(start + zstd::zstd_safe::compress_bound(payload.len()), 0);
@@ -256,30 +288,51 @@ fn sparse_counts<T: Voxel>(s: &Sparse<T>) -> (Option<u64>, Option<u64>) {
 /// A sparse volume's payload: background, tile value (with tiles), brick coordinates, brick
 /// values, tile coordinates.
 fn sparse_payload<T: Voxel>(s: &Sparse<T>) -> Vec<u8> {
-    let n = s.brick_count();
-    let tiles = has_tiles(s);
-    let mut out =
-        Vec::with_capacity(T::TYPE.bytes() * (2 + n * BRICK_VOXELS) + 12 * (n + s.tile_count()));
-    s.background().write_le(&mut out);
-    if tiles {
-        s.tile_value().write_le(&mut out);
+    let mut out = Vec::with_capacity(sparse_len(s));
+    write_sparse(s, &mut out).expect("writing to memory");
+    out
+}
+
+/// The length of [`sparse_payload`].
+fn sparse_len<T: Voxel>(s: &Sparse<T>) -> usize {
+    let values = 1 + usize::from(has_tiles(s)) + s.brick_count() * BRICK_VOXELS;
+    T::TYPE.bytes() * values + 12 * (s.brick_count() + s.tile_count())
+}
+
+/// [`sparse_payload`] written to `w` in pieces of about 1 MiB.
+fn write_sparse<T: Voxel>(s: &Sparse<T>, w: &mut impl std::io::Write) -> std::io::Result<()> {
+    const PIECE: usize = 1 << 20;
+    let mut buf = Vec::with_capacity(PIECE + T::TYPE.bytes() * BRICK_VOXELS);
+    let flush = |buf: &mut Vec<u8>, w: &mut dyn std::io::Write, force: bool| {
+        if force || buf.len() >= PIECE {
+            w.write_all(buf)?;
+            buf.clear();
+        }
+        Ok::<(), std::io::Error>(())
+    };
+    s.background().write_le(&mut buf);
+    if has_tiles(s) {
+        s.tile_value().write_le(&mut buf);
     }
     for (at, _) in s.bricks() {
         for c in at {
-            out.extend_from_slice(&c.to_le_bytes());
+            buf.extend_from_slice(&c.to_le_bytes());
         }
+        flush(&mut buf, w, false)?;
     }
     for (_, values) in s.bricks() {
         for &v in values.iter() {
-            v.write_le(&mut out);
+            v.write_le(&mut buf);
         }
+        flush(&mut buf, w, false)?;
     }
     for at in s.tiles() {
         for c in at {
-            out.extend_from_slice(&c.to_le_bytes());
+            buf.extend_from_slice(&c.to_le_bytes());
         }
+        flush(&mut buf, w, false)?;
     }
-    out
+    flush(&mut buf, w, true)
 }
 
 /// A sparse volume from its payload (of the length the header implies): `tiles` is the
@@ -626,6 +679,35 @@ mod tests {
     /// Tiles are kept: the header counts them, the payload holds the tile value after the
     /// background and the tiles' coordinates after the bricks' values (read here by the
     /// documented offsets, not by the decoder).
+    /// A sparse payload over the one-shot size is streamed into the encoder: the same bytes
+    /// as the whole payload, its size declared in the frame.
+    #[test]
+    fn large_sparse_payloads_stream_the_same_bytes() {
+        let grid = Grid {
+            origin: [0.0; 3],
+            voxel_size: 0.5,
+            dims: [130, 128, 90],
+        };
+        let mut s = Sparse::with_tile_value(grid, 1.5f32, -1.5);
+        // A voxel in every brick: 3,264 bricks, 6.7 MB.
+        for (i, x) in (0..130).step_by(8).enumerate() {
+            for y in (0..128).step_by(8) {
+                for z in (0..90).step_by(8) {
+                    s.set(x + i as u32 % 8, y, z, (x + y + z) as f32 * 0.25);
+                }
+            }
+        }
+        s.set_tile([15, 15, 10], true).unwrap();
+        assert!(sparse_len(&s) > ONE_SHOT_MAX && sparse_len(&s) == sparse_payload(&s).len());
+        let v = Volume::SparseDistance(s.clone());
+        let bytes = encode(&v, &Default::default()).unwrap();
+        assert_eq!(payload_of(&bytes).1, sparse_payload(&s));
+        let frame = &bytes[16 + u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize..];
+        let declared = zstd::zstd_safe::get_frame_content_size(frame);
+        assert!(matches!(declared, Ok(Some(n)) if n as usize == sparse_len(&s)));
+        assert_eq!(decode(&bytes).unwrap().0, v);
+    }
+
     #[test]
     fn sparse_tiles_round_trip_in_the_documented_layout() {
         let grid = Grid {

@@ -135,9 +135,25 @@ impl<T: Voxel> Sparse<T> {
         self.bricks.len()
     }
 
+    /// [`Sparse::insert_brick`] of a boxed brick, kept as it is (no copy).
+    pub fn insert_boxed(
+        &mut self,
+        at: [u32; 3],
+        values: Box<[T; BRICK_VOXELS]>,
+    ) -> Result<(), String> {
+        self.check_brick(at, &values)?;
+        self.bricks.insert(at, values);
+        Ok(())
+    }
+
     /// Adds (or replaces) brick `at` whole. Fails when `at` is outside the brick grid or a value
     /// outside the grid is not the background.
     pub fn insert_brick(&mut self, at: [u32; 3], values: [T; BRICK_VOXELS]) -> Result<(), String> {
+        self.insert_boxed(at, Box::new(values))
+    }
+
+    /// Checks brick `at` and clears a tile there.
+    fn check_brick(&mut self, at: [u32; 3], values: &[T; BRICK_VOXELS]) -> Result<(), String> {
         let bd = self.brick_dims();
         if (0..3).any(|a| at[a] >= bd[a]) {
             return Err(format!("brick {at:?} is outside the brick grid {bd:?}"));
@@ -155,7 +171,6 @@ impl<T: Voxel> Sparse<T> {
         if self.is_tile(at) {
             self.set_tile(at, false)?;
         }
-        self.bricks.insert(at, Box::new(values));
         Ok(())
     }
 

@@ -2,11 +2,12 @@
 //! exactly, the sign from the solid.
 
 use super::bins::{self, Bins};
+use super::local::Local;
+use super::signs::Signs;
 use super::{Brick, in_band_exact};
 use crate::engine::geom::lattice;
 use crate::engine::snap::{FIXED_HALF, FIXED_ONE};
 use crate::engine::{axis_bounds, centre_range, widen};
-use crate::volume::BitVolume;
 use crate::volume::sparse::{BRICK, BRICK_VOXELS};
 
 /// Voxel `i` of brick `at`, when it lies inside `dims`.
@@ -107,35 +108,154 @@ fn lower(
     }
 }
 
-/// Brick `at` in the band `r` (lattice units) over its triangles `list`: stored when it holds
-/// an in-band voxel or both signs, a tile when all its voxels are inside and none in band.
-/// `scale` is the voxel size over 256.
-pub(super) fn band_brick(
+/// Lowers `best2` (squared lattice distances, per voxel of a brick whose first `n` voxels per
+/// axis lie in the grid) by triangle `l`, where no value exceeds `slack²`: only the voxels whose
+/// centres lie within `slack` of the triangle's box can be lowered and only they are visited,
+/// row (x, y) by row, a row skipped whole when the box is beyond the row's largest value
+/// (`rowmax`, kept up to date). For the rest, the distance to the box and to the triangle's
+/// plane are lower bounds that skip most exact evaluations.
+#[inline(always)]
+fn lower_local(
+    best2: &mut [f64; BRICK_VOXELS],
+    rowmax: &mut [f64; 64],
+    l: &Local,
+    n: [u32; 3],
+    slack: i64,
+) {
+    let f = FIXED_ONE as f64;
+    let sl = slack as f64;
+    let mut range = [(0u32, 0u32); 3];
+    for a in 0..3 {
+        // Centres 256·i (local) within [lo − slack, hi + slack]: exact (integers, powers of 2).
+        let first = ((l.lo[a] - sl) / f).ceil().max(0.0);
+        let last = ((l.hi[a] + sl) / f).floor().min(f64::from(n[a] - 1));
+        if first > last {
+            return;
+        }
+        range[a] = (first as u32, last as u32);
+    }
+    let gap = |a: usize, c: f64| (l.lo[a] - c).max(c - l.hi[a]).max(0.0);
+    let v0 = l.vertex(0);
+    let zmask = (u32::MAX >> (31 - range[2].1)) & !((1u32 << range[2].0) - 1);
+    // A degenerate triangle has no plane: a zero normal makes its bound −1e-3, which culls
+    // nothing.
+    let u = l.unit.unwrap_or([0.0; 3]);
+    for x in range[0].0..=range[0].1 {
+        let px = f64::from(x) * f;
+        let dx = gap(0, px);
+        for y in range[1].0..=range[1].1 {
+            let py = f64::from(y) * f;
+            let dy = gap(1, py);
+            let dxy2 = dx * dx + dy * dy;
+            let row = (x * BRICK + y) as usize;
+            if dxy2 >= rowmax[row] {
+                continue;
+            }
+            let plane_xy = u[0] * (px - v0[0]) + u[1] * (py - v0[1]);
+            // The voxels of the row that pass both culls, as bits, without a branch each (the
+            // culls' outcomes do not predict well); then the exact evaluations, bit by bit.
+            // The distance to the box is a lower bound; so is the plane's (within 1e-6
+            // lattice units of the exact one: one rounding per component of the unit normal,
+            // |p − v0| < 2³¹), which culls only when even 1e-3 closer would not lower the value.
+            // All eight lanes, out-of-range ones masked at the end: the shape that vectorizes.
+            let base = row * BRICK as usize;
+            let b: &[f64; 8] = best2[base..base + 8].try_into().expect("a row is 8 voxels");
+            let mut keep = [false; 8];
+            for z in 0..8 {
+                let pz = Z[z];
+                let dz = max0(max0(l.lo[2] - pz, pz - l.hi[2]), 0.0);
+                let pd = abs(plane_xy + u[2] * (pz - v0[2])) - 1e-3;
+                keep[z] = (dxy2 + dz * dz < b[z]) & ((pd <= 0.0) | (pd * pd < b[z]));
+            }
+            let mut pass = 0u32;
+            for (z, &k) in keep.iter().enumerate() {
+                pass |= u32::from(k) << z;
+            }
+            pass &= zmask;
+            let mut lowered = false;
+            while pass != 0 {
+                let z = pass.trailing_zeros();
+                pass &= pass - 1;
+                let i = base + z as usize;
+                let d2 = l.distance2([px, py, f64::from(z) * f]);
+                if d2 < best2[i] {
+                    best2[i] = d2;
+                    lowered = true;
+                }
+            }
+            if lowered {
+                rowmax[row] = best2[base..base + n[2] as usize]
+                    .iter()
+                    .fold(0.0, |m, &v| f64::max(m, v));
+            }
+        }
+    }
+}
+
+/// Voxel centres along a brick row (local lattice units).
+const Z: [f64; 8] = [0.0, 256.0, 512.0, 768.0, 1024.0, 1280.0, 1536.0, 1792.0];
+
+/// `a` or `b`, the larger (NaN-blind, a plain max instruction: no NaN reaches it).
+#[inline(always)]
+fn max0(a: f64, b: f64) -> f64 {
+    if a > b { a } else { b }
+}
+#[inline(always)]
+fn abs(a: f64) -> f64 {
+    f64::from_bits(a.to_bits() & !(1u64 << 63))
+}
+
+crate::engine::winding::lanes::dispatch! {
+    /// Brick `at` in the band `r` (lattice units) over its triangles `list`: stored when it holds
+    /// an in-band voxel or both signs, a tile when all its voxels are inside and none in band.
+    /// `scale` is the voxel size over 256.
+    /// Compiled for the widest instruction set the processor has (its culls vectorize).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn band_brick(
+        tris: &[[[i32; 3]; 3]],
+        list: &[u32],
+        signs: &Signs,
+        dims: [u32; 3],
+        at: [u32; 3],
+        r: i64,
+        scale: f64,
+        background: f32,
+    ) -> Option<Brick> = band_brick_body, band_brick_avx512, band_brick_avx2;
+}
+
+/// [`band_brick`]'s body, compiled for each instruction set (its culls vectorize).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn band_brick_body(
     tris: &[[[i32; 3]; 3]],
     list: &[u32],
-    solid: &BitVolume,
+    signs: &Signs,
+    dims: [u32; 3],
     at: [u32; 3],
     r: i64,
     scale: f64,
     background: f32,
 ) -> Option<Brick> {
-    let dims = solid.grid().dims;
+    let n = [0, 1, 2].map(|a| (dims[a] - at[a] * BRICK).min(BRICK));
     // Triangles farther than this settle nothing: the voxel is out of band whatever they are.
     let slack = r + 2;
-    let mut best2 = [(slack * slack) as f64; BRICK_VOXELS];
+    let s2 = (slack * slack) as f64;
+    let mut best2 = [s2; BRICK_VOXELS];
+    let mut rowmax = [s2; 64];
     for &t in list {
-        lower(&mut best2, at, dims, &tris[t as usize], Some(slack));
+        let l = Local::new(&tris[t as usize], at);
+        lower_local(&mut best2, &mut rowmax, &l, n, slack);
     }
+    let mask = signs.mask(at);
+    let (any_in, all_in) = signs.brick(at);
     let rf = r as f64;
     let mut values = Box::new([background; BRICK_VOXELS]);
-    let (mut any_band, mut any_in, mut all_in) = (false, false, true);
+    let mut any_band = false;
     for (i, &b2) in best2.iter().enumerate() {
         let Some(vx) = voxel(at, i, dims) else {
             continue;
         };
-        let inside = solid.get(vx[0], vx[1], vx[2]);
-        any_in |= inside;
-        all_in &= inside;
+        let inside = Signs::inside(&mask, i);
         let d = b2.sqrt();
         // `distance` is within 2⁻⁵⁰ of the exact value: far from r, the f64 decides.
         let in_band = if d < rf * (1.0 - 1e-9) {
@@ -167,12 +287,12 @@ pub(super) fn band_brick(
 pub(super) fn all_brick(
     tris: &[[[i32; 3]; 3]],
     bins: &Bins,
-    solid: &BitVolume,
+    signs: &Signs,
+    dims: [u32; 3],
     at: [u32; 3],
     scale: f64,
 ) -> Box<[f32; BRICK_VOXELS]> {
-    let dims = solid.grid().dims;
-    let bd = super::brick_dims(solid.grid());
+    let bd = dims.map(|d| d.div_ceil(BRICK));
     let mut best2 = [f64::INFINITY; BRICK_VOXELS];
     let span = i64::from(BRICK) * FIXED_ONE;
     for r in 0u32.. {
@@ -207,11 +327,12 @@ pub(super) fn all_brick(
             break;
         }
     }
+    let mask = signs.mask(at);
     let mut values = Box::new([f32::INFINITY; BRICK_VOXELS]);
     for (i, v) in values.iter_mut().enumerate() {
-        if let Some(vx) = voxel(at, i, dims) {
+        if voxel(at, i, dims).is_some() {
             let d = best2[i].sqrt() * scale;
-            *v = if solid.get(vx[0], vx[1], vx[2]) {
+            *v = if Signs::inside(&mask, i) {
                 (-d) as f32
             } else {
                 d as f32
@@ -221,43 +342,17 @@ pub(super) fn all_brick(
     values
 }
 
-/// For brick row (bx, by, ·): per bz, whether some voxel of the brick is inside and whether all
-/// (inside the grid) are, from the solid's column words (a brick's 8 z voxels are one byte).
-pub(super) fn brick_row_signs(solid: &BitVolume, bx: u32, by: u32) -> (Vec<bool>, Vec<bool>) {
-    let dims = solid.grid().dims;
-    let bz_n = dims[2].div_ceil(BRICK) as usize;
-    let mut any = vec![0u8; bz_n];
-    let mut all = vec![0xffu8; bz_n];
-    let mask = |bz: usize| -> u8 {
-        let left = dims[2] as usize - bz * 8;
-        if left >= 8 { 0xff } else { (1u8 << left) - 1 }
-    };
-    for x in bx * BRICK..(bx * BRICK + BRICK).min(dims[0]) {
-        for y in by * BRICK..(by * BRICK + BRICK).min(dims[1]) {
-            let col = solid.column(x, y);
-            for bz in 0..bz_n {
-                let byte = (col[bz / 8] >> ((bz % 8) * 8)) as u8 & mask(bz);
-                any[bz] |= byte;
-                all[bz] &= byte | !mask(bz);
-            }
-        }
-    }
-    (
-        any.iter().map(|&b| b != 0).collect(),
-        all.iter().map(|&b| b == 0xff).collect(),
-    )
-}
-
-/// Brick `at` out of band everywhere: ±background by the solid's sign.
+/// Brick `at` out of band everywhere: ±background by its voxels' signs.
 pub(super) fn uniform_brick(
-    solid: &BitVolume,
+    signs: &Signs,
+    dims: [u32; 3],
     at: [u32; 3],
     background: f32,
 ) -> Box<[f32; BRICK_VOXELS]> {
-    let dims = solid.grid().dims;
+    let mask = signs.mask(at);
     let mut values = Box::new([background; BRICK_VOXELS]);
     for (i, v) in values.iter_mut().enumerate() {
-        if voxel(at, i, dims).is_some_and(|vx| solid.get(vx[0], vx[1], vx[2])) {
+        if voxel(at, i, dims).is_some() && Signs::inside(&mask, i) {
             *v = -background;
         }
     }

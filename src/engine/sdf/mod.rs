@@ -20,6 +20,8 @@
 
 mod bins;
 mod eval;
+mod local;
+mod signs;
 #[cfg(test)]
 mod tests;
 
@@ -34,8 +36,8 @@ use super::{Engine, EngineError, Method};
 use crate::cancel::Control;
 use crate::grid::Grid;
 use crate::mesh::{Mesh, MeshDiagnostics};
-use crate::volume::BitVolume;
 use crate::volume::sparse::{BRICK, BRICK_VOXELS, Sparse};
+use signs::Signs;
 
 /// The band's half width: `band=k` voxels, or `band=all`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -185,30 +187,39 @@ pub fn sdf_with(
         diagnostics,
         &ctl.stage(0.0, 0.2),
     )?;
+    // The solid's signs by brick (a few MB), and the solid (1 GB at 2048³) dropped before the
+    // distances take their memory.
+    let signs = Signs::new(&solid);
+    drop(solid);
     let tris = lattice_triangles(mesh, grid, band.reach())?;
-    let sparse = signed_distance(&tris, &solid, band, &ctl.stage(0.2, 1.0))?;
+    let sparse = signed_distance(&tris, &signs, grid, band, &ctl.stage(0.2, 1.0))?;
     Ok((sparse, report))
 }
 
-/// The sparse signed distance of lattice triangles `tris` on `solid`'s grid, signed by `solid`.
+/// Bricks evaluated between two insertions into the volume: what is held twice at most.
+const PIECE_BRICKS: usize = 4096;
+
+/// The sparse signed distance of lattice triangles `tris` on `grid`, signed by `signs`.
 pub fn signed_distance(
     tris: &[[[i32; 3]; 3]],
-    solid: &BitVolume,
+    signs: &Signs,
+    grid: &Grid,
     band: Band,
     ctl: &Control,
 ) -> Result<Sparse<f32>, EngineError> {
-    let grid = *solid.grid();
+    let grid = *grid;
+    let dims = grid.dims;
     let bd = brick_dims(&grid);
     let (background, tile) = band.values(grid.voxel_size);
     let mut out = Sparse::with_tile_value(grid, background, tile);
     let scale = grid.voxel_size / FIXED_ONE as f64;
     // Pieces of bricks, inserted piece by piece (not gathered into one list first: a large
-    // grid has millions of tiles).
+    // grid has millions of tiles, and a brick's values would be held twice).
     let mut insert = |pieces: Vec<Vec<Brick>>| {
         for b in pieces.into_iter().flatten() {
             match b {
                 Brick::Stored(at, values) => out
-                    .insert_brick(at, *values)
+                    .insert_boxed(at, values)
                     .expect("a brick inside the brick grid, background past the grid"),
                 Brick::Tile(at) => out.set_tile(at, true).expect("inside the brick grid"),
             }
@@ -221,25 +232,32 @@ pub fn signed_distance(
             ctl.check()?;
             let ctl_near = ctl.stage(0.05, 0.9);
             let counter = ctl_near.counter(bins.len() as u64);
-            let near: Vec<Vec<Brick>> = bins
-                .groups()
-                .par_chunks(64)
-                .map(|chunk| {
-                    counter.check()?;
-                    let mut out = Vec::new();
-                    for &(key, lo, hi) in chunk {
-                        let at = bins::unkey(key, bd);
-                        let list = &bins.tris()[lo..hi];
-                        out.extend(eval::band_brick(
-                            tris, list, solid, at, r, scale, background,
-                        ));
-                    }
-                    counter.add(chunk.len() as u64);
-                    Ok(out)
-                })
-                .collect::<Result<_, EngineError>>()?;
-            insert(near);
-            insert(far_bricks(solid, &bins, background, &ctl.stage(0.9, 1.0))?);
+            for piece in bins.groups().chunks(PIECE_BRICKS) {
+                let near: Vec<Vec<Brick>> = piece
+                    .par_chunks(16)
+                    .map(|chunk| {
+                        counter.check()?;
+                        let mut out = Vec::new();
+                        for &(key, lo, hi) in chunk {
+                            let at = bins::unkey(key, bd);
+                            let list = &bins.tris()[lo..hi];
+                            out.extend(eval::band_brick(
+                                tris, list, signs, dims, at, r, scale, background,
+                            ));
+                        }
+                        counter.add(chunk.len() as u64);
+                        Ok(out)
+                    })
+                    .collect::<Result<_, EngineError>>()?;
+                insert(near);
+            }
+            insert(far_bricks(
+                signs,
+                dims,
+                &bins,
+                background,
+                &ctl.stage(0.9, 1.0),
+            )?);
         }
         None => {
             let bins = bins::Bins::all(tris, bd);
@@ -254,7 +272,7 @@ pub fn signed_distance(
                         .iter()
                         .map(|&key| {
                             let at = bins::unkey(key, bd);
-                            Brick::Stored(at, eval::all_brick(tris, &bins, solid, at, scale))
+                            Brick::Stored(at, eval::all_brick(tris, &bins, signs, dims, at, scale))
                         })
                         .collect();
                     counter.add(chunk.len() as u64);
@@ -271,13 +289,13 @@ pub fn signed_distance(
 /// The bricks no triangle reaches within the band (so none of their voxels is in it): a tile
 /// where every voxel is inside, a stored brick of ±background where the solid has both.
 fn far_bricks(
-    solid: &BitVolume,
+    signs: &Signs,
+    dims: [u32; 3],
     bins: &bins::Bins,
     background: f32,
     ctl: &Control,
 ) -> Result<Vec<Vec<Brick>>, EngineError> {
-    let grid = *solid.grid();
-    let bd = brick_dims(&grid);
+    let bd = dims.map(|d| d.div_ceil(BRICK));
     let counter = ctl.counter(u64::from(bd[0]));
     let slabs: Vec<Vec<Brick>> = (0..bd[0])
         .into_par_iter()
@@ -285,10 +303,9 @@ fn far_bricks(
             counter.check()?;
             let mut out = Vec::new();
             for by in 0..bd[1] {
-                let (any, all) = eval::brick_row_signs(solid, bx, by);
                 for bz in 0..bd[2] {
                     let at = [bx, by, bz];
-                    let (a, l) = (any[bz as usize], all[bz as usize]);
+                    let (a, l) = signs.brick(at);
                     if !a || bins.contains(bins::key(at, bd)) {
                         continue;
                     }
@@ -297,7 +314,7 @@ fn far_bricks(
                     } else {
                         out.push(Brick::Stored(
                             at,
-                            eval::uniform_brick(solid, at, background),
+                            eval::uniform_brick(signs, dims, at, background),
                         ));
                     }
                 }

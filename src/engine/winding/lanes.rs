@@ -90,7 +90,7 @@ pub fn simd() -> Simd {
 
 /// For the winding fill's traversals, which run these kernels inlined: the bookkeeping between
 /// them is compiled for the same wide registers.
-pub(super) use dispatch;
+pub(crate) use dispatch;
 
 /// Lanes per call.
 pub const LANES: usize = 8;

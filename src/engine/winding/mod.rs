@@ -77,7 +77,7 @@ mod bounds;
 mod caps;
 mod certifier;
 mod edges;
-mod lanes;
+pub(crate) mod lanes;
 #[cfg(test)]
 mod tests;
 mod traverse;

@@ -1,0 +1,183 @@
+//! A triangle seen from one brick: its vertices relative to the brick's first voxel centre, with
+//! what the distance to it needs precomputed, so the 512 centres of the brick take
+//! [`lattice::distance2`]'s value in plain `f64` arithmetic.
+//!
+//! Why the bits are the same: `lattice::distance2` computes exact integers (i64/i128) and rounds
+//! only the final products and quotient to f64. When every coordinate difference among the
+//! brick's centres and the triangle's vertices is at most D = 2¹², every one of those integers
+//! is below 2⁵³ (|w|, |e| ≤ D; cross products ≤ 2D²; dot products of them ≤ 12D⁴ = 3·2⁵⁰; the
+//! plane's n·w ≤ 6D³), so f64 holds it exactly and the same roundings follow. The inside-the-
+//! triangle test n·(e × w) ≥ 0 is computed as w·(n × e), n × e ≤ 4D³, the dot ≤ 12D⁴: exact too.
+//! A triangle that spans more than D with the brick ([`Local::exact`] false) takes
+//! `lattice::distance2` itself.
+
+use crate::engine::geom::lattice;
+use crate::engine::snap::{FIXED_HALF, FIXED_ONE};
+use crate::volume::sparse::BRICK;
+
+/// The largest coordinate difference for which f64 arithmetic is exact here.
+const D: i64 = 1 << 12;
+
+#[inline(always)]
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+#[inline(always)]
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+#[inline(always)]
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// A triangle relative to a brick's first voxel centre `origin` (lattice units).
+pub struct Local<'a> {
+    pub tri: &'a [[i32; 3]; 3],
+    pub origin: [i64; 3],
+    /// Vertices, relative.
+    v: [[f64; 3]; 3],
+    /// Edges v[i+1] − v[i], their squared lengths, and n × e (n the integer normal).
+    e: [[f64; 3]; 3],
+    ee: [f64; 3],
+    ne: [[f64; 3]; 3],
+    n: [f64; 3],
+    nn: f64,
+    /// The bounding box, relative.
+    pub lo: [f64; 3],
+    pub hi: [f64; 3],
+    /// The unit normal (one rounding per component), for the plane's lower bound.
+    pub unit: Option<[f64; 3]>,
+    /// Every difference within D: [`Local::distance2`] is exact-then-rounded like
+    /// `lattice::distance2`.
+    pub exact: bool,
+}
+
+impl<'a> Local<'a> {
+    /// Triangle `tri` seen from brick `at` (origin: the centre of voxel `8·at`).
+    #[inline(always)]
+    pub fn new(tri: &'a [[i32; 3]; 3], at: [u32; 3]) -> Local<'a> {
+        let origin = at.map(|c| i64::from(c * BRICK) * FIXED_ONE + FIXED_HALF);
+        let rel = tri.map(|p| [0, 1, 2].map(|a| i64::from(p[a]) - origin[a]));
+        let span = (i64::from(BRICK) - 1) * FIXED_ONE;
+        let exact = (0..3).all(|a| {
+            let lo = rel.iter().map(|p| p[a]).min().unwrap_or(0).min(0);
+            let hi = rel.iter().map(|p| p[a]).max().unwrap_or(0).max(span);
+            hi - lo <= D
+        });
+        let v = rel.map(|p| p.map(|c| c as f64));
+        let lo = [0, 1, 2].map(|a| v[0][a].min(v[1][a]).min(v[2][a]));
+        let hi = [0, 1, 2].map(|a| v[0][a].max(v[1][a]).max(v[2][a]));
+        // The normal from the exact integers (as lattice::distance2 has it).
+        let ie = |i: usize, j: usize| [0, 1, 2].map(|a| rel[j][a] - rel[i][a]);
+        let (e1, e2) = (ie(0, 1), ie(0, 2));
+        let ni = [
+            e1[1] as i128 * e2[2] as i128 - e1[2] as i128 * e2[1] as i128,
+            e1[2] as i128 * e2[0] as i128 - e1[0] as i128 * e2[2] as i128,
+            e1[0] as i128 * e2[1] as i128 - e1[1] as i128 * e2[0] as i128,
+        ];
+        let nf = ni.map(|c| c as f64);
+        let len = dot(nf, nf).sqrt();
+        let unit = (len > 0.0).then(|| nf.map(|c| c / len));
+        let e = [0, 1, 2].map(|i| sub(v[(i + 1) % 3], v[i]));
+        Local {
+            tri,
+            origin,
+            v,
+            e,
+            ee: e.map(|x| dot(x, x)),
+            ne: e.map(|x| cross(nf, x)),
+            n: nf,
+            nn: dot(nf, nf),
+            lo,
+            hi,
+            unit,
+            exact,
+        }
+    }
+
+    /// Vertex `i`, relative.
+    #[inline]
+    pub fn vertex(&self, i: usize) -> [f64; 3] {
+        self.v[i]
+    }
+
+    /// The squared lattice distance from local point `p` (relative to the origin, lattice
+    /// units), with exactly [`lattice::distance2`]'s value.
+    #[inline(always)]
+    pub fn distance2(&self, p: [f64; 3]) -> f64 {
+        if !self.exact {
+            let g = [0, 1, 2].map(|a| p[a] as i64 + self.origin[a]);
+            return lattice::distance2(g, self.tri);
+        }
+        // Every candidate computed, the valid ones selected without a branch (which feature
+        // is nearest does not predict well); the same operations on the same values as
+        // lattice::distance2, so the same bits.
+        let mut best = f64::INFINITY;
+        let mut inside = self.nn > 0.0;
+        for i in 0..3 {
+            let w = sub(p, self.v[i]);
+            best = best.min(dot(w, w));
+            let wd = dot(w, self.e[i]);
+            let c = cross(w, self.e[i]);
+            let edge = dot(c, c) / self.ee[i];
+            let on_edge = (wd > 0.0) & (wd < self.ee[i]);
+            best = if on_edge { best.min(edge) } else { best };
+            inside &= dot(w, self.ne[i]) >= 0.0;
+        }
+        let q = dot(self.n, sub(p, self.v[0]));
+        let plane = q * q / self.nn;
+        if inside { best.min(plane) } else { best }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The local evaluation has lattice::distance2's bits, for triangles that qualify and for
+    /// those that do not (which take it directly).
+    #[test]
+    fn local_distance_has_the_lattice_bits() {
+        let mut s = 0x9e3779b97f4a7c15u64;
+        let mut rnd = |m: i64| {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s % (2 * m as u64 + 1)) as i64 - m
+        };
+        let at = [3u32, 5, 7];
+        let base = at.map(|c| i64::from(c * BRICK) * FIXED_ONE);
+        let (mut exact, mut not) = (0, 0);
+        for case in 0..4000 {
+            // Small, medium, degenerate and huge triangles about the brick.
+            let m = [40, 700, 1500, 1 << 20][case % 4];
+            let c = [0, 1, 2].map(|a| base[a] + 1000 + rnd(1500));
+            let mut tri = [[0i32; 3]; 3];
+            for p in tri.iter_mut() {
+                *p = [0, 1, 2].map(|a| (c[a] + rnd(m)) as i32);
+            }
+            if case % 17 == 0 {
+                tri[2] = tri[0]; // a segment
+            }
+            let l = Local::new(&tri, at);
+            if l.exact {
+                exact += 1;
+            } else {
+                not += 1;
+            }
+            for i in 0..512 {
+                let o = [i / 64, i / 8 % 8, i % 8];
+                let p = [0, 1, 2].map(|a| (o[a] * FIXED_ONE) as f64);
+                let g = [0, 1, 2].map(|a| o[a] * FIXED_ONE + l.origin[a]);
+                let want = lattice::distance2(g, &tri);
+                assert_eq!(l.distance2(p).to_bits(), want.to_bits(), "{tri:?} at {g:?}");
+            }
+        }
+        assert!(exact > 2000 && not > 500, "{exact} exact, {not} not");
+    }
+}
