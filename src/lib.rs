@@ -20,6 +20,7 @@ pub mod atomic;
 pub mod cancel;
 pub mod codec;
 pub mod engine;
+pub mod extract;
 pub mod grid;
 pub mod limits;
 pub mod mesh;

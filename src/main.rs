@@ -43,6 +43,11 @@ fn main() -> ExitCode {
             level,
             output,
         } => cli::distance::threshold(&input, level, &output),
+        Command::Mesh {
+            input,
+            output,
+            algorithm,
+        } => cli::mesh::mesh(&input, &output, &algorithm),
         Command::Sdf {
             input,
             band,

@@ -110,6 +110,17 @@ pub enum Command {
         #[arg(short, long)]
         output: PathBuf,
     },
+    /// A volume's boundary as a triangle mesh (docs/methods.md, "Meshes out").
+    Mesh {
+        /// A volume (.vxl .binvox .npy): its occupied voxels.
+        input: PathBuf,
+        /// The mesh (.obj .stl .ply, by extension).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// The extraction algorithm: cubes (the exact boundary of the voxels).
+        #[arg(long, default_value = "cubes")]
+        algorithm: String,
+    },
     /// The exact signed distance transform of a bit volume, in a sparse band of BAND voxels
     /// (negative at its set voxels; docs/methods.md).
     Sdf {

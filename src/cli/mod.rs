@@ -6,5 +6,6 @@ pub mod args;
 pub mod bench;
 pub mod commands;
 pub mod distance;
+pub mod mesh;
 pub mod output;
 pub mod progress;

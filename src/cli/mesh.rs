@@ -1,0 +1,46 @@
+//! `voxd mesh`: a volume file's boundary as a mesh file (`voxd::extract`).
+
+use std::path::Path;
+
+use voxd::extract::write::{MeshFormat, write};
+use voxd::extract::{Algorithm, check, cubes, occupancy};
+
+use super::output::read_volume;
+
+pub fn mesh(input: &Path, output: &Path, algorithm: &str) -> Result<(), String> {
+    let algorithm = Algorithm::parse(algorithm)?;
+    let format = MeshFormat::of_path(output)?;
+    let v = read_volume(input)?;
+    let bits = occupancy(&v);
+    let m = super::progress::with_bar(&input.display().to_string(), |ctl| match algorithm {
+        Algorithm::Cubes => cubes::cubes(&bits, ctl),
+    })
+    .map_err(|e| format!("{}: {e}", input.display()))?;
+    let r = check::check(&m);
+    if !r.is_valid() {
+        return Err(format!(
+            "{}: the extracted mesh failed its checks: {r:?}",
+            input.display()
+        ));
+    }
+    let world = m.to_world(bits.grid());
+    let tmp = output.with_extension(format!("{}.part", format.as_str()));
+    let mut f = std::fs::File::create(&tmp).map_err(|e| format!("{}: {e}", tmp.display()))?;
+    write(&world, format, &mut f)
+        .and_then(|()| f.sync_all())
+        .and_then(|()| std::fs::rename(&tmp, output))
+        .map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            format!("{}: {e}", output.display())
+        })?;
+    println!(
+        "{} -> {}: {}, {} vertices, {} triangles, watertight, enclosing {} voxels",
+        input.display(),
+        output.display(),
+        algorithm.as_str(),
+        world.positions.len(),
+        world.triangles.len(),
+        r.volume
+    );
+    Ok(())
+}

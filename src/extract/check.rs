@@ -1,0 +1,94 @@
+//! The checks every extracted mesh must pass, and what they measure.
+
+use std::collections::{HashMap, HashSet};
+
+use super::TriMesh;
+
+/// What [`check`] found.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Report {
+    pub vertices: usize,
+    pub triangles: usize,
+    /// Undirected edges not used exactly once in each direction (0: watertight and consistently
+    /// oriented).
+    pub bad_edges: usize,
+    /// Triangles with a repeated vertex or zero area.
+    pub degenerate: usize,
+    /// Triangles with the same three vertices as an earlier one (in any order).
+    pub duplicates: usize,
+    /// Vertices no triangle uses.
+    pub unused: usize,
+    /// Σ (p0 · (p1 × p2)) / 6 over the triangles: the enclosed volume, positive when the
+    /// triangles face outward.
+    pub volume: f64,
+}
+
+impl Report {
+    /// Watertight, consistently oriented, no degenerate or duplicate triangles, no unused
+    /// vertex, and enclosing a positive volume (or nothing at all).
+    pub fn is_valid(&self) -> bool {
+        self.bad_edges == 0
+            && self.degenerate == 0
+            && self.duplicates == 0
+            && self.unused == 0
+            && (self.volume > 0.0 || self.triangles == 0)
+    }
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// Checks `m` (any units; exact for lattice-unit meshes with coordinates below 2¹⁶).
+pub fn check(m: &TriMesh) -> Report {
+    let mut r = Report {
+        vertices: m.positions.len(),
+        triangles: m.triangles.len(),
+        ..Report::default()
+    };
+    let mut directed: HashMap<(u32, u32), i64> = HashMap::new();
+    let mut seen = HashSet::new();
+    let mut used = vec![false; m.positions.len()];
+    // Six times the volume: a sum of exact products for lattice meshes, divided once.
+    let mut six = 0.0;
+    for t in &m.triangles {
+        for i in 0..3 {
+            let (a, b) = (t[i], t[(i + 1) % 3]);
+            *directed.entry((a, b)).or_insert(0) += 1;
+            used[a as usize] = true;
+        }
+        let p = t.map(|i| m.positions[i as usize]);
+        let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+        if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] || n == [0.0; 3] {
+            r.degenerate += 1;
+        }
+        let mut key = *t;
+        key.sort_unstable();
+        if !seen.insert(key) {
+            r.duplicates += 1;
+        }
+        let c = cross(p[1], p[2]);
+        six += p[0][0] * c[0] + p[0][1] * c[1] + p[0][2] * c[2];
+    }
+    let mut edges: HashSet<(u32, u32)> = HashSet::new();
+    for &(a, b) in directed.keys() {
+        edges.insert((a.min(b), a.max(b)));
+    }
+    for (a, b) in edges {
+        let f = directed.get(&(a, b)).copied().unwrap_or(0);
+        let g = directed.get(&(b, a)).copied().unwrap_or(0);
+        if f != 1 || g != 1 {
+            r.bad_edges += 1;
+        }
+    }
+    r.unused = used.iter().filter(|&&u| !u).count();
+    r.volume = six / 6.0;
+    r
+}

@@ -1,0 +1,170 @@
+//! Extraction checked by the project's own mesh checks, exact volumes, and re-voxelization
+//! (the solid kernel on the extracted mesh gives back the volume).
+
+use super::TriMesh;
+use super::check::check;
+use super::cubes::{cubes, triangle_bound};
+use super::write::{MeshFormat, write};
+use crate::cancel::Control;
+use crate::engine::Method;
+use crate::engine::cpu::CpuEngine;
+use crate::engine::fill::{self, Fill};
+use crate::grid::Grid;
+use crate::mesh::Mesh;
+use crate::testkit::Rng;
+use crate::volume::BitVolume;
+
+fn grid(dims: [u32; 3]) -> Grid {
+    Grid {
+        origin: [-1.25, 0.5, 2.0],
+        voxel_size: 0.125,
+        dims,
+    }
+}
+
+/// Cubes of `bits`: valid, volume = count exactly, face count as estimated, and the solid of
+/// the mesh on the same grid is `bits` again.
+fn round_trip(bits: &BitVolume) -> TriMesh {
+    let m = cubes(bits, &Control::none()).unwrap();
+    let r = check(&m);
+    assert!(r.is_valid(), "{r:?}");
+    assert_eq!(r.volume, bits.count_ones() as f64, "{r:?}");
+    assert!(r.triangles as u64 <= triangle_bound(bits), "{r:?}");
+    let g = *bits.grid();
+    let world = m.clone().to_world(&g);
+    if world.triangles.is_empty() {
+        assert_eq!(bits.count_ones(), 0);
+        return m;
+    }
+    let mesh = Mesh::new(world.positions, world.triangles).unwrap();
+    let diag = mesh.diagnostics();
+    let (again, _) = fill::voxelize_with(
+        &CpuEngine,
+        &mesh,
+        &g,
+        Method::Solid,
+        Fill::Parity,
+        &diag,
+        &Control::none(),
+    )
+    .unwrap();
+    assert_eq!(again.words(), bits.words(), "re-voxelized");
+    m
+}
+
+#[test]
+fn one_voxel_is_a_cube_of_twelve_triangles() {
+    let mut b = BitVolume::new(grid([3, 3, 3]));
+    b.set(1, 1, 1, true);
+    let m = round_trip(&b);
+    assert_eq!((m.positions.len(), m.triangles.len()), (8, 12));
+}
+
+#[test]
+fn a_box_merges_to_twelve_triangles_and_a_notch_adds_no_t_junction() {
+    let mut b = BitVolume::new(grid([9, 7, 5]));
+    for x in 1..8 {
+        for y in 1..6 {
+            for z in 1..4 {
+                b.set(x, y, z, true);
+            }
+        }
+    }
+    let m = round_trip(&b);
+    assert_eq!(m.triangles.len(), 12);
+    // A notch: the faces around it split, and the big faces' sides carry its corners.
+    b.set(4, 5, 3, false);
+    round_trip(&b);
+}
+
+/// Voxels meeting only along an edge or at a point: each gets its own copies of the shared
+/// vertices, so every edge is used by exactly two triangles.
+#[test]
+fn edge_and_point_contacts_stay_manifold() {
+    let mut b = BitVolume::new(grid([4, 4, 4]));
+    b.set(1, 1, 1, true);
+    b.set(2, 2, 1, true); // along an edge
+    b.set(2, 1, 2, true); // along another edge of the first... and a point of the second
+    round_trip(&b);
+    let mut c = BitVolume::new(grid([4, 4, 4]));
+    c.set(1, 1, 1, true);
+    c.set(2, 2, 2, true); // a point
+    let m = round_trip(&c);
+    assert_eq!(m.positions.len(), 16);
+    // Six voxels of a 2×2×2 block, the two missing ones opposite: the empty ones meet at a point.
+    let mut d = BitVolume::new(grid([4, 4, 4]));
+    for o in 1..7u32 {
+        d.set(1 + (o & 1), 1 + (o >> 1 & 1), 1 + (o >> 2 & 1), true);
+    }
+    round_trip(&d);
+}
+
+#[test]
+fn random_volumes_round_trip() {
+    let mut rng = Rng::new(33);
+    for case in 0..60 {
+        let dims = [
+            1 + rng.below(9) as u32,
+            1 + rng.below(9) as u32,
+            1 + rng.below(9) as u32,
+        ];
+        let mut b = BitVolume::new(grid(dims));
+        // Sparse, dense and blocky volumes; set voxels on the grid's faces too.
+        let p = [0.1, 0.5, 0.85][case % 3];
+        for x in 0..dims[0] {
+            for y in 0..dims[1] {
+                for z in 0..dims[2] {
+                    if rng.unit() < p {
+                        b.set(x, y, z, true);
+                    }
+                }
+            }
+        }
+        round_trip(&b);
+    }
+}
+
+#[test]
+fn files_hold_the_mesh() {
+    let mut b = BitVolume::new(grid([5, 4, 3]));
+    b.set(1, 1, 1, true);
+    b.set(2, 1, 1, true);
+    let m = cubes(&b, &Control::none()).unwrap().to_world(b.grid());
+    for f in MeshFormat::ALL {
+        let mut out = Vec::new();
+        write(&m, f, &mut out).unwrap();
+        assert!(
+            out.len() as u64 <= f.size_bound(m.positions.len() as u64, m.triangles.len() as u64)
+        );
+        match f {
+            MeshFormat::Stl => assert_eq!(out.len(), 84 + 50 * m.triangles.len()),
+            MeshFormat::Obj => {
+                let text = String::from_utf8(out).unwrap();
+                assert_eq!(
+                    text.lines().filter(|l| l.starts_with("v ")).count(),
+                    m.positions.len()
+                );
+                assert_eq!(
+                    text.lines().filter(|l| l.starts_with("f ")).count(),
+                    m.triangles.len()
+                );
+            }
+            MeshFormat::Ply => {
+                let end = out.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
+                assert_eq!(
+                    out.len() - end,
+                    24 * m.positions.len() + 13 * m.triangles.len()
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn a_canceled_extraction_stops() {
+    let mut b = BitVolume::new(grid([4, 4, 4]));
+    b.set(1, 1, 1, true);
+    let ctl = Control::new();
+    ctl.cancel();
+    assert!(cubes(&b, &ctl).is_err());
+}
