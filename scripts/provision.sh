@@ -5,7 +5,7 @@
 # fuzz.sh) run it for that part, so each still runs alone on a fresh machine.
 #   ./scripts/provision.sh               # every part
 #   ./scripts/provision.sh s3 contract   # only these parts
-# Parts: python redis nginx s3 deploy vulkan contract client deploy-check image readme fuzz (described below).
+# Parts: python redis nginx s3 mesh deploy vulkan contract client deploy-check image readme fuzz (described below).
 # Idempotent: each part checks first and installs only what is missing, so a provisioned machine
 # costs a few probes. Debian packages need root and apt-get; without them a part prints what it
 # could not do and the tests that need it skip with a NOTICE (unless a VOXD_REQUIRE_* says
@@ -75,6 +75,22 @@ part_s3() {
     rm -rf "$venv"
     { python3 -m venv "$venv" && "$venv/bin/pip" install -q --disable-pip-version-check "$S3_PIN" \
         && echo "$S3_PIN" >"$venv/.pins"; } || echo "NOTICE: could not install $S3_PIN"
+  fi
+}
+
+# mesh: trimesh, pinned, in the venv VOXD_MESH_VENV (default ~/.cache/voxd/mesh-venv): the
+# independent reader of the extracted meshes in tests/mesh_cli.rs (watertight, winding
+# consistent, volume). A failed install is a NOTICE here: those checks then skip.
+MESH_PINS="trimesh==5.2.0 numpy==2.4.6"
+part_mesh() {
+  local venv=${VOXD_MESH_VENV:-$CACHE/mesh-venv}
+  if [[ ! -x $venv/bin/python || "$(cat "$venv/.pins" 2>/dev/null)" != "$MESH_PINS" ]]; then
+    echo "installing $MESH_PINS (the extracted meshes' reader) into $venv"
+    need_venv_support
+    rm -rf "$venv"
+    # shellcheck disable=SC2086 # the pins are words
+    { python3 -m venv "$venv" && "$venv/bin/pip" install -q --disable-pip-version-check $MESH_PINS \
+        && echo "$MESH_PINS" >"$venv/.pins"; } || echo "NOTICE: could not install $MESH_PINS"
   fi
 }
 
@@ -187,11 +203,11 @@ part_fuzz() {
   fi
 }
 
-ALL=(python redis nginx s3 deploy vulkan contract client deploy-check image readme fuzz)
+ALL=(python redis nginx s3 mesh deploy vulkan contract client deploy-check image readme fuzz)
 (($# > 0)) || set -- "${ALL[@]}"
 for part in "$@"; do
   case $part in
-    python | redis | nginx | s3 | deploy | vulkan | contract | client | image | readme | fuzz) "part_$part" ;;
+    python | redis | nginx | s3 | mesh | deploy | vulkan | contract | client | image | readme | fuzz) "part_$part" ;;
     deploy-check) part_deploy_check ;;
     *) echo "provision.sh: unknown part '$part' (parts: ${ALL[*]})" >&2; exit 2 ;;
   esac

@@ -34,6 +34,14 @@ if [[ -x $S3_VENV/bin/weed ]] && "$S3_VENV/bin/weed" version >/dev/null 2>&1; th
 else
   echo "NOTICE: no SeaweedFS (weed); the S3 store's tests will skip"
 fi
+# trimesh (the venv provision.sh makes, VOXD_MESH_VENV) reads the meshes `voxd mesh` and the mesh
+# route write (tests/mesh_cli.rs); once it imports, those checks are required.
+MESH_VENV=${VOXD_MESH_VENV:-${XDG_CACHE_HOME:-$HOME/.cache}/voxd/mesh-venv}
+if "$MESH_VENV/bin/python" -c 'import trimesh' 2>/dev/null; then
+  export VOXD_MESH_VENV=$MESH_VENV VOXD_REQUIRE_TRIMESH=1
+else
+  echo "NOTICE: no trimesh venv; the extracted meshes' trimesh checks will skip"
+fi
 # The native deployment test (scripts/deploy-e2e.sh: deploy/local.sh starts the compose topology
 # on 127.0.0.1) runs the replicas under tini, reads the compose file with PyYAML and starts
 # Debian's Prometheus (the binary only: the packaged service stays off). With tini, PyYAML,

@@ -19,6 +19,7 @@ mod flood;
 mod gpu;
 mod loaders;
 mod memory;
+mod mesh_cli;
 mod morph;
 mod observability;
 mod openapi_enums;

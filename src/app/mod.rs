@@ -16,11 +16,13 @@ pub mod error;
 pub mod files;
 pub mod jobs;
 pub mod memory;
+pub mod mesh;
 pub mod metadata;
 pub mod ops;
 pub mod queue;
 pub mod request;
 pub mod store;
+pub mod stream;
 pub mod voxelize;
 
 use std::time::{Duration, SystemTime};

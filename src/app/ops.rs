@@ -6,14 +6,13 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use bytes::Bytes;
 use serde::Serialize;
 use serde_json::{Value, json};
 
 use super::error::{Error, ErrorKind, Result};
 use super::metadata::{self, Origin};
 use super::request::{CsgExpr, MorphologyRequest, PreviewRequest, PreviewView, QueryRequest};
-use super::store::{ByteStream, StoreError, VolumeMeta, VolumeStore};
+use super::store::{ByteStream, VolumeMeta, VolumeStore};
 use crate::cancel::Control;
 use crate::codec::{VolumeFormat, vxl};
 use crate::grid::Grid;
@@ -697,9 +696,6 @@ pub struct Download {
     pub body: ByteStream,
 }
 
-/// Bytes per chunk of a converted download.
-const DOWNLOAD_CHUNK: usize = 256 << 10;
-
 /// A stored volume in `format`, as a stream. `.vxl` streams the stored bytes (checked as they
 /// pass, [`crate::store::verified`]); any other format decodes the volume once (what its codec
 /// needs) and encodes it a piece at a time on the blocking pool, at most a few chunks ahead of
@@ -736,62 +732,13 @@ pub async fn download(
     })
     .await?;
     let len = format.encoded_len(&v);
-    let (tx, rx) = tokio::sync::mpsc::channel::<std::result::Result<Bytes, StoreError>>(4);
     let name = id.to_string();
-    tokio::task::spawn_blocking(move || {
-        let mut w = ChunkSender {
-            buf: Vec::with_capacity(DOWNLOAD_CHUNK),
-            tx,
-        };
-        let r = format.write(&v, &mut w).and_then(|()| w.send());
-        match r {
-            // The client went away (the receiver is gone): nothing to tell.
-            Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {}
-            Err(e) => {
-                tracing::error!("encoding volume {name} as {}: {e}", format.name());
-                let _ = w.tx.blocking_send(Err(StoreError::Io(e)));
+    let body = super::stream::from_writer(move |w| {
+        format.write(&v, w).inspect_err(|e| {
+            if e.kind() != std::io::ErrorKind::BrokenPipe {
+                tracing::error!("encoding volume {name} as {}: {e}", format.name())
             }
-            Ok(()) => {}
-        }
+        })
     });
-    let body =
-        futures_util::stream::unfold(rx, |mut rx| async move { rx.recv().await.map(|c| (c, rx)) });
-    Ok(Download {
-        len,
-        body: Box::pin(body),
-    })
-}
-
-/// An `io::Write` that hands its bytes to a channel in chunks (from a blocking thread); a
-/// closed channel is `BrokenPipe`, which stops the writer.
-struct ChunkSender {
-    buf: Vec<u8>,
-    tx: tokio::sync::mpsc::Sender<std::result::Result<Bytes, StoreError>>,
-}
-
-impl ChunkSender {
-    fn send(&mut self) -> std::io::Result<()> {
-        if self.buf.is_empty() {
-            return Ok(());
-        }
-        let chunk = std::mem::replace(&mut self.buf, Vec::with_capacity(DOWNLOAD_CHUNK));
-        self.tx
-            .blocking_send(Ok(Bytes::from(chunk)))
-            .map_err(|_| std::io::Error::from(std::io::ErrorKind::BrokenPipe))
-    }
-}
-
-impl std::io::Write for ChunkSender {
-    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
-        let room = DOWNLOAD_CHUNK - self.buf.len();
-        let n = b.len().min(room);
-        self.buf.extend_from_slice(&b[..n]);
-        if self.buf.len() == DOWNLOAD_CHUNK {
-            self.send()?;
-        }
-        Ok(n)
-    }
-    fn flush(&mut self) -> std::io::Result<()> {
-        Ok(())
-    }
+    Ok(Download { len, body })
 }

@@ -21,7 +21,7 @@
 //! The enclosed volume is exactly the set voxels' count (lattice units); the surface passes
 //! through no voxel centre, so `method=solid` on the same grid sets exactly the same voxels.
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashMap;
 
 use super::TriMesh;
 use crate::cancel::{Canceled, Control};
@@ -30,14 +30,14 @@ use crate::volume::BitVolume;
 /// A merged rectangle of faces: plane `k` across axis `a`, cells [u0, u1) × [v0, v1) along the
 /// next two axes (b = a+1, c = a+2 mod 3), facing +a (`plus`) or −a.
 #[derive(Clone, Copy, Debug)]
-struct Rect {
-    a: usize,
-    k: u32,
-    plus: bool,
-    u0: u32,
-    v0: u32,
-    u1: u32,
-    v1: u32,
+pub(super) struct Rect {
+    pub a: usize,
+    pub k: u32,
+    pub plus: bool,
+    pub u0: u32,
+    pub v0: u32,
+    pub u1: u32,
+    pub v1: u32,
 }
 
 impl Rect {
@@ -59,40 +59,7 @@ impl Rect {
     }
 }
 
-/// An upper bound of the triangles [`cubes`] makes of `bits`, counted without building them:
-/// three per boundary face (a rectangle of w × h faces is two triangles, or a fan of at most
-/// 2(w + h) ≤ 3wh points) and twelve per pinched edge (its midpoint enters the rings of four
-/// faces, each turned into a fan at worst).
-pub fn triangle_bound(bits: &BitVolume) -> u64 {
-    let d = bits.dims();
-    let get = |p: [i64; 3]| {
-        (0..3).all(|a| p[a] >= 0 && p[a] < i64::from(d[a]))
-            && bits.get(p[0] as u32, p[1] as u32, p[2] as u32)
-    };
-    let mut n = 0;
-    for v in bits.iter_ones() {
-        let v = v.map(i64::from);
-        let at = |k: [i64; 3]| get([v[0] + k[0], v[1] + k[1], v[2] + k[2]]);
-        for a in 0..3 {
-            for s in [-1i64, 1] {
-                let mut k = [0; 3];
-                k[a] = s;
-                n += 3 * u64::from(!at(k));
-            }
-            // Pinched edges along a, counted from the voxel lower along b.
-            let (b, c) = ((a + 1) % 3, (a + 2) % 3);
-            for s in [-1i64, 1] {
-                let (mut diag, mut kb, mut kc) = ([0; 3], [0; 3], [0; 3]);
-                diag[b] = 1;
-                diag[c] = s;
-                kb[b] = 1;
-                kc[c] = s;
-                n += 12 * u64::from(at(diag) && !at(kb) && !at(kc));
-            }
-        }
-    }
-    n
-}
+pub use super::faces::triangle_bound;
 
 /// The boundary of `bits`' set voxels as a watertight, outward-oriented triangle mesh in lattice
 /// units. Checks `ctl` plane by plane.
@@ -102,70 +69,30 @@ pub fn cubes(bits: &BitVolume, ctl: &Control) -> Result<TriMesh, Canceled> {
         (0..3).all(|a| p[a] >= 0 && p[a] < i64::from(d[a]))
             && bits.get(p[0] as u32, p[1] as u32, p[2] as u32)
     };
-    let total: u64 = (0..3).map(|a| u64::from(d[a]) + 1).sum();
-    let counter = ctl.stage(0.0, 0.6).counter(total);
-    let mut rects = Vec::new();
-    for a in 0..3 {
-        let (b, c) = ((a + 1) % 3, (a + 2) % 3);
-        let (nb, nc) = (d[b] as usize, d[c] as usize);
-        let mut plus = vec![false; nb * nc];
-        let mut minus = vec![false; nb * nc];
-        for k in 0..=d[a] {
-            counter.check()?;
-            let mut any = false;
-            for u in 0..nb {
-                for v in 0..nc {
-                    let mut p = [0i64; 3];
-                    p[a] = i64::from(k);
-                    p[b] = u as i64;
-                    p[c] = v as i64;
-                    let hi = occ(p);
-                    p[a] -= 1;
-                    let lo = occ(p);
-                    plus[u * nc + v] = lo && !hi;
-                    minus[u * nc + v] = hi && !lo;
-                    any |= lo != hi;
-                }
-            }
-            if any {
-                merge(&mut plus, nb, nc, |u0, v0, u1, v1| {
-                    rects.push(Rect {
-                        a,
-                        k,
-                        plus: true,
-                        u0,
-                        v0,
-                        u1,
-                        v1,
-                    })
-                });
-                merge(&mut minus, nb, nc, |u0, v0, u1, v1| {
-                    rects.push(Rect {
-                        a,
-                        k,
-                        plus: false,
-                        u0,
-                        v0,
-                        u1,
-                        v1,
-                    })
-                });
-            }
-            counter.add(1);
+    let rects = super::faces::rectangles(bits, &ctl.stage(0.0, 0.6))?;
+    // Every rectangle corner, as a bit per lattice point ((X + 1)(Y + 1)(Z + 1) bits, the
+    // volume's own size).
+    let lattice = d.map(|n| u64::from(n) + 1);
+    let point_index = |p: [u32; 3]| {
+        ((u64::from(p[0]) * lattice[1] + u64::from(p[1])) * lattice[2] + u64::from(p[2])) as usize
+    };
+    let mut corners = vec![0u64; (lattice[0] * lattice[1] * lattice[2]).div_ceil(64) as usize];
+    for r in &rects {
+        for (u, v) in [(r.u0, r.v0), (r.u1, r.v0), (r.u1, r.v1), (r.u0, r.v1)] {
+            let i = point_index(r.point(u, v));
+            corners[i / 64] |= 1 << (i % 64);
         }
     }
-    let corners: HashSet<[u32; 3]> = rects
-        .iter()
-        .flat_map(|r| {
-            [(r.u0, r.v0), (r.u1, r.v0), (r.u1, r.v1), (r.u0, r.v1)].map(|(u, v)| r.point(u, v))
-        })
-        .collect();
+    let is_corner = |p: [u32; 3]| {
+        let i = point_index(p);
+        corners[i / 64] >> (i % 64) & 1 == 1
+    };
     let ctl = ctl.stage(0.6, 1.0);
     let counter = ctl.counter(rects.len() as u64);
     let mut out = TriMesh::default();
     // Vertices by (doubled lattice position, tag): a lattice point's tag is its sheet, an edge
     // midpoint's is 16 + the index of the set voxel whose faces it joins.
-    let mut ids: HashMap<([u32; 3], u64), u32> = HashMap::new();
+    let mut ids: HashMap<([u32; 3], u64), u32, foldhash::fast::RandomState> = HashMap::default();
     let mut ring: Vec<u32> = Vec::new();
     let voxel_index = |v: [u32; 3]| -> u64 {
         (u64::from(v[0]) * u64::from(d[1]) + u64::from(v[1])) * u64::from(d[2]) + u64::from(v[2])
@@ -201,7 +128,7 @@ pub fn cubes(bits: &BitVolume, ctl: &Control) -> Result<TriMesh, Canceled> {
                 };
                 let (pu, pv) = at(t);
                 let p = r.point(pu, pv);
-                if t == 0 || corners.contains(&p) {
+                if t == 0 || is_corner(p) {
                     // A face cell of the rectangle touching p, and the voxel behind it.
                     let cu = pu.clamp(r.u0, r.u1 - 1);
                     let cv = pv.clamp(r.v0, r.v1 - 1);
@@ -245,32 +172,6 @@ pub fn cubes(bits: &BitVolume, ctl: &Control) -> Result<TriMesh, Canceled> {
     }
     ctl.complete();
     Ok(out)
-}
-
-/// Greedy rectangles of the set cells of `mask` (nb × nc, cleared as they are taken).
-fn merge(mask: &mut [bool], nb: usize, nc: usize, mut emit: impl FnMut(u32, u32, u32, u32)) {
-    for u in 0..nb {
-        let mut v = 0;
-        while v < nc {
-            if !mask[u * nc + v] {
-                v += 1;
-                continue;
-            }
-            let mut v1 = v + 1;
-            while v1 < nc && mask[u * nc + v1] {
-                v1 += 1;
-            }
-            let mut u1 = u + 1;
-            while u1 < nb && mask[u1 * nc + v..u1 * nc + v1].iter().all(|&m| m) {
-                u1 += 1;
-            }
-            for uu in u..u1 {
-                mask[uu * nc + v..uu * nc + v1].fill(false);
-            }
-            emit(u as u32, v as u32, u1 as u32, v1 as u32);
-            v = v1;
-        }
-    }
 }
 
 /// Is the unit lattice edge p–q (one axis apart) pinched: of the four voxels around it, exactly

@@ -12,6 +12,7 @@
 
 pub mod check;
 pub mod cubes;
+mod faces;
 pub mod write;
 
 use crate::grid::Grid;

@@ -4,7 +4,7 @@
 use super::TriMesh;
 use super::check::check;
 use super::cubes::{cubes, triangle_bound};
-use super::write::{MeshFormat, write};
+use super::write::{MeshFormat, encoded_len, write};
 use crate::cancel::Control;
 use crate::engine::Method;
 use crate::engine::cpu::CpuEngine;
@@ -120,7 +120,71 @@ fn random_volumes_round_trip() {
                 }
             }
         }
+        assert_eq!(triangle_bound(&b), brute_bound(&b), "{dims:?}");
         round_trip(&b);
+    }
+}
+
+/// The triangle bound, counted voxel by voxel: 3 per boundary face, 12 per pinched edge.
+fn brute_bound(b: &BitVolume) -> u64 {
+    let d = b.dims().map(i64::from);
+    let at = |p: [i64; 3]| {
+        (0..3).all(|a| p[a] >= 0 && p[a] < d[a]) && b.get(p[0] as u32, p[1] as u32, p[2] as u32)
+    };
+    let mut n = 0;
+    for x in -1..=d[0] {
+        for y in -1..=d[1] {
+            for z in -1..=d[2] {
+                let p = [x, y, z];
+                for a in 0..3 {
+                    let mut q = p;
+                    q[a] += 1;
+                    n += 3 * u64::from(at(p) != at(q));
+                    // The edge along a through the corner p + 1 (in the other two axes): the
+                    // four voxels p, p + e_b, p + e_c, p + e_b + e_c.
+                    let (bb, cc) = ((a + 1) % 3, (a + 2) % 3);
+                    let (mut pb, mut pc, mut pbc) = (p, p, p);
+                    pb[bb] += 1;
+                    pc[cc] += 1;
+                    pbc[bb] += 1;
+                    pbc[cc] += 1;
+                    let (v0, v1, v2, v3) = (at(p), at(pb), at(pc), at(pbc));
+                    n += 12 * u64::from(v0 == v3 && v1 == v2 && v0 != v1);
+                }
+            }
+        }
+    }
+    n
+}
+
+#[test]
+fn columns_longer_than_a_word_round_trip_and_bound() {
+    let mut rng = Rng::new(34);
+    for (case, dims) in [
+        [2, 3, 64],
+        [3, 2, 65],
+        [2, 2, 128],
+        [3, 3, 130],
+        [1, 4, 200],
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        for p in [0.1, 0.5, 0.9] {
+            let mut b = BitVolume::new(grid(dims));
+            for x in 0..dims[0] {
+                for y in 0..dims[1] {
+                    for z in 0..dims[2] {
+                        // Runs across the word boundaries as well as single voxels.
+                        if rng.unit() < p || (case % 2 == 0 && (60..70).contains(&z)) {
+                            b.set(x, y, z, true);
+                        }
+                    }
+                }
+            }
+            assert_eq!(triangle_bound(&b), brute_bound(&b), "{dims:?} {p}");
+            round_trip(&b);
+        }
     }
 }
 
@@ -133,6 +197,7 @@ fn files_hold_the_mesh() {
     for f in MeshFormat::ALL {
         let mut out = Vec::new();
         write(&m, f, &mut out).unwrap();
+        let out_len = out.len() as u64;
         assert!(
             out.len() as u64 <= f.size_bound(m.positions.len() as u64, m.triangles.len() as u64)
         );
@@ -156,6 +221,24 @@ fn files_hold_the_mesh() {
                     24 * m.positions.len() + 13 * m.triangles.len()
                 );
             }
+            MeshFormat::Glb => {
+                // Read back by the gltf crate: the same positions (float32) and triangles.
+                let g = gltf::Gltf::from_slice(&out).unwrap();
+                let blob = g.blob.as_deref().unwrap();
+                let mesh = g.meshes().next().unwrap();
+                let prim = mesh.primitives().next().unwrap();
+                assert_eq!(prim.mode(), gltf::mesh::Mode::Triangles);
+                let reader = prim.reader(|_| Some(blob));
+                let pos: Vec<[f32; 3]> = reader.read_positions().unwrap().collect();
+                let want: Vec<[f32; 3]> = m.positions.iter().map(|p| p.map(|c| c as f32)).collect();
+                assert_eq!(pos, want);
+                let idx: Vec<u32> = reader.read_indices().unwrap().into_u32().collect();
+                let want: Vec<u32> = m.triangles.iter().flatten().copied().collect();
+                assert_eq!(idx, want);
+            }
+        }
+        if let Some(n) = encoded_len(&m, f) {
+            assert_eq!(n, out_len, "{f:?}");
         }
     }
 }

@@ -1,6 +1,7 @@
 //! Mesh files: OBJ (text, positions as Rust's shortest round-trip decimals), binary STL
-//! (float32, as the format has it) and binary little-endian PLY (float64 positions, uint32
-//! indices). Written to any `Write`, piece by piece.
+//! (float32, as the format has it), binary little-endian PLY (float64 positions, uint32
+//! indices) and GLB (binary glTF 2.0: one mesh of one indexed triangle primitive, float32
+//! positions with their bounds, uint32 indices). Written to any `Write`, piece by piece.
 
 use std::io::{self, Write};
 
@@ -12,16 +13,23 @@ pub enum MeshFormat {
     Obj,
     Stl,
     Ply,
+    Glb,
 }
 
 impl MeshFormat {
-    pub const ALL: [MeshFormat; 3] = [MeshFormat::Obj, MeshFormat::Stl, MeshFormat::Ply];
+    pub const ALL: [MeshFormat; 4] = [
+        MeshFormat::Obj,
+        MeshFormat::Stl,
+        MeshFormat::Ply,
+        MeshFormat::Glb,
+    ];
 
     pub fn as_str(self) -> &'static str {
         match self {
             MeshFormat::Obj => "obj",
             MeshFormat::Stl => "stl",
             MeshFormat::Ply => "ply",
+            MeshFormat::Glb => "glb",
         }
     }
 
@@ -30,6 +38,7 @@ impl MeshFormat {
             MeshFormat::Obj => "model/obj",
             MeshFormat::Stl => "model/stl",
             MeshFormat::Ply => "application/x-ply",
+            MeshFormat::Glb => "model/gltf-binary",
         }
     }
 
@@ -37,7 +46,7 @@ impl MeshFormat {
         MeshFormat::ALL
             .into_iter()
             .find(|f| f.as_str() == s)
-            .ok_or_else(|| format!("mesh format must be obj, stl or ply, got {s:?}"))
+            .ok_or_else(|| format!("mesh format must be one of glb, obj, stl, ply, got {s:?}"))
     }
 
     /// The format named by a file's extension.
@@ -49,7 +58,7 @@ impl MeshFormat {
             .to_ascii_lowercase();
         MeshFormat::parse(&ext).map_err(|_| {
             format!(
-                "{}: the mesh format is taken from the extension: .obj, .stl or .ply",
+                "{}: the mesh format is taken from the extension: .glb, .obj, .stl or .ply",
                 p.display()
             )
         })
@@ -61,8 +70,76 @@ impl MeshFormat {
             MeshFormat::Obj => 256 + vertices * 80 + triangles * 40,
             MeshFormat::Stl => 84 + triangles * 50,
             MeshFormat::Ply => 256 + vertices * 24 + triangles * 13,
+            MeshFormat::Glb => 1024 + vertices * 12 + triangles * 12,
         }
     }
+}
+
+/// The exact bytes [`write`] writes for `m` as `format`; `None` for OBJ (decimal text).
+pub fn encoded_len(m: &TriMesh, format: MeshFormat) -> Option<u64> {
+    let (v, t) = (m.positions.len() as u64, m.triangles.len() as u64);
+    match format {
+        MeshFormat::Obj => None,
+        MeshFormat::Stl => Some(84 + 50 * t),
+        MeshFormat::Ply => Some(ply_header(m).len() as u64 + 24 * v + 13 * t),
+        MeshFormat::Glb => Some(12 + 8 + glb_json(m).len() as u64 + 8 + 12 * v + 12 * t),
+    }
+}
+
+fn ply_header(m: &TriMesh) -> String {
+    format!(
+        "ply\nformat binary_little_endian 1.0\ncomment voxd\n\
+         element vertex {}\nproperty double x\nproperty double y\nproperty double z\n\
+         element face {}\nproperty list uchar uint vertex_indices\nend_header\n",
+        m.positions.len(),
+        m.triangles.len()
+    )
+}
+
+/// The float32 positions' bounds, which glTF requires of a POSITION accessor.
+fn bounds(m: &TriMesh) -> ([f32; 3], [f32; 3]) {
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
+    for p in &m.positions {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a] as f32);
+            hi[a] = hi[a].max(p[a] as f32);
+        }
+    }
+    if m.positions.is_empty() {
+        (lo, hi) = ([0.0; 3], [0.0; 3]);
+    }
+    (lo, hi)
+}
+
+/// The GLB's JSON chunk, padded with spaces to a multiple of 4 bytes: positions (view 0) then
+/// indices (view 1) in the one binary buffer. (Both views' lengths are multiples of 4, so the
+/// binary chunk needs no padding.)
+fn glb_json(m: &TriMesh) -> String {
+    let (v, t) = (m.positions.len() as u64, m.triangles.len() as u64);
+    let (lo, hi) = bounds(m);
+    let mut j = serde_json::json!({
+        "asset": {"version": "2.0", "generator": "voxd"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "mode": 4}]}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": v, "type": "VEC3",
+             "min": lo, "max": hi},
+            {"bufferView": 1, "componentType": 5125, "count": 3 * t, "type": "SCALAR"}
+        ],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 12 * v, "target": 34962},
+            {"buffer": 0, "byteOffset": 12 * v, "byteLength": 12 * t, "target": 34963}
+        ],
+        "buffers": [{"byteLength": 12 * v + 12 * t}]
+    })
+    .to_string();
+    while j.len() % 4 != 0 {
+        j.push(' ');
+    }
+    j
 }
 
 /// Writes `m` as `format` to `w`.
@@ -112,14 +189,7 @@ pub fn write(m: &TriMesh, format: MeshFormat, w: &mut impl Write) -> io::Result<
             }
         }
         MeshFormat::Ply => {
-            write!(
-                w,
-                "ply\nformat binary_little_endian 1.0\ncomment voxd\n\
-                 element vertex {}\nproperty double x\nproperty double y\nproperty double z\n\
-                 element face {}\nproperty list uchar uint vertex_indices\nend_header\n",
-                m.positions.len(),
-                m.triangles.len()
-            )?;
+            w.write_all(ply_header(m).as_bytes())?;
             for p in &m.positions {
                 for c in p {
                     w.write_all(&c.to_le_bytes())?;
@@ -127,6 +197,35 @@ pub fn write(m: &TriMesh, format: MeshFormat, w: &mut impl Write) -> io::Result<
             }
             for t in &m.triangles {
                 w.write_all(&[3])?;
+                for i in t {
+                    w.write_all(&i.to_le_bytes())?;
+                }
+            }
+        }
+        MeshFormat::Glb => {
+            let json = glb_json(m);
+            let bin = 12 * (m.positions.len() as u64 + m.triangles.len() as u64);
+            let total = 12 + 8 + json.len() as u64 + 8 + bin;
+            let total = u32::try_from(total).map_err(|_| {
+                io::Error::new(
+                    io::ErrorKind::InvalidInput,
+                    format!("a GLB holds at most 4 GiB; this mesh would be {total} bytes"),
+                )
+            })?;
+            w.write_all(b"glTF")?;
+            w.write_all(&2u32.to_le_bytes())?;
+            w.write_all(&total.to_le_bytes())?;
+            w.write_all(&(json.len() as u32).to_le_bytes())?;
+            w.write_all(b"JSON")?;
+            w.write_all(json.as_bytes())?;
+            w.write_all(&(bin as u32).to_le_bytes())?;
+            w.write_all(b"BIN\0")?;
+            for p in &m.positions {
+                for c in p {
+                    w.write_all(&(*c as f32).to_le_bytes())?;
+                }
+            }
+            for t in &m.triangles {
                 for i in t {
                     w.write_all(&i.to_le_bytes())?;
                 }

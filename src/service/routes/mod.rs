@@ -7,6 +7,7 @@ mod distance;
 mod download;
 mod health;
 mod jobs;
+mod mesh;
 mod volumes;
 mod voxelize;
 
@@ -47,6 +48,7 @@ pub const ROUTES: &[(&str, &[&str])] = &[
     ("/v1/volumes/{id}/query", &["POST"]),
     ("/v1/volumes/{id}/normals", &["GET"]),
     ("/v1/volumes/{id}/preview.png", &["GET"]),
+    ("/v1/volumes/{id}/mesh", &["GET"]),
     ("/healthz", &["GET"]),
     ("/readyz", &["GET"]),
     ("/metrics", &["GET"]),
@@ -85,6 +87,7 @@ pub fn router(app: Arc<App>) -> Router {
         .route("/v1/volumes/{id}/query", post(volumes::query))
         .route("/v1/volumes/{id}/normals", get(volumes::normals))
         .route("/v1/volumes/{id}/preview.png", get(volumes::preview))
+        .route("/v1/volumes/{id}/mesh", get(mesh::mesh))
         .merge(probes())
         .route("/openapi.yaml", get(health::openapi))
         .fallback(|| async {

@@ -1,0 +1,105 @@
+//! Meshes out of stored volumes (issue 33; definitions: docs/methods.md, "Meshes out"), for
+//! `GET /v1/volumes/{id}/mesh`. Bounded in two steps before anything is built: the volume's
+//! occupancy and the triangle count its boundary could give ([`plan`]: over
+//! `Limits::max_triangles` is `too-many-triangles`, with the numbers), then the memory the
+//! build needs for that many triangles ([`build_cost`]); the build runs under a [`Control`]
+//! (cancelled when the client goes away), and the file is written while it is sent.
+
+use super::error::{Error, ErrorKind, Result};
+use super::ops::{blocking_with, load};
+use super::store::VolumeStore;
+use crate::cancel::Control;
+use crate::extract::write::MeshFormat;
+use crate::extract::{Algorithm, TriMesh, cubes, occupancy};
+use crate::grid::Grid;
+use crate::limits::Limits;
+use crate::volume::{BitVolume, Volume};
+
+/// What to extract and how to write it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MeshRequest {
+    pub algorithm: Algorithm,
+    pub format: MeshFormat,
+}
+
+impl MeshRequest {
+    /// From a front's strings; `None` takes the defaults (`cubes`, `obj`).
+    pub fn parse(algorithm: Option<&str>, format: Option<&str>) -> Result<MeshRequest> {
+        Ok(MeshRequest {
+            algorithm: algorithm
+                .map_or(Ok(Algorithm::Cubes), Algorithm::parse)
+                .map_err(Error::invalid)?,
+            format: format
+                .map_or(Ok(MeshFormat::Obj), MeshFormat::parse)
+                .map_err(Error::invalid)?,
+        })
+    }
+}
+
+/// A volume's occupancy with the bound of its mesh's triangles.
+pub struct Planned {
+    pub bits: BitVolume,
+    pub triangles: u64,
+}
+
+/// Bytes a build holds per triangle of the bound: the triangle (12), its share of vertices
+/// (positions in lattice and world units, 48, and their table entries, 24) and of merged
+/// rectangles (12).
+pub const BYTES_PER_TRIANGLE: u64 = 96;
+
+/// The occupancy of `v` and its triangle bound; `too-many-triangles` over the limit.
+pub fn plan(v: Volume, limits: &Limits) -> Result<Planned> {
+    let bits = match v {
+        Volume::Bits(b) => b,
+        v => occupancy(&v),
+    };
+    let triangles = cubes::triangle_bound(&bits);
+    let max = limits.max_triangles as u64;
+    if triangles > max {
+        return Err(Error::new(
+            ErrorKind::TooManyTriangles,
+            format!(
+                "the mesh of this volume's {} set voxels could have up to {triangles} \
+                 triangles, over the limit of {max}: extract a smaller or coarser volume",
+                bits.count_ones()
+            ),
+        ));
+    }
+    Ok(Planned { bits, triangles })
+}
+
+/// Bytes the build of `p` needs beyond the occupancy: the triangles' share
+/// ([`BYTES_PER_TRIANGLE`]) and a bit per lattice point (the rectangles' corners).
+pub fn build_cost(p: &Planned) -> u64 {
+    let d = p.bits.dims().map(|n| u64::from(n) + 1);
+    p.triangles
+        .saturating_mul(BYTES_PER_TRIANGLE)
+        .saturating_add((d[0] * d[1] * d[2]).div_ceil(8))
+}
+
+/// The occupancy and bound of stored volume `id` (loaded once, dropped after).
+pub async fn plan_stored(
+    store: &dyn VolumeStore,
+    id: &str,
+    limits: &Limits,
+    ctl: &Control,
+) -> Result<Planned> {
+    let v = load(store, id).await?;
+    let limits = *limits;
+    blocking_with(ctl, move |_| plan(v, &limits)).await
+}
+
+/// The mesh of `p` by `algorithm`, in world coordinates.
+pub fn build(p: &Planned, algorithm: Algorithm, ctl: &Control) -> Result<TriMesh> {
+    let grid: Grid = *p.bits.grid();
+    let m = match algorithm {
+        Algorithm::Cubes => cubes::cubes(&p.bits, ctl)?,
+    };
+    ctl.complete();
+    Ok(m.to_world(&grid))
+}
+
+/// [`build`] on the blocking pool, cancelled when the returned future is dropped.
+pub async fn build_async(p: Planned, algorithm: Algorithm, ctl: &Control) -> Result<TriMesh> {
+    blocking_with(ctl, move |ctl| build(&p, algorithm, ctl)).await
+}

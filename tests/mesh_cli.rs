@@ -1,0 +1,174 @@
+//! `voxd mesh` (issue 33: meshes back out), on files: a volume's boundary written as OBJ, STL
+//! and PLY, each read back two ways — voxelized again by voxd itself (`method=solid`,
+//! `fill=parity` on the same grid must give the same bits) and by trimesh, the reader users
+//! use (watertight, winding consistent, enclosed volume = set voxels × s³). trimesh comes from
+//! the venv scripts/provision.sh makes (`VOXD_MESH_VENV`); it is required where
+//! `VOXD_REQUIRE_TRIMESH=1` (scripts/test.sh sets it once the venv imports).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use crate::common::run_voxd as voxd;
+use crate::common::*;
+use voxd::codec::VolumeFormat;
+use voxd::volume::{BitVolume, Volume};
+
+/// The grid: voxel corners at multiples of 1/8 (exact in f32, so STL's float32 positions are
+/// the lattice's exactly).
+const GRID: [&str; 6] = [
+    "--origin",
+    "-3.25,-0.25,-2.25",
+    "--voxel-size",
+    "0.125",
+    "--dims",
+    "56,30,38",
+];
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn ok(args: &[&str]) -> String {
+    let o = voxd(args);
+    assert!(
+        o.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn bits(p: &Path) -> BitVolume {
+    let b = std::fs::read(p).unwrap();
+    match VolumeFormat::sniff(&b).unwrap().decode(&b).unwrap() {
+        Volume::Bits(b) => b,
+        v => panic!("{}: a bit volume, got {:?}", p.display(), v.kind()),
+    }
+}
+
+/// The trimesh venv's python, or `None` with a notice where it is absent and not required.
+pub(crate) fn trimesh_python() -> Option<PathBuf> {
+    let venv = std::env::var_os("VOXD_MESH_VENV").map(PathBuf::from);
+    let py = venv.map(|v| v.join("bin/python"));
+    let works = py.as_ref().is_some_and(|py| {
+        Command::new(py)
+            .args(["-c", "import trimesh"])
+            .output()
+            .is_ok_and(|o| o.status.success())
+    });
+    if works {
+        return py;
+    }
+    assert!(
+        std::env::var("VOXD_REQUIRE_TRIMESH").as_deref() != Ok("1"),
+        "trimesh is required here but VOXD_MESH_VENV's python cannot import it (scripts/provision.sh mesh)"
+    );
+    eprintln!("NOTICE: no trimesh venv (VOXD_MESH_VENV); skipping the trimesh checks");
+    None
+}
+
+/// trimesh's reading of the mesh file `p`: (watertight, winding consistent, volume, triangles).
+pub(crate) fn trimesh_check(py: &Path, p: &Path) -> (bool, bool, f64, u64) {
+    let script = "import sys, trimesh\n\
+        m = trimesh.load(sys.argv[1], force='mesh', process=True)\n\
+        print(m.is_watertight, m.is_winding_consistent, repr(float(m.volume)), len(m.faces))";
+    let o = Command::new(py)
+        .args(["-c", script, s(p)])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = String::from_utf8_lossy(&o.stdout);
+    let w: Vec<&str> = out.split_whitespace().collect();
+    (
+        w[0] == "True",
+        w[1] == "True",
+        w[2].parse().unwrap(),
+        w[3].parse().unwrap(),
+    )
+}
+
+#[test]
+fn cubes_of_the_teapot_read_back_as_the_same_voxels() {
+    let dir = Scratch::new("mesh-cli");
+    let vol = dir.join("teapot.vxl");
+    let mut args = vec![
+        "voxelize",
+        s(&data("teapot.obj")),
+        "-o",
+        s(&vol),
+        "--fill",
+        "winding",
+        "--engine",
+        "cpu",
+    ];
+    args.extend(GRID);
+    ok(&args);
+    let want = bits(&vol);
+    let n = want.count_ones();
+    assert!(n > 1000, "{n} voxels");
+    let py = trimesh_python();
+    for ext in ["obj", "stl", "ply", "glb"] {
+        let out = dir.join(format!("teapot.{ext}"));
+        let said = ok(&["mesh", s(&vol), "-o", s(&out), "--algorithm", "cubes"]);
+        assert!(said.contains("watertight"), "{said}");
+        // voxd again, by the solid (even-odd) rule on the same grid.
+        let again = dir.join(format!("again-{ext}.vxl"));
+        let mut args = vec![
+            "voxelize",
+            s(&out),
+            "-o",
+            s(&again),
+            "--method",
+            "solid",
+            "--fill",
+            "parity",
+            "--engine",
+            "cpu",
+        ];
+        args.extend(GRID);
+        ok(&args);
+        assert!(bits(&again) == want, "{ext}: re-voxelized voxels differ");
+        if let Some(py) = &py {
+            let (watertight, consistent, volume, _) = trimesh_check(py, &out);
+            assert!(watertight && consistent, "{ext}: trimesh");
+            let s3 = 0.125f64.powi(3);
+            assert!(
+                (volume - n as f64 * s3).abs() <= 1e-9 * n as f64 * s3,
+                "{ext}: volume {volume} vs {}",
+                n as f64 * s3
+            );
+        }
+    }
+}
+
+#[test]
+fn mesh_refuses_unknown_formats_and_algorithms() {
+    let dir = Scratch::new("mesh-cli-refusals");
+    let vol = dir.join("box.vxl");
+    ok(&[
+        "voxelize",
+        s(&data("Box.gltf")),
+        "-o",
+        s(&vol),
+        "--resolution",
+        "8",
+        "--engine",
+        "cpu",
+    ]);
+    let o = voxd(&["mesh", s(&vol), "-o", s(&dir.join("box.fbx"))]);
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains(".glb, .obj, .stl or .ply"), "{e}");
+    let o = voxd(&[
+        "mesh",
+        s(&vol),
+        "-o",
+        s(&dir.join("box.obj")),
+        "--algorithm",
+        "bricks",
+    ]);
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("algorithm must be one of cubes"), "{e}");
+    assert!(!dir.join("box.obj").exists());
+}
