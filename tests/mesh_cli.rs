@@ -67,10 +67,12 @@ pub(crate) fn trimesh_python() -> Option<PathBuf> {
     None
 }
 
-/// trimesh's reading of the mesh file `p`: (watertight, winding consistent, volume, triangles).
+/// trimesh's reading of the mesh file `p`, its vertices as the file indexes them (not merged
+/// by position: where two parts of a solid touch along an edge or at a point, the mesh has a
+/// vertex for each): (watertight, winding consistent, volume, triangles).
 pub(crate) fn trimesh_check(py: &Path, p: &Path) -> (bool, bool, f64, u64) {
     let script = "import sys, trimesh\n\
-        m = trimesh.load(sys.argv[1], force='mesh', process=True)\n\
+        m = trimesh.load(sys.argv[1], force='mesh', process=False)\n\
         print(m.is_watertight, m.is_winding_consistent, repr(float(m.volume)), len(m.faces))";
     let o = Command::new(py)
         .args(["-c", script, s(p)])
@@ -91,9 +93,10 @@ pub(crate) fn trimesh_check(py: &Path, p: &Path) -> (bool, bool, f64, u64) {
 fn cubes_of_the_teapot_read_back_as_the_same_voxels() {
     let dir = Scratch::new("mesh-cli");
     let vol = dir.join("teapot.vxl");
+    let teapot = data("teapot.obj");
     let mut args = vec![
         "voxelize",
-        s(&data("teapot.obj")),
+        s(&teapot),
         "-o",
         s(&vol),
         "--fill",
@@ -130,7 +133,11 @@ fn cubes_of_the_teapot_read_back_as_the_same_voxels() {
         assert!(bits(&again) == want, "{ext}: re-voxelized voxels differ");
         if let Some(py) = &py {
             let (watertight, consistent, volume, _) = trimesh_check(py, &out);
-            assert!(watertight && consistent, "{ext}: trimesh");
+            // STL has no vertex indices: a reader joins its triangles by position, and sees
+            // the edges where two parts touch as shared by four triangles. Its triangles are
+            // still consistently wound and enclose the same volume.
+            assert!(watertight || ext == "stl", "{ext}: trimesh: not watertight");
+            assert!(consistent, "{ext}: trimesh: winding not consistent");
             let s3 = 0.125f64.powi(3);
             assert!(
                 (volume - n as f64 * s3).abs() <= 1e-9 * n as f64 * s3,

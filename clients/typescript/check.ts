@@ -91,6 +91,10 @@ const png = await expect("get /v1/volumes/{id}/preview.png", 200, client.GET("/v
   params: { path: { id: a.id }, query: slice }, parseAs: "arrayBuffer",
 }));
 if (new Uint8Array(png as ArrayBuffer)[1] !== 0x50) throw new Error("the preview is no PNG");
+const glb = await expect("get /v1/volumes/{id}/mesh", 200, client.GET("/v1/volumes/{id}/mesh", {
+  params: { path: { id: a.id }, query: { algorithm: "cubes", format: "glb" } }, parseAs: "arrayBuffer",
+}));
+if (new TextDecoder().decode((glb as ArrayBuffer).slice(0, 4)) !== "glTF") throw new Error("the mesh is no GLB");
 const npy = await expect("get /v1/volumes/{id}/data", 200, client.GET("/v1/volumes/{id}/data", {
   params: { path: { id: a.id }, query: { format: "npy" } }, parseAs: "arrayBuffer",
 }));

@@ -296,6 +296,8 @@ pub struct ServeArgs {
     /// Largest JSON request body in bytes (CSG expressions, queries), checked while reading.
     #[arg(long, env = "VOXD_MAX_JSON_BYTES", default_value_t = Limits::SERVICE.max_json_bytes)]
     pub max_json_bytes: usize,
+    /// Triangles of an uploaded mesh, and of a mesh extracted from a volume (`…/mesh`, counted
+    /// from the boundary before it is built).
     #[arg(long, env = "VOXD_MAX_TRIANGLES", default_value_t = Limits::SERVICE.max_triangles)]
     pub max_triangles: usize,
     /// Voxel budget of one job.

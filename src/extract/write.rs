@@ -37,7 +37,7 @@ impl MeshFormat {
         match self {
             MeshFormat::Obj => "model/obj",
             MeshFormat::Stl => "model/stl",
-            MeshFormat::Ply => "application/x-ply",
+            MeshFormat::Ply => "model/ply",
             MeshFormat::Glb => "model/gltf-binary",
         }
     }

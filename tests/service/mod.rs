@@ -24,6 +24,7 @@ mod distance_ops;
 mod http;
 mod inputs;
 mod jobs;
+mod mesh;
 mod ops;
 
 pub(crate) struct Server {

@@ -31,6 +31,7 @@ from voxd_client.generated.api.default import (
     get_v1_volumes,
     get_v1_volumes_id,
     get_v1_volumes_id_data,
+    get_v1_volumes_id_mesh,
     get_v1_volumes_id_normals,
     get_v1_volumes_id_preview_png,
     get_v1_volumes_id_stats,
@@ -46,6 +47,8 @@ from voxd_client.generated.models import (
     CsgExpression,
     CsgExpressionOp,
     GetV1VolumesIdDataFormat,
+    GetV1VolumesIdMeshAlgorithm,
+    GetV1VolumesIdMeshFormat,
     GetV1VolumesIdPreviewPngAxis,
     Job,
     PostV1VolumesIdMorphologyBody,
@@ -267,6 +270,10 @@ def test_volume_operations(vox, client, box):
     assert png.payload.read(8) == b"\x89PNG\r\n\x1a\n"
     proj = ran(get_v1_volumes_id_preview_png).sync(a.id, client=client)
     assert proj.payload.read(4) == b"\x89PNG"
+    glb = ran(get_v1_volumes_id_mesh).sync(
+        a.id, client=client, algorithm=GetV1VolumesIdMeshAlgorithm.CUBES, format_=GetV1VolumesIdMeshFormat.GLB
+    )
+    assert glb.payload.read(4) == b"glTF"
     raw = ran(get_v1_volumes_id_data).sync(a.id, client=client, format_=GetV1VolumesIdDataFormat.RAW)
     assert len(raw.payload.read()) == 8 * 8 * 8
     for fmt in ("vxl", "binvox", "npy", "raw"):

@@ -7,6 +7,8 @@ from .distance_stats import DistanceStats
 from .get_healthz_response_200 import GetHealthzResponse200
 from .get_readyz_response_200 import GetReadyzResponse200
 from .get_v1_volumes_id_data_format import GetV1VolumesIdDataFormat
+from .get_v1_volumes_id_mesh_algorithm import GetV1VolumesIdMeshAlgorithm
+from .get_v1_volumes_id_mesh_format import GetV1VolumesIdMeshFormat
 from .get_v1_volumes_id_normals_response_200 import GetV1VolumesIdNormalsResponse200
 from .get_v1_volumes_id_preview_png_axis import GetV1VolumesIdPreviewPngAxis
 from .get_v1_volumes_id_preview_png_projection import GetV1VolumesIdPreviewPngProjection
@@ -62,6 +64,8 @@ __all__ = (
     "GetHealthzResponse200",
     "GetReadyzResponse200",
     "GetV1VolumesIdDataFormat",
+    "GetV1VolumesIdMeshAlgorithm",
+    "GetV1VolumesIdMeshFormat",
     "GetV1VolumesIdNormalsResponse200",
     "GetV1VolumesIdPreviewPngAxis",
     "GetV1VolumesIdPreviewPngProjection",
