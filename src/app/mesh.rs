@@ -10,6 +10,9 @@ use super::ops::{blocking_with, load};
 use super::store::VolumeStore;
 use crate::cancel::Control;
 use crate::extract::write::MeshFormat;
+use std::borrow::Cow;
+
+use crate::extract::surface_nets::{self, Field};
 use crate::extract::{Algorithm, TriMesh, cubes, occupancy};
 use crate::grid::Grid;
 use crate::limits::Limits;
@@ -36,10 +39,15 @@ impl MeshRequest {
     }
 }
 
-/// A volume's occupancy with the bound of its mesh's triangles.
+/// A volume with the voxels its mesh bounds and the bound of its triangles.
 pub struct Planned {
+    /// The volume, where the algorithm reads its values (surface nets of distance and density
+    /// volumes); else `None`.
+    pub volume: Option<Volume>,
+    /// The voxels inside the mesh.
     pub bits: BitVolume,
     pub triangles: u64,
+    pub algorithm: Algorithm,
 }
 
 /// Bytes a build holds per triangle of the bound: the triangle (12), its share of vertices
@@ -47,25 +55,40 @@ pub struct Planned {
 /// rectangles (12).
 pub const BYTES_PER_TRIANGLE: u64 = 96;
 
-/// The occupancy of `v` and its triangle bound; `too-many-triangles` over the limit.
-pub fn plan(v: Volume, limits: &Limits) -> Result<Planned> {
-    let bits = match v {
-        Volume::Bits(b) => b,
-        v => occupancy(&v),
+/// The voxels of `v` the mesh by `algorithm` bounds and its triangle bound (cubes: three per
+/// boundary face and twelve per pinched edge; surface nets: exactly two per boundary face);
+/// `too-many-triangles` over the limit.
+pub fn plan(v: Volume, algorithm: Algorithm, limits: &Limits) -> Result<Planned> {
+    let (volume, bits) = match (algorithm, v) {
+        (_, Volume::Bits(b)) => (None, b),
+        (Algorithm::Cubes, v) => (None, occupancy(&v)),
+        (Algorithm::SurfaceNets, v) => {
+            let bits = surface_nets::inside(&v).into_owned();
+            (Some(v), bits)
+        }
     };
-    let triangles = cubes::triangle_bound(&bits);
+    let triangles = match algorithm {
+        Algorithm::Cubes => cubes::triangle_bound(&bits),
+        Algorithm::SurfaceNets => 2 * cubes::boundary_counts(&bits).0,
+    };
     let max = limits.max_triangles as u64;
     if triangles > max {
         return Err(Error::new(
             ErrorKind::TooManyTriangles,
             format!(
-                "the mesh of this volume's {} set voxels could have up to {triangles} \
+                "the {} mesh of this volume's {} inside voxels could have up to {triangles} \
                  triangles, over the limit of {max}: extract a smaller or coarser volume",
+                algorithm.as_str(),
                 bits.count_ones()
             ),
         ));
     }
-    Ok(Planned { bits, triangles })
+    Ok(Planned {
+        volume,
+        bits,
+        triangles,
+        algorithm,
+    })
 }
 
 /// Bytes the build of `p` needs beyond the occupancy: the triangles' share
@@ -81,25 +104,32 @@ pub fn build_cost(p: &Planned) -> u64 {
 pub async fn plan_stored(
     store: &dyn VolumeStore,
     id: &str,
+    algorithm: Algorithm,
     limits: &Limits,
     ctl: &Control,
 ) -> Result<Planned> {
     let v = load(store, id).await?;
     let limits = *limits;
-    blocking_with(ctl, move |_| plan(v, &limits)).await
+    blocking_with(ctl, move |_| plan(v, algorithm, &limits)).await
 }
 
-/// The mesh of `p` by `algorithm`, in world coordinates.
-pub fn build(p: &Planned, algorithm: Algorithm, ctl: &Control) -> Result<TriMesh> {
+/// The mesh of `p`, in world coordinates.
+pub fn build(p: &Planned, ctl: &Control) -> Result<TriMesh> {
     let grid: Grid = *p.bits.grid();
-    let m = match algorithm {
-        Algorithm::Cubes => cubes::cubes(&p.bits, ctl)?,
+    let m = match (p.algorithm, &p.volume) {
+        (Algorithm::Cubes, _) => cubes::cubes(&p.bits, ctl)?,
+        (Algorithm::SurfaceNets, Some(v)) => {
+            surface_nets::surface_nets(&Field::new(v, Cow::Borrowed(&p.bits)), ctl)?
+        }
+        (Algorithm::SurfaceNets, None) => {
+            surface_nets::surface_nets(&Field::bits(Cow::Borrowed(&p.bits)), ctl)?
+        }
     };
     ctl.complete();
     Ok(m.to_world(&grid))
 }
 
 /// [`build`] on the blocking pool, cancelled when the returned future is dropped.
-pub async fn build_async(p: Planned, algorithm: Algorithm, ctl: &Control) -> Result<TriMesh> {
-    blocking_with(ctl, move |ctl| build(&p, algorithm, ctl)).await
+pub async fn build_async(p: Planned, ctl: &Control) -> Result<TriMesh> {
+    blocking_with(ctl, move |ctl| build(&p, ctl)).await
 }

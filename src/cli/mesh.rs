@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use voxd::extract::write::{MeshFormat, write};
-use voxd::extract::{Algorithm, check, cubes, occupancy};
+use voxd::extract::{Algorithm, check, cubes, occupancy, surface_nets};
 
 use super::output::read_volume;
 
@@ -11,9 +11,10 @@ pub fn mesh(input: &Path, output: &Path, algorithm: &str) -> Result<(), String> 
     let algorithm = Algorithm::parse(algorithm)?;
     let format = MeshFormat::of_path(output)?;
     let v = read_volume(input)?;
-    let bits = occupancy(&v);
+    let grid = *v.grid();
     let m = super::progress::with_bar(&input.display().to_string(), |ctl| match algorithm {
-        Algorithm::Cubes => cubes::cubes(&bits, ctl),
+        Algorithm::Cubes => cubes::cubes(&occupancy(&v), ctl),
+        Algorithm::SurfaceNets => surface_nets::surface_nets(&surface_nets::Field::of(&v), ctl),
     })
     .map_err(|e| format!("{}: {e}", input.display()))?;
     let r = check::check(&m);
@@ -23,7 +24,7 @@ pub fn mesh(input: &Path, output: &Path, algorithm: &str) -> Result<(), String> 
             input.display()
         ));
     }
-    let world = m.to_world(bits.grid());
+    let world = m.to_world(&grid);
     let tmp = output.with_extension(format!("{}.part", format.as_str()));
     let mut f = std::fs::File::create(&tmp).map_err(|e| format!("{}: {e}", tmp.display()))?;
     write(&world, format, &mut f)

@@ -59,7 +59,7 @@ impl Rect {
     }
 }
 
-pub use super::faces::triangle_bound;
+pub use super::faces::{boundary_counts, triangle_bound};
 
 /// The boundary of `bits`' set voxels as a watertight, outward-oriented triangle mesh in lattice
 /// units. Checks `ctl` plane by plane.
@@ -194,13 +194,19 @@ fn pinched(occ: &impl Fn([i64; 3]) -> bool, p: [u32; 3], q: [u32; 3]) -> bool {
 /// set voxel `inside` belongs to: an id (0..12) shared by exactly the faces at `p` that form one
 /// fan around it. (Octant `o` of `p` is the voxel at `p − 1 + (o's bits)`.)
 fn sheet(occ: &impl Fn([i64; 3]) -> bool, p: [u32; 3], a: usize, inside: [u32; 3]) -> u8 {
-    let mut set = 0u8;
-    for o in 0..8u8 {
-        let q = [0, 1, 2].map(|k| i64::from(p[k]) - 1 + i64::from(o >> k & 1));
-        if occ(q) {
-            set |= 1 << o;
-        }
-    }
+    sheet_with(occ, p, a, inside, |_| 0)
+}
+
+/// [`sheet`] with the pinched half-edges `join` (bit e·2 + side) linked by their unset voxels
+/// (see [`sheets_for`]); `join` is a function of the block's occupancy.
+pub(super) fn sheet_with(
+    occ: &impl Fn([i64; 3]) -> bool,
+    p: [u32; 3],
+    a: usize,
+    inside: [u32; 3],
+    join: impl FnOnce(u8) -> u8,
+) -> u8 {
+    let set = block(occ, p);
     let o = (0..3).fold(0u8, |o, k| {
         if k == a {
             o
@@ -208,71 +214,95 @@ fn sheet(occ: &impl Fn([i64; 3]) -> bool, p: [u32; 3], a: usize, inside: [u32; 3
             o | (((inside[k] + 1 - p[k]) as u8) << k)
         }
     });
-    SHEETS.get_or_init(sheets)[set as usize][face_index(a, o)]
+    let face = face_index(a, o);
+    match join(set) {
+        0 => SHEETS.get_or_init(sheets)[set as usize][face],
+        j => sheets_for(set, j)[face],
+    }
+}
+
+/// The occupancy of the 2×2×2 block around lattice point `p`: bit o is the voxel at
+/// `p − 1 + (o's bits)`.
+pub(super) fn block(occ: &impl Fn([i64; 3]) -> bool, p: [u32; 3]) -> u8 {
+    let mut set = 0u8;
+    for o in 0..8u8 {
+        let q = [0, 1, 2].map(|k| i64::from(p[k]) - 1 + i64::from(o >> k & 1));
+        if occ(q) {
+            set |= 1 << o;
+        }
+    }
+    set
 }
 
 /// The internal face of a 2×2×2 block across axis `a` between octant `o` (bit a clear) and
 /// `o | 1 << a`, as 0..12: a·4 + o's other two bits.
-fn face_index(a: usize, o: u8) -> usize {
+pub(super) fn face_index(a: usize, o: u8) -> usize {
     let (b, c) = ((a + 1) % 3, (a + 2) % 3);
     a * 4 + usize::from(o >> b & 1) + 2 * usize::from(o >> c & 1)
 }
 
-static SHEETS: std::sync::OnceLock<Vec<[u8; 12]>> = std::sync::OnceLock::new();
+pub(super) static SHEETS: std::sync::OnceLock<Vec<[u8; 12]>> = std::sync::OnceLock::new();
 
 /// For each occupancy of a 2×2×2 block, the sheet (fan) of each of its 12 internal faces that
-/// is a boundary face. Faces around each of the six half-edges from the centre are linked: the
-/// two boundary faces there when there are two, the two of the same set voxel when there are
-/// four (two set voxels meeting only along the edge: the solid is read as 6-connected, so they
-/// are separate). Sheets are the linked groups, named by their lowest face.
-fn sheets() -> Vec<[u8; 12]> {
-    (0..256u32)
-        .map(|set| {
-            let set = set as u8;
-            let occupied = |o: u8| set >> o & 1 == 1;
-            let mut parent: [u8; 12] = std::array::from_fn(|i| i as u8);
-            fn find(parent: &mut [u8; 12], i: u8) -> u8 {
-                let mut r = i;
-                while parent[r as usize] != r {
-                    r = parent[r as usize];
-                }
-                parent[i as usize] = r;
-                r
-            }
-            for e in 0..3 {
-                for side in 0..2u8 {
-                    // The boundary faces around the half-edge along e on `side`, with their
-                    // set voxels.
-                    let mut around = Vec::new();
-                    for a in (0..3).filter(|&a| a != e) {
-                        for o in (0..8u8).filter(|o| o >> a & 1 == 0 && o >> e & 1 == side) {
-                            let o2 = o | 1 << a;
-                            if occupied(o) != occupied(o2) {
-                                let v = if occupied(o) { o } else { o2 };
-                                around.push((face_index(a, o) as u8, v));
-                            }
-                        }
-                    }
-                    let mut link = |x: u8, y: u8| {
-                        let (rx, ry) = (find(&mut parent, x), find(&mut parent, y));
-                        parent[rx.max(ry) as usize] = rx.min(ry);
-                    };
-                    match around.len() {
-                        2 => link(around[0].0, around[1].0),
-                        4 => {
-                            for i in 0..4 {
-                                for j in i + 1..4 {
-                                    if around[i].1 == around[j].1 {
-                                        link(around[i].0, around[j].0);
-                                    }
-                                }
-                            }
-                        }
-                        _ => {}
+/// is a boundary face ([`sheets_for`] with no pinch joined).
+pub(super) fn sheets() -> Vec<[u8; 12]> {
+    (0..256u32).map(|set| sheets_for(set as u8, 0)).collect()
+}
+
+/// The sheets of block occupancy `set`. Faces around each of the six half-edges from the
+/// centre are linked: the two boundary faces there when there are two; when there are four
+/// (two set voxels meeting only along the edge) the two of the same set voxel (the solid read
+/// as 6-connected), or, where `join` has the half-edge's bit (e·2 + side), the two of the same
+/// unset voxel. Sheets are the linked groups, named by their lowest face.
+pub(super) fn sheets_for(set: u8, join: u8) -> [u8; 12] {
+    let occupied = |o: u8| set >> o & 1 == 1;
+    let mut parent: [u8; 12] = std::array::from_fn(|i| i as u8);
+    fn find(parent: &mut [u8; 12], i: u8) -> u8 {
+        let mut r = i;
+        while parent[r as usize] != r {
+            r = parent[r as usize];
+        }
+        parent[i as usize] = r;
+        r
+    }
+    for e in 0..3 {
+        for side in 0..2u8 {
+            // The boundary faces around the half-edge along e on `side`, with their set and
+            // unset voxels.
+            let mut around = Vec::new();
+            for a in (0..3).filter(|&a| a != e) {
+                for o in (0..8u8).filter(|o| o >> a & 1 == 0 && o >> e & 1 == side) {
+                    let o2 = o | 1 << a;
+                    if occupied(o) != occupied(o2) {
+                        let (v, u) = if occupied(o) { (o, o2) } else { (o2, o) };
+                        around.push((face_index(a, o) as u8, v, u));
                     }
                 }
             }
-            std::array::from_fn(|i| find(&mut parent, i as u8))
-        })
-        .collect()
+            let mut link = |x: u8, y: u8| {
+                let (rx, ry) = (find(&mut parent, x), find(&mut parent, y));
+                parent[rx.max(ry) as usize] = rx.min(ry);
+            };
+            let by_unset = join >> (e * 2 + usize::from(side)) & 1 == 1;
+            match around.len() {
+                2 => link(around[0].0, around[1].0),
+                4 => {
+                    for i in 0..4 {
+                        for j in i + 1..4 {
+                            let same = if by_unset {
+                                around[i].2 == around[j].2
+                            } else {
+                                around[i].1 == around[j].1
+                            };
+                            if same {
+                                link(around[i].0, around[j].0);
+                            }
+                        }
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+    std::array::from_fn(|i| find(&mut parent, i as u8))
 }

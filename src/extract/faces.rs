@@ -235,6 +235,13 @@ pub(super) fn rectangles(bits: &BitVolume, ctl: &Control) -> Result<Vec<Rect>, C
 /// fan of at most 2(w + h) ≤ 3wh points) and twelve per pinched edge (two set voxels meeting
 /// only along it: its midpoint enters the rings of four faces, each a fan at worst).
 pub fn triangle_bound(bits: &BitVolume) -> u64 {
+    let (faces, pinches) = boundary_counts(bits);
+    3 * faces + 12 * pinches
+}
+
+/// The boundary faces of `bits`' set voxels and its pinched edges (two set voxels meeting
+/// only along the edge), counted by word operations on the columns.
+pub fn boundary_counts(bits: &BitVolume) -> (u64, u64) {
     let d = bits.dims().map(|n| n as usize);
     let wpc = bits.words_per_column();
     let col = |x: usize, y: usize| bits.column(x as u32, y as u32);
@@ -279,5 +286,51 @@ pub fn triangle_bound(bits: &BitVolume) -> u64 {
             }
         }
     }
-    3 * faces + 12 * pinches
+    (faces, pinches)
+}
+
+/// Every pinched lattice edge of `bits` (its lower end and axis): two set voxels meeting only
+/// along it, found by the word operations of [`boundary_counts`].
+pub(super) fn pinched_edges(bits: &BitVolume) -> Vec<([u32; 3], u8)> {
+    let d = bits.dims().map(|n| n as usize);
+    let wpc = bits.words_per_column();
+    let col = |x: usize, y: usize| bits.column(x as u32, y as u32);
+    let up = |c: &[u64], w: usize| c[w] >> 1 | c.get(w + 1).map_or(0, |n| n << 63);
+    let pinched = |a: u64, b: u64, c: u64, e: u64| (a & e & !b & !c) | (b & c & !a & !e);
+    let mut out = Vec::new();
+    let mut emit = |mut t: u64, w: usize, at: &dyn Fn(u32) -> ([u32; 3], u8)| {
+        while t != 0 {
+            let z = (w * 64) as u32 + t.trailing_zeros();
+            t &= t - 1;
+            out.push(at(z));
+        }
+    };
+    for x in 0..d[0] {
+        for y in 0..d[1] {
+            let c = col(x, y);
+            let cx = (x + 1 < d[0]).then(|| col(x + 1, y));
+            let cy = (y + 1 < d[1]).then(|| col(x, y + 1));
+            let cxy = (x + 1 < d[0] && y + 1 < d[1]).then(|| col(x + 1, y + 1));
+            let (x, y) = (x as u32, y as u32);
+            for w in 0..wpc {
+                let u = up(c, w);
+                if let (Some(cx), Some(cy), Some(cxy)) = (cx, cy, cxy) {
+                    emit(pinched(c[w], cx[w], cy[w], cxy[w]), w, &|z| {
+                        ([x + 1, y + 1, z], 2)
+                    });
+                }
+                if let Some(cx) = cx {
+                    emit(pinched(c[w], cx[w], u, up(cx, w)), w, &|z| {
+                        ([x + 1, y, z + 1], 1)
+                    });
+                }
+                if let Some(cy) = cy {
+                    emit(pinched(c[w], cy[w], u, up(cy, w)), w, &|z| {
+                        ([x, y + 1, z + 1], 0)
+                    });
+                }
+            }
+        }
+    }
+    out
 }

@@ -3,6 +3,7 @@
 //!
 //! * [`cubes`]: the exact boundary of the set voxels, coplanar faces merged into rectangles,
 //!   without T-junctions.
+//! * [`surface_nets`]: one vertex per surface component of each dual cell, smooth, 2-manifold.
 //! * [`check`]: watertight and consistently oriented (every edge used once in each direction),
 //!   no degenerate or duplicate triangles, the enclosed volume.
 //! * [`write`]: OBJ, binary STL, binary PLY.
@@ -13,6 +14,8 @@
 pub mod check;
 pub mod cubes;
 mod faces;
+mod pinches;
+pub mod surface_nets;
 pub mod write;
 
 use crate::grid::Grid;
@@ -38,14 +41,16 @@ impl TriMesh {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Algorithm {
     Cubes,
+    SurfaceNets,
 }
 
 impl Algorithm {
-    pub const ALL: [Algorithm; 1] = [Algorithm::Cubes];
+    pub const ALL: [Algorithm; 2] = [Algorithm::Cubes, Algorithm::SurfaceNets];
 
     pub fn as_str(self) -> &'static str {
         match self {
             Algorithm::Cubes => "cubes",
+            Algorithm::SurfaceNets => "surface-nets",
         }
     }
 
@@ -80,5 +85,7 @@ pub fn occupancy(v: &crate::volume::Volume) -> crate::volume::BitVolume {
     b
 }
 
+#[cfg(test)]
+mod sn_tests;
 #[cfg(test)]
 mod tests;

@@ -65,7 +65,7 @@ pub async fn mesh(
         )
         .await?;
     let ctl = Control::new();
-    let planned = mesh::plan_stored(&*app.store, &id, &app.limits, &ctl).await?;
+    let planned = mesh::plan_stored(&*app.store, &id, algorithm, &app.limits, &ctl).await?;
     let building = app
         .admit(
             mesh::build_cost(&planned)
@@ -76,7 +76,7 @@ pub async fn mesh(
             ),
         )
         .await?;
-    let m = mesh::build_async(planned, algorithm, &ctl).await?;
+    let m = mesh::build_async(planned, &ctl).await?;
     let len = write::encoded_len(&m, format);
     let body = stream::from_writer(move |w| {
         // The memory stays counted until the mesh is written.

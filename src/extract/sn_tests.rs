@@ -1,0 +1,179 @@
+//! Surface nets checked by the project's mesh checks on random bit volumes (every pinched
+//! configuration occurs), on the configurations that make naive surface nets non-manifold, and
+//! on distance and density volumes of a sphere against the sphere itself.
+
+use super::check::check;
+use super::surface_nets::{Field, surface_nets};
+use crate::cancel::Control;
+use crate::grid::Grid;
+use crate::testkit::Rng;
+use crate::volume::{BitVolume, Dense, DensityVolume, Volume};
+
+fn grid(dims: [u32; 3]) -> Grid {
+    Grid {
+        origin: [0.0; 3],
+        voxel_size: 1.0,
+        dims,
+    }
+}
+
+fn valid(v: &Volume) -> super::TriMesh {
+    let m = surface_nets(&Field::of(v), &Control::none()).unwrap();
+    let r = check(&m);
+    assert!(r.is_valid(), "{r:?}");
+    m
+}
+
+#[test]
+fn random_bit_volumes_give_valid_manifold_meshes() {
+    let mut rng = Rng::new(35);
+    for case in 0..600 {
+        let dims = [
+            1 + rng.below(8) as u32,
+            1 + rng.below(8) as u32,
+            1 + rng.below(8) as u32,
+        ];
+        let mut b = BitVolume::new(grid(dims));
+        let p = [0.2, 0.35, 0.5, 0.65, 0.8][case % 5];
+        for x in 0..dims[0] {
+            for y in 0..dims[1] {
+                for z in 0..dims[2] {
+                    if rng.unit() < p {
+                        b.set(x, y, z, true);
+                    }
+                }
+            }
+        }
+        let n = b.count_ones();
+        let m = valid(&Volume::Bits(b));
+        assert_eq!(m.triangles.is_empty(), n == 0);
+        // Every vertex manifold: its triangles form one fan (edges checked by `check`; here
+        // the fan around each vertex is a single cycle).
+        let mut around: std::collections::HashMap<u32, Vec<(u32, u32)>> = Default::default();
+        for t in &m.triangles {
+            for i in 0..3 {
+                around
+                    .entry(t[i])
+                    .or_default()
+                    .push((t[(i + 1) % 3], t[(i + 2) % 3]));
+            }
+        }
+        for (v, fan) in around {
+            let next: std::collections::HashMap<u32, u32> = fan.iter().copied().collect();
+            let mut at = fan[0].0;
+            let mut steps = 0;
+            loop {
+                at = next[&at];
+                steps += 1;
+                if at == fan[0].0 {
+                    break;
+                }
+                assert!(steps <= fan.len(), "vertex {v}");
+            }
+            assert_eq!(steps, fan.len(), "vertex {v} is not a disk");
+        }
+    }
+}
+
+#[test]
+fn pinched_edges_joined_through_a_block_stay_manifold() {
+    // Two set voxels meeting along an edge, joined around it through the layer behind them
+    // (six set voxels around two unset ones): naive surface nets joins two sheets there.
+    for behind in [[true, true, true, true], [true, true, true, false]] {
+        let mut b = BitVolume::new(grid([4, 4, 4]));
+        b.set(1, 1, 1, true);
+        b.set(2, 2, 1, true);
+        let far = [(1, 1), (2, 2), (2, 1), (1, 2)];
+        for (i, &(x, y)) in far.iter().enumerate() {
+            if behind[i] {
+                b.set(x, y, 2, true);
+            }
+        }
+        valid(&Volume::Bits(b));
+    }
+}
+
+fn sphere(dims: u32, r: f64) -> (Grid, impl Fn(u32, u32, u32) -> f64) {
+    let c = f64::from(dims) / 2.0;
+    let g = grid([dims; 3]);
+    (g, move |x: u32, y: u32, z: u32| {
+        let p = [x, y, z].map(|i| f64::from(i) + 0.5 - c);
+        (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - r
+    })
+}
+
+#[test]
+fn distance_and_density_spheres_lie_on_the_sphere() {
+    let (r, n) = (9.3, 24);
+    let (g, f) = sphere(n, r);
+    let mut d = Dense::new(g, 0.0f32);
+    let mut dens = DensityVolume::new(g, 64);
+    for x in 0..n {
+        for y in 0..n {
+            for z in 0..n {
+                d.set(x, y, z, f(x, y, z) as f32);
+                // A coverage that falls linearly through the surface over one voxel.
+                let cover = (0.5 - f(x, y, z)).clamp(0.0, 1.0);
+                dens.set(x, y, z, (cover * 64.0).round() as u8);
+            }
+        }
+    }
+    let c = f64::from(n) / 2.0;
+    for (v, tol) in [(Volume::Distance(d), 0.05), (Volume::Density(dens), 0.15)] {
+        let m = valid(&v);
+        let mut worst: f64 = 0.0;
+        for p in &m.positions {
+            let q = p.map(|k| k - c);
+            let rr = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
+            worst = worst.max((rr - r).abs());
+        }
+        assert!(
+            worst < tol,
+            "{:?}: vertex {worst} voxels off the sphere",
+            v.kind()
+        );
+        let vol = check(&m).volume;
+        let exact = 4.0 / 3.0 * std::f64::consts::PI * r * r * r;
+        assert!(
+            (vol / exact - 1.0).abs() < 0.02,
+            "{:?}: {vol} vs {exact}",
+            v.kind()
+        );
+    }
+}
+
+#[test]
+fn bit_sphere_is_smoothed_within_its_cells() {
+    let (r, n) = (9.3, 24);
+    let (g, f) = sphere(n, r);
+    let mut b = BitVolume::new(g);
+    for x in 0..n {
+        for y in 0..n {
+            for z in 0..n {
+                b.set(x, y, z, f(x, y, z) < 0.0);
+            }
+        }
+    }
+    let count = b.count_ones() as f64;
+    let m = valid(&Volume::Bits(b));
+    let c = f64::from(n) / 2.0;
+    let mut worst: f64 = 0.0;
+    for p in &m.positions {
+        let q = p.map(|k| k - c);
+        worst = worst.max(((q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt() - r).abs());
+    }
+    // Within a voxel of the sphere (vertices stay in their cells), and far smoother than the
+    // voxels' steps: the volume within 2% of the voxel count's.
+    assert!(worst < 1.0, "{worst}");
+    let vol = check(&m).volume;
+    assert!((vol / count - 1.0).abs() < 0.02, "{vol} vs {count}");
+}
+
+#[test]
+fn a_canceled_surface_net_stops() {
+    let mut b = BitVolume::new(grid([4, 4, 4]));
+    b.set(1, 1, 1, true);
+    let ctl = Control::new();
+    ctl.cancel();
+    assert!(surface_nets(&Field::of(&Volume::Bits(b)), &ctl).is_err());
+}

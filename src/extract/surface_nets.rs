@@ -1,0 +1,390 @@
+//! `algorithm=surface-nets`: one vertex per surface component of each dual cell (the cube
+//! between eight voxel centres), one quad per grid edge whose two voxels differ — Gibson's
+//! surface nets, with the non-manifold cases split.
+//!
+//! * **Inside.** A bit volume's set voxels; a distance volume's negative values (sign bit
+//!   set); a density volume's values over half
+//!   its full value (level max/2: more than half of the voxel's samples covered). Outside the grid is outside.
+//! * **Topology.** The quads are the boundary faces of the inside voxels (each face is the
+//!   grid edge between its two voxel centres); a face's corners are lattice points, each the
+//!   centre of a dual cell. A dual cell gets one vertex per *sheet* of the boundary around its
+//!   lattice point (`cubes::sheet_with`): faces linked across each half-edge from the point —
+//!   the two boundary faces there, or where the edge is *pinched* (its two inside voxels are
+//!   diagonal), the two faces of each inside voxel (inside read as 6-connected), unless either
+//!   cell at the edge's ends joins those two voxels through its other corners: then the two
+//!   faces of each outside voxel. That choice is made once per edge, so both cells agree, and
+//!   it keeps any two cells from sharing more than one quad edge: every edge of the mesh is in
+//!   exactly two triangles, once in each direction, and every vertex is a disk.
+//! * **Positions.** Distance and density volumes: the mean of the sheet's crossing points, each
+//!   on the segment between its face's two voxel centres at the linear interpolation's zero,
+//!   pulled into [1/64, 63/64] of the segment. Bit volumes: the mean of the faces' centres, then
+//!   `RELAX` rounds of Gibson's constrained relaxation, each round Taubin's two
+//!   steps (towards the mean of the vertex's neighbours by λ = 0.5, then by μ = −0.526), so the
+//!   steps are smoothed away without the shrinking of plain averaging; every vertex is clamped
+//!   to its cell shrunk by 1/16 voxel after each step.
+//! * Each quad is split along its shorter diagonal, counter-clockwise seen from outside.
+
+use std::borrow::Cow;
+use std::collections::HashMap;
+
+use super::TriMesh;
+use super::cubes::sheet_with;
+use crate::cancel::{Canceled, Control};
+use crate::volume::{BitVolume, Volume};
+
+/// Rounds of constrained relaxation for bit volumes.
+pub const RELAX: usize = 12;
+
+/// Taubin's λ and μ (λ = 0.5, 1/λ + 1/μ = 0.1: the pass band of his paper's examples).
+const TAUBIN: (f64, f64) = (0.5, -0.5263157894736842);
+
+/// The scalar field a mesh is taken from: inside voxels, and for distance and density volumes
+/// a value per voxel whose zero is the surface (negative inside).
+pub struct Field<'a> {
+    pub inside: Cow<'a, BitVolume>,
+    value: Option<Box<dyn Fn(u32, u32, u32) -> f64 + Sync + 'a>>,
+    /// The value outside the grid.
+    outside: f64,
+}
+
+/// The inside voxels of `v` (see the module's "Inside").
+pub fn inside(v: &Volume) -> Cow<'_, BitVolume> {
+    let g = *v.grid();
+    let from = |inside: &dyn Fn(u32, u32, u32) -> bool| {
+        let mut b = BitVolume::new(g);
+        for x in 0..g.dims[0] {
+            for y in 0..g.dims[1] {
+                let col = b.column_mut(x, y);
+                for z in 0..g.dims[2] {
+                    if inside(x, y, z) {
+                        col[(z / 64) as usize] |= 1 << (z % 64);
+                    }
+                }
+            }
+        }
+        Cow::Owned(b)
+    };
+    match v {
+        Volume::Bits(b) => Cow::Borrowed(b),
+        Volume::Density(d) => from(&|x, y, z| 2 * u32::from(d.get(x, y, z)) > u32::from(d.max())),
+        Volume::Distance(d) => from(&|x, y, z| d.get(x, y, z).is_sign_negative()),
+        Volume::SparseDistance(d) => from(&|x, y, z| d.get(x, y, z).is_sign_negative()),
+        other => Cow::Owned(super::occupancy(other)),
+    }
+}
+
+impl<'a> Field<'a> {
+    /// The field of `v`.
+    pub fn of(v: &'a Volume) -> Field<'a> {
+        Field::new(v, inside(v))
+    }
+
+    /// A bit volume's field (no values).
+    pub fn bits(inside: Cow<'a, BitVolume>) -> Field<'a> {
+        Field {
+            inside,
+            value: None,
+            outside: 1.0,
+        }
+    }
+
+    /// The field of `v` with its inside voxels already taken ([`inside`]).
+    pub fn new(v: &'a Volume, inside: Cow<'a, BitVolume>) -> Field<'a> {
+        type Value<'a> = Box<dyn Fn(u32, u32, u32) -> f64 + Sync + 'a>;
+        let (value, outside): (Option<Value<'a>>, f64) = match v {
+            Volume::Density(d) => {
+                let half = f64::from(d.max()) / 2.0;
+                (
+                    Some(Box::new(move |x, y, z| half - f64::from(d.get(x, y, z)))),
+                    half,
+                )
+            }
+            Volume::Distance(d) => (
+                Some(Box::new(move |x, y, z| f64::from(d.get(x, y, z)))),
+                f64::INFINITY,
+            ),
+            Volume::SparseDistance(d) => (
+                Some(Box::new(move |x, y, z| f64::from(d.get(x, y, z)))),
+                f64::INFINITY,
+            ),
+            _ => (None, 1.0),
+        };
+        Field {
+            inside,
+            value,
+            outside,
+        }
+    }
+
+    fn value(&self, p: [i64; 3]) -> f64 {
+        let d = self.inside.dims();
+        let f = self.value.as_ref().expect("a valued field");
+        if (0..3).all(|a| p[a] >= 0 && p[a] < i64::from(d[a])) {
+            f(p[0] as u32, p[1] as u32, p[2] as u32)
+        } else {
+            self.outside
+        }
+    }
+}
+
+/// A unit boundary face: across axis `a` at plane `k`, cell (u, v) on axes a+1, a+2; `plus`:
+/// the inside voxel is below (facing +a).
+#[derive(Clone, Copy)]
+struct Face {
+    a: usize,
+    k: u32,
+    u: u32,
+    v: u32,
+    plus: bool,
+}
+
+impl Face {
+    fn point(&self, du: u32, dv: u32) -> [u32; 3] {
+        let mut p = [0; 3];
+        p[self.a] = self.k;
+        p[(self.a + 1) % 3] = self.u + du;
+        p[(self.a + 2) % 3] = self.v + dv;
+        p
+    }
+    fn inside(&self) -> [u32; 3] {
+        let mut p = self.point(0, 0);
+        if self.plus {
+            p[self.a] -= 1;
+        }
+        p
+    }
+}
+
+/// Every unit boundary face of `bits`, from its column words.
+fn faces(bits: &BitVolume, ctl: &Control) -> Result<Vec<Face>, Canceled> {
+    let d = bits.dims();
+    let counter = ctl.counter(u64::from(d[0]));
+    let mut out = Vec::new();
+    let wpc = bits.words_per_column();
+    let zero = vec![0u64; wpc];
+    let col = |x: i64, y: i64| -> &[u64] {
+        if x < 0 || y < 0 || x >= i64::from(d[0]) || y >= i64::from(d[1]) {
+            &zero
+        } else {
+            bits.column(x as u32, y as u32)
+        }
+    };
+    for x in 0..=d[0] {
+        counter.check()?;
+        for y in 0..=d[1] {
+            let c = col(i64::from(x), i64::from(y));
+            let cx = col(i64::from(x) - 1, i64::from(y));
+            let cy = col(i64::from(x), i64::from(y) - 1);
+            for w in 0..wpc {
+                let base = (w * 64) as u32;
+                // Across x at plane x (voxel x − 1 below), and across y at plane y.
+                for (a, below) in [(0, cx[w]), (1, cy[w])] {
+                    let mut t = below ^ c[w];
+                    while t != 0 {
+                        let z = base + t.trailing_zeros();
+                        t &= t - 1;
+                        let plus = below >> (z - base) & 1 == 1;
+                        let (u, v) = if a == 0 { (y, z) } else { (z, x) };
+                        if (a == 0 && y < d[1]) || (a == 1 && x < d[0]) {
+                            out.push(Face {
+                                a,
+                                k: if a == 0 { x } else { y },
+                                u,
+                                v,
+                                plus,
+                            });
+                        }
+                    }
+                }
+                // Across z, within the column (x, y) when it is in the grid.
+                if x < d[0] && y < d[1] {
+                    let carry = if w > 0 { c[w - 1] >> 63 } else { 0 };
+                    let below = c[w] << 1 | carry;
+                    let mut t = below ^ c[w];
+                    while t != 0 {
+                        let k = base + t.trailing_zeros();
+                        t &= t - 1;
+                        out.push(Face {
+                            a: 2,
+                            k,
+                            u: x,
+                            v: y,
+                            plus: below >> (k - base) & 1 == 1,
+                        });
+                    }
+                    // The top face of the last voxel.
+                    if w + 1 == wpc && d[2] % 64 == 0 && c[w] >> 63 == 1 {
+                        out.push(Face {
+                            a: 2,
+                            k: d[2],
+                            u: x,
+                            v: y,
+                            plus: true,
+                        });
+                    }
+                }
+            }
+        }
+        counter.add(1);
+    }
+    Ok(out)
+}
+
+/// The surface nets mesh of `field`, in lattice units.
+pub fn surface_nets(field: &Field<'_>, ctl: &Control) -> Result<TriMesh, Canceled> {
+    let bits: &BitVolume = &field.inside;
+    let d = bits.dims();
+    let faces = faces(bits, &ctl.stage(0.0, 0.3))?;
+    let joins = super::pinches::Joins::decide(bits);
+    let occ = |p: [i64; 3]| {
+        (0..3).all(|a| p[a] >= 0 && p[a] < i64::from(d[a]))
+            && bits.get(p[0] as u32, p[1] as u32, p[2] as u32)
+    };
+    let ctl2 = ctl.stage(0.3, 0.7);
+    let counter = ctl2.counter(faces.len() as u64);
+    // Vertices by (lattice point, sheet); their position sums and counts.
+    let mut ids: HashMap<([u32; 3], u8), u32, foldhash::fast::RandomState> = HashMap::default();
+    let mut sums: Vec<[f64; 4]> = Vec::new();
+    let mut quads: Vec<[u32; 4]> = Vec::with_capacity(faces.len());
+    for (i, f) in faces.iter().enumerate() {
+        if i % 65536 == 0 {
+            counter.check()?;
+            counter.add(65536.min((faces.len() - i) as u64));
+        }
+        // The crossing point on the segment between the face's two voxel centres.
+        let mut c = [0.0; 3];
+        c[(f.a + 1) % 3] = f64::from(f.u) + 0.5;
+        c[(f.a + 2) % 3] = f64::from(f.v) + 0.5;
+        c[f.a] = f64::from(f.k);
+        if field.value.is_some() {
+            let inn = f.inside().map(i64::from);
+            let mut out = inn;
+            out[f.a] += if f.plus { 1 } else { -1 };
+            let (vi, vo) = (field.value(inn), field.value(out));
+            let t = if vo.is_infinite() {
+                0.5
+            } else {
+                let (a, b) = (vi.abs(), vo.abs());
+                if a + b > 0.0 { a / (a + b) } else { 0.5 }
+            };
+            let t = t.clamp(1.0 / 64.0, 63.0 / 64.0);
+            let ci = f64::from(inn[f.a] as i32) + 0.5;
+            c[f.a] = ci + t * if f.plus { 1.0 } else { -1.0 };
+        }
+        // Corners counter-clockwise seen from +a.
+        let mut ring = [(0, 0), (1, 0), (1, 1), (0, 1)].map(|(du, dv)| {
+            let p = f.point(du, dv);
+            let s = sheet_with(&occ, p, f.a, f.inside(), |set| joins.flags(p, set));
+            let next = sums.len() as u32;
+            let id = *ids.entry((p, s)).or_insert_with(|| {
+                sums.push([0.0; 4]);
+                next
+            });
+            let sum = &mut sums[id as usize];
+            for k in 0..3 {
+                sum[k] += c[k];
+            }
+            sum[3] += 1.0;
+            id
+        });
+        if !f.plus {
+            ring.reverse();
+        }
+        quads.push(ring);
+    }
+    drop(ids);
+    // Cells: each vertex's lattice point, for the clamp (recovered from its faces below).
+    let mut positions: Vec<[f64; 3]> = sums
+        .iter()
+        .map(|s| [s[0] / s[3], s[1] / s[3], s[2] / s[3]])
+        .collect();
+    if field.value.is_none() {
+        relax(&mut positions, &quads, &faces, RELAX, &ctl.stage(0.7, 0.95))?;
+    }
+    let mut out = TriMesh {
+        positions,
+        triangles: Vec::with_capacity(2 * quads.len()),
+    };
+    for q in &quads {
+        let p = q.map(|i| out.positions[i as usize]);
+        let d2 = |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>();
+        if d2(p[0], p[2]) <= d2(p[1], p[3]) {
+            out.triangles.push([q[0], q[1], q[2]]);
+            out.triangles.push([q[0], q[2], q[3]]);
+        } else {
+            out.triangles.push([q[0], q[1], q[3]]);
+            out.triangles.push([q[1], q[2], q[3]]);
+        }
+    }
+    ctl.complete();
+    Ok(out)
+}
+
+/// Gibson's constrained relaxation: `rounds` times, every vertex to the mean of its quad
+/// neighbours, clamped to its dual cell (the unit cube about its lattice point) shrunk by 1/16.
+fn relax(
+    positions: &mut [[f64; 3]],
+    quads: &[[u32; 4]],
+    faces: &[Face],
+    rounds: usize,
+    ctl: &Control,
+) -> Result<(), Canceled> {
+    let n = positions.len();
+    // Each vertex's lattice point: a corner of any of its quads' faces.
+    let mut cell = vec![[0.0f64; 3]; n];
+    let mut start = vec![0u32; n + 1];
+    for (q, f) in quads.iter().zip(faces) {
+        let corners = [(0, 0), (1, 0), (1, 1), (0, 1)].map(|(du, dv)| f.point(du, dv));
+        let ring = if f.plus {
+            corners
+        } else {
+            [corners[3], corners[2], corners[1], corners[0]]
+        };
+        for (j, &v) in q.iter().enumerate() {
+            cell[v as usize] = ring[j].map(f64::from);
+            start[v as usize + 1] += 2;
+        }
+    }
+    for i in 0..n {
+        start[i + 1] += start[i];
+    }
+    let mut fill = start.clone();
+    let mut adj = vec![0u32; start[n] as usize];
+    for q in quads {
+        for j in 0..4 {
+            let v = q[j] as usize;
+            for w in [q[(j + 1) % 4], q[(j + 3) % 4]] {
+                adj[fill[v] as usize] = w;
+                fill[v] += 1;
+            }
+        }
+    }
+    let counter = ctl.counter(rounds as u64);
+    let m = 0.5 - 1.0 / 16.0;
+    let mut next = positions.to_vec();
+    for _ in 0..rounds {
+        counter.check()?;
+        // Taubin's pair of steps: towards the neighbours' mean (λ), then away from it (μ), so
+        // that the surface is smoothed without shrinking.
+        for factor in [TAUBIN.0, TAUBIN.1] {
+            for v in 0..n {
+                let nb = &adj[start[v] as usize..start[v + 1] as usize];
+                let mut s = [0.0; 3];
+                for &w in nb {
+                    for k in 0..3 {
+                        s[k] += positions[w as usize][k];
+                    }
+                }
+                // Each neighbour is listed twice (once per quad edge it shares): a plain mean.
+                next[v] = [0, 1, 2].map(|k| {
+                    let mean = s[k] / nb.len() as f64;
+                    let p = positions[v][k] + factor * (mean - positions[v][k]);
+                    p.clamp(cell[v][k] - m, cell[v][k] + m)
+                });
+            }
+            positions.copy_from_slice(&next);
+        }
+        counter.add(1);
+    }
+    Ok(())
+}
