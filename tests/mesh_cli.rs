@@ -149,6 +149,49 @@ fn cubes_of_the_teapot_read_back_as_the_same_voxels() {
 }
 
 #[test]
+fn surface_nets_of_the_teapot_and_its_sdf_are_watertight_for_trimesh() {
+    let dir = Scratch::new("mesh-cli-nets");
+    let teapot = data("teapot.obj");
+    let vol = dir.join("teapot.vxl");
+    let sdf = dir.join("teapot-sdf.vxl");
+    for (out, extra) in [
+        (&vol, &[][..]),
+        (&sdf, &["--method", "sdf", "--band", "2"][..]),
+    ] {
+        let mut args = vec!["voxelize", s(&teapot), "-o", s(out), "--fill", "winding"];
+        args.extend(extra);
+        args.extend(GRID);
+        ok(&args);
+    }
+    let want = bits(&vol).count_ones() as f64 * 0.125f64.powi(3);
+    let py = trimesh_python();
+    for input in [&vol, &sdf] {
+        for ext in ["glb", "ply"] {
+            let out = dir.join(format!("nets.{ext}"));
+            let said = ok(&[
+                "mesh",
+                s(input),
+                "-o",
+                s(&out),
+                "--algorithm",
+                "surface-nets",
+            ]);
+            assert!(said.contains("watertight"), "{said}");
+            if let Some(py) = &py {
+                let (watertight, consistent, volume, _) = trimesh_check(py, &out);
+                assert!(watertight && consistent, "{}: {ext}", input.display());
+                // Smoothed (bits) or at the zero crossings (sdf): close to the voxels' volume.
+                assert!(
+                    (volume / want - 1.0).abs() < 0.05,
+                    "{}: {ext}: {volume} vs {want}",
+                    input.display()
+                );
+            }
+        }
+    }
+}
+
+#[test]
 fn mesh_refuses_unknown_formats_and_algorithms() {
     let dir = Scratch::new("mesh-cli-refusals");
     let vol = dir.join("box.vxl");
@@ -176,6 +219,9 @@ fn mesh_refuses_unknown_formats_and_algorithms() {
     ]);
     assert!(!o.status.success());
     let e = String::from_utf8_lossy(&o.stderr);
-    assert!(e.contains("algorithm must be one of cubes"), "{e}");
+    assert!(
+        e.contains("algorithm must be one of cubes, surface-nets"),
+        "{e}"
+    );
     assert!(!dir.join("box.obj").exists());
 }

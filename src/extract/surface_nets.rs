@@ -42,10 +42,13 @@ const TAUBIN: (f64, f64) = (0.5, -0.5263157894736842);
 /// a value per voxel whose zero is the surface (negative inside).
 pub struct Field<'a> {
     pub inside: Cow<'a, BitVolume>,
-    value: Option<Box<dyn Fn(u32, u32, u32) -> f64 + Sync + 'a>>,
+    value: Option<Value<'a>>,
     /// The value outside the grid.
     outside: f64,
 }
+
+/// A voxel's value.
+type Value<'a> = Box<dyn Fn(u32, u32, u32) -> f64 + Sync + 'a>;
 
 /// The inside voxels of `v` (see the module's "Inside").
 pub fn inside(v: &Volume) -> Cow<'_, BitVolume> {
@@ -90,7 +93,6 @@ impl<'a> Field<'a> {
 
     /// The field of `v` with its inside voxels already taken ([`inside`]).
     pub fn new(v: &'a Volume, inside: Cow<'a, BitVolume>) -> Field<'a> {
-        type Value<'a> = Box<dyn Fn(u32, u32, u32) -> f64 + Sync + 'a>;
         let (value, outside): (Option<Value<'a>>, f64) = match v {
             Volume::Density(d) => {
                 let half = f64::from(d.max()) / 2.0;
@@ -213,7 +215,7 @@ fn faces(bits: &BitVolume, ctl: &Control) -> Result<Vec<Face>, Canceled> {
                         });
                     }
                     // The top face of the last voxel.
-                    if w + 1 == wpc && d[2] % 64 == 0 && c[w] >> 63 == 1 {
+                    if w + 1 == wpc && d[2].is_multiple_of(64) && c[w] >> 63 == 1 {
                         out.push(Face {
                             a: 2,
                             k: d[2],

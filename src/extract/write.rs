@@ -136,7 +136,7 @@ fn glb_json(m: &TriMesh) -> String {
         "buffers": [{"byteLength": 12 * v + 12 * t}]
     })
     .to_string();
-    while j.len() % 4 != 0 {
+    while !j.len().is_multiple_of(4) {
         j.push(' ');
     }
     j

@@ -91,6 +91,29 @@ fn meshes_of_stored_volumes() {
         assert_eq!(again.status, 304);
         assert!(again.body.is_empty());
     }
+    // Surface nets of the bit volume and of its sdf (a stored distance volume): watertight for
+    // trimesh, close to the voxels' volume.
+    let sdf = srv.created(&format!("/v1/volumes/{id}/sdf?band=2"), &[], &[]);
+    for of in [id.as_str(), sdf["id"].as_str().unwrap()] {
+        let r = srv.req(
+            "GET",
+            &format!("/v1/volumes/{of}/mesh?algorithm=surface-nets&format=ply"),
+            &[],
+            &[],
+        );
+        assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+        if let Some(py) = &py {
+            let f = dir.join("nets.ply");
+            std::fs::write(&f, &r.body).unwrap();
+            let (watertight, consistent, volume, _) = crate::mesh_cli::trimesh_check(py, &f);
+            assert!(watertight && consistent, "surface nets of {of}");
+            let exact = want.count_ones() as f64 * 0.25f64.powi(3);
+            assert!(
+                (volume / exact - 1.0).abs() < 0.1,
+                "{of}: {volume} vs {exact}"
+            );
+        }
+    }
     // The defaults: cubes as OBJ.
     let r = srv.req("GET", &format!("/v1/volumes/{id}/mesh"), &[], &[]);
     assert_eq!(r.header("content-type"), Some("model/obj"));

@@ -3,6 +3,7 @@ from enum import StrEnum
 
 class GetV1VolumesIdMeshAlgorithm(StrEnum):
     CUBES = "cubes"
+    SURFACE_NETS = "surface-nets"
 
     def __str__(self) -> str:
         return str(self.value)
