@@ -149,7 +149,7 @@ fn cubes_of_the_teapot_read_back_as_the_same_voxels() {
 }
 
 #[test]
-fn surface_nets_of_the_teapot_and_its_sdf_are_watertight_for_trimesh() {
+fn surface_nets_and_marching_cubes_of_the_teapot_and_its_sdf_are_watertight_for_trimesh() {
     let dir = Scratch::new("mesh-cli-nets");
     let teapot = data("teapot.obj");
     let vol = dir.join("teapot.vxl");
@@ -166,20 +166,21 @@ fn surface_nets_of_the_teapot_and_its_sdf_are_watertight_for_trimesh() {
     let want = bits(&vol).count_ones() as f64 * 0.125f64.powi(3);
     let py = trimesh_python();
     for input in [&vol, &sdf] {
-        for ext in ["glb", "ply"] {
+        for (ext, algorithm) in [
+            ("glb", "surface-nets"),
+            ("ply", "surface-nets"),
+            ("ply", "marching-cubes"),
+        ] {
             let out = dir.join(format!("nets.{ext}"));
-            let said = ok(&[
-                "mesh",
-                s(input),
-                "-o",
-                s(&out),
-                "--algorithm",
-                "surface-nets",
-            ]);
+            let said = ok(&["mesh", s(input), "-o", s(&out), "--algorithm", algorithm]);
             assert!(said.contains("watertight"), "{said}");
             if let Some(py) = &py {
                 let (watertight, consistent, volume, _) = trimesh_check(py, &out);
-                assert!(watertight && consistent, "{}: {ext}", input.display());
+                assert!(
+                    watertight && consistent,
+                    "{}: {algorithm} {ext}",
+                    input.display()
+                );
                 // Smoothed (bits) or at the zero crossings (sdf): close to the voxels' volume.
                 assert!(
                     (volume / want - 1.0).abs() < 0.05,
@@ -220,7 +221,7 @@ fn mesh_refuses_unknown_formats_and_algorithms() {
     assert!(!o.status.success());
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(
-        e.contains("algorithm must be one of cubes, surface-nets"),
+        e.contains("algorithm must be one of cubes, surface-nets, marching-cubes"),
         "{e}"
     );
     assert!(!dir.join("box.obj").exists());

@@ -13,7 +13,7 @@ use crate::extract::write::MeshFormat;
 use std::borrow::Cow;
 
 use crate::extract::surface_nets::{self, Field};
-use crate::extract::{Algorithm, TriMesh, cubes, occupancy};
+use crate::extract::{Algorithm, TriMesh, cubes, marching_cubes, occupancy};
 use crate::grid::Grid;
 use crate::limits::Limits;
 use crate::volume::{BitVolume, Volume};
@@ -62,7 +62,7 @@ pub fn plan(v: Volume, algorithm: Algorithm, limits: &Limits) -> Result<Planned>
     let (volume, bits) = match (algorithm, v) {
         (_, Volume::Bits(b)) => (None, b),
         (Algorithm::Cubes, v) => (None, occupancy(&v)),
-        (Algorithm::SurfaceNets, v) => {
+        (Algorithm::SurfaceNets | Algorithm::MarchingCubes, v) => {
             let bits = surface_nets::inside(&v).into_owned();
             (Some(v), bits)
         }
@@ -70,6 +70,8 @@ pub fn plan(v: Volume, algorithm: Algorithm, limits: &Limits) -> Result<Planned>
     let triangles = match algorithm {
         Algorithm::Cubes => cubes::triangle_bound(&bits),
         Algorithm::SurfaceNets => 2 * cubes::boundary_counts(&bits).0,
+        // A polygon of k crossings is at most k triangles; each crossing is in four polygons.
+        Algorithm::MarchingCubes => 4 * cubes::boundary_counts(&bits).0,
     };
     let max = limits.max_triangles as u64;
     if triangles > max {
@@ -116,14 +118,14 @@ pub async fn plan_stored(
 /// The mesh of `p`, in world coordinates.
 pub fn build(p: &Planned, ctl: &Control) -> Result<TriMesh> {
     let grid: Grid = *p.bits.grid();
+    let field = match &p.volume {
+        Some(v) => Field::new(v, Cow::Borrowed(&p.bits)),
+        None => Field::bits(Cow::Borrowed(&p.bits)),
+    };
     let m = match (p.algorithm, &p.volume) {
         (Algorithm::Cubes, _) => cubes::cubes(&p.bits, ctl)?,
-        (Algorithm::SurfaceNets, Some(v)) => {
-            surface_nets::surface_nets(&Field::new(v, Cow::Borrowed(&p.bits)), ctl)?
-        }
-        (Algorithm::SurfaceNets, None) => {
-            surface_nets::surface_nets(&Field::bits(Cow::Borrowed(&p.bits)), ctl)?
-        }
+        (Algorithm::MarchingCubes, _) => marching_cubes::marching_cubes(&field, ctl)?,
+        (Algorithm::SurfaceNets, _) => surface_nets::surface_nets(&field, ctl)?,
     };
     ctl.complete();
     Ok(m.to_world(&grid))

@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use voxd::extract::write::{MeshFormat, write};
-use voxd::extract::{Algorithm, check, cubes, occupancy, surface_nets};
+use voxd::extract::{Algorithm, check, cubes, marching_cubes, occupancy, surface_nets};
 
 use super::output::read_volume;
 
@@ -15,6 +15,9 @@ pub fn mesh(input: &Path, output: &Path, algorithm: &str) -> Result<(), String> 
     let m = super::progress::with_bar(&input.display().to_string(), |ctl| match algorithm {
         Algorithm::Cubes => cubes::cubes(&occupancy(&v), ctl),
         Algorithm::SurfaceNets => surface_nets::surface_nets(&surface_nets::Field::of(&v), ctl),
+        Algorithm::MarchingCubes => {
+            marching_cubes::marching_cubes(&surface_nets::Field::of(&v), ctl)
+        }
     })
     .map_err(|e| format!("{}: {e}", input.display()))?;
     let r = check::check(&m);

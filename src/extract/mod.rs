@@ -4,6 +4,7 @@
 //! * [`cubes`]: the exact boundary of the set voxels, coplanar faces merged into rectangles,
 //!   without T-junctions.
 //! * [`surface_nets`]: one vertex per surface component of each dual cell, smooth, 2-manifold.
+//! * [`marching_cubes`]: a vertex per crossed grid edge, the dual of surface nets' quads.
 //! * [`check`]: watertight and consistently oriented (every edge used once in each direction),
 //!   no degenerate or duplicate triangles, the enclosed volume.
 //! * [`write`]: OBJ, binary STL, binary PLY.
@@ -14,6 +15,7 @@
 pub mod check;
 pub mod cubes;
 mod faces;
+pub mod marching_cubes;
 mod pinches;
 pub mod surface_nets;
 pub mod write;
@@ -42,15 +44,21 @@ impl TriMesh {
 pub enum Algorithm {
     Cubes,
     SurfaceNets,
+    MarchingCubes,
 }
 
 impl Algorithm {
-    pub const ALL: [Algorithm; 2] = [Algorithm::Cubes, Algorithm::SurfaceNets];
+    pub const ALL: [Algorithm; 3] = [
+        Algorithm::Cubes,
+        Algorithm::SurfaceNets,
+        Algorithm::MarchingCubes,
+    ];
 
     pub fn as_str(self) -> &'static str {
         match self {
             Algorithm::Cubes => "cubes",
             Algorithm::SurfaceNets => "surface-nets",
+            Algorithm::MarchingCubes => "marching-cubes",
         }
     }
 

@@ -177,3 +177,76 @@ fn a_canceled_surface_net_stops() {
     ctl.cancel();
     assert!(surface_nets(&Field::of(&Volume::Bits(b)), &ctl).is_err());
 }
+
+mod marching {
+    use super::*;
+    use crate::extract::marching_cubes::marching_cubes;
+
+    fn valid_mc(v: &Volume) -> crate::extract::TriMesh {
+        let m = marching_cubes(&Field::of(v), &Control::none()).unwrap();
+        let r = check(&m);
+        assert!(r.is_valid(), "{r:?}");
+        m
+    }
+
+    #[test]
+    fn one_voxel_is_an_octahedron_facing_out() {
+        let mut b = BitVolume::new(grid([3, 3, 3]));
+        b.set(1, 1, 1, true);
+        let m = valid_mc(&Volume::Bits(b));
+        assert_eq!((m.positions.len(), m.triangles.len()), (6, 8));
+        assert!((check(&m).volume - 1.0 / 6.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn random_bit_volumes_give_valid_meshes() {
+        let mut rng = Rng::new(36);
+        for case in 0..400 {
+            let dims = [
+                1 + rng.below(8) as u32,
+                1 + rng.below(8) as u32,
+                1 + rng.below(8) as u32,
+            ];
+            let mut b = BitVolume::new(grid(dims));
+            let p = [0.2, 0.35, 0.5, 0.65, 0.8][case % 5];
+            for x in 0..dims[0] {
+                for y in 0..dims[1] {
+                    for z in 0..dims[2] {
+                        if rng.unit() < p {
+                            b.set(x, y, z, true);
+                        }
+                    }
+                }
+            }
+            valid_mc(&Volume::Bits(b));
+        }
+    }
+
+    #[test]
+    fn a_distance_sphere_lies_on_the_sphere() {
+        let (r, n) = (9.3, 24);
+        let (g, f) = sphere(n, r);
+        let mut d = Dense::new(g, 0.0f32);
+        for x in 0..n {
+            for y in 0..n {
+                for z in 0..n {
+                    d.set(x, y, z, f(x, y, z) as f32);
+                }
+            }
+        }
+        let m = valid_mc(&Volume::Distance(d));
+        let c = f64::from(n) / 2.0;
+        // The crossings lie on the sphere to the linear interpolation's error (the added
+        // centroids of larger polygons are not checked).
+        let mut worst: f64 = 0.0;
+        for p in &m.positions {
+            let q = p.map(|k| k - c);
+            let rr = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
+            worst = worst.max((rr - r).abs());
+        }
+        assert!(worst < 0.1, "{worst}");
+        let vol = check(&m).volume;
+        let exact = 4.0 / 3.0 * std::f64::consts::PI * r * r * r;
+        assert!((vol / exact - 1.0).abs() < 0.02, "{vol} vs {exact}");
+    }
+}

@@ -234,67 +234,9 @@ fn faces(bits: &BitVolume, ctl: &Control) -> Result<Vec<Face>, Canceled> {
 
 /// The surface nets mesh of `field`, in lattice units.
 pub fn surface_nets(field: &Field<'_>, ctl: &Control) -> Result<TriMesh, Canceled> {
-    let bits: &BitVolume = &field.inside;
-    let d = bits.dims();
-    let faces = faces(bits, &ctl.stage(0.0, 0.3))?;
-    let joins = super::pinches::Joins::decide(bits);
-    let occ = |p: [i64; 3]| {
-        (0..3).all(|a| p[a] >= 0 && p[a] < i64::from(d[a]))
-            && bits.get(p[0] as u32, p[1] as u32, p[2] as u32)
-    };
-    let ctl2 = ctl.stage(0.3, 0.7);
-    let counter = ctl2.counter(faces.len() as u64);
-    // Vertices by (lattice point, sheet); their position sums and counts.
-    let mut ids: HashMap<([u32; 3], u8), u32, foldhash::fast::RandomState> = HashMap::default();
-    let mut sums: Vec<[f64; 4]> = Vec::new();
-    let mut quads: Vec<[u32; 4]> = Vec::with_capacity(faces.len());
-    for (i, f) in faces.iter().enumerate() {
-        if i % 65536 == 0 {
-            counter.check()?;
-            counter.add(65536.min((faces.len() - i) as u64));
-        }
-        // The crossing point on the segment between the face's two voxel centres.
-        let mut c = [0.0; 3];
-        c[(f.a + 1) % 3] = f64::from(f.u) + 0.5;
-        c[(f.a + 2) % 3] = f64::from(f.v) + 0.5;
-        c[f.a] = f64::from(f.k);
-        if field.value.is_some() {
-            let inn = f.inside().map(i64::from);
-            let mut out = inn;
-            out[f.a] += if f.plus { 1 } else { -1 };
-            let (vi, vo) = (field.value(inn), field.value(out));
-            let t = if vo.is_infinite() {
-                0.5
-            } else {
-                let (a, b) = (vi.abs(), vo.abs());
-                if a + b > 0.0 { a / (a + b) } else { 0.5 }
-            };
-            let t = t.clamp(1.0 / 64.0, 63.0 / 64.0);
-            let ci = f64::from(inn[f.a] as i32) + 0.5;
-            c[f.a] = ci + t * if f.plus { 1.0 } else { -1.0 };
-        }
-        // Corners counter-clockwise seen from +a.
-        let mut ring = [(0, 0), (1, 0), (1, 1), (0, 1)].map(|(du, dv)| {
-            let p = f.point(du, dv);
-            let s = sheet_with(&occ, p, f.a, f.inside(), |set| joins.flags(p, set));
-            let next = sums.len() as u32;
-            let id = *ids.entry((p, s)).or_insert_with(|| {
-                sums.push([0.0; 4]);
-                next
-            });
-            let sum = &mut sums[id as usize];
-            for k in 0..3 {
-                sum[k] += c[k];
-            }
-            sum[3] += 1.0;
-            id
-        });
-        if !f.plus {
-            ring.reverse();
-        }
-        quads.push(ring);
-    }
-    drop(ids);
+    let Net {
+        faces, quads, sums, ..
+    } = net(field, &ctl.stage(0.0, 0.7))?;
     // Cells: each vertex's lattice point, for the clamp (recovered from its faces below).
     let mut positions: Vec<[f64; 3]> = sums
         .iter()
@@ -320,6 +262,93 @@ pub fn surface_nets(field: &Field<'_>, ctl: &Control) -> Result<TriMesh, Cancele
     }
     ctl.complete();
     Ok(out)
+}
+
+/// The quad mesh both surface nets and marching cubes are made from: a quad per boundary face
+/// (its corners the sheets of its four lattice points, counter-clockwise seen from outside),
+/// each face's crossing point, and each vertex's sum of its faces' crossing points (and their
+/// count).
+pub(super) struct Net {
+    faces: Vec<Face>,
+    pub quads: Vec<[u32; 4]>,
+    pub crossings: Vec<[f64; 3]>,
+    sums: Vec<[f64; 4]>,
+    pub vertices: usize,
+}
+
+/// The [`Net`] of `field`.
+pub(super) fn net(field: &Field<'_>, ctl: &Control) -> Result<Net, Canceled> {
+    let bits: &BitVolume = &field.inside;
+    let d = bits.dims();
+    let faces = faces(bits, &ctl.stage(0.0, 0.4))?;
+    let joins = super::pinches::Joins::decide(bits);
+    let occ = |p: [i64; 3]| {
+        (0..3).all(|a| p[a] >= 0 && p[a] < i64::from(d[a]))
+            && bits.get(p[0] as u32, p[1] as u32, p[2] as u32)
+    };
+    let ctl2 = ctl.stage(0.4, 1.0);
+    let counter = ctl2.counter(faces.len() as u64);
+    // Vertices by (lattice point, sheet); their position sums and counts.
+    let mut ids: HashMap<([u32; 3], u8), u32, foldhash::fast::RandomState> = HashMap::default();
+    let mut sums: Vec<[f64; 4]> = Vec::new();
+    let mut quads: Vec<[u32; 4]> = Vec::with_capacity(faces.len());
+    let mut crossings: Vec<[f64; 3]> = Vec::with_capacity(faces.len());
+    for (i, f) in faces.iter().enumerate() {
+        if i % 65536 == 0 {
+            counter.check()?;
+            counter.add(65536.min((faces.len() - i) as u64));
+        }
+        // The crossing point on the segment between the face's two voxel centres.
+        let mut c = [0.0; 3];
+        c[(f.a + 1) % 3] = f64::from(f.u) + 0.5;
+        c[(f.a + 2) % 3] = f64::from(f.v) + 0.5;
+        c[f.a] = f64::from(f.k);
+        if field.value.is_some() {
+            let inn = f.inside().map(i64::from);
+            let mut out = inn;
+            out[f.a] += if f.plus { 1 } else { -1 };
+            let (vi, vo) = (field.value(inn), field.value(out));
+            let t = if vo.is_infinite() {
+                0.5
+            } else {
+                let (a, b) = (vi.abs(), vo.abs());
+                if a + b > 0.0 { a / (a + b) } else { 0.5 }
+            };
+            let t = t.clamp(1.0 / 64.0, 63.0 / 64.0);
+            let ci = f64::from(inn[f.a] as i32) + 0.5;
+            c[f.a] = ci + t * if f.plus { 1.0 } else { -1.0 };
+        }
+        crossings.push(c);
+        // Corners counter-clockwise seen from +a.
+        let mut ring = [(0, 0), (1, 0), (1, 1), (0, 1)].map(|(du, dv)| {
+            let p = f.point(du, dv);
+            let s = sheet_with(&occ, p, f.a, f.inside(), |set| joins.flags(p, set));
+            let next = sums.len() as u32;
+            let id = *ids.entry((p, s)).or_insert_with(|| {
+                sums.push([0.0; 4]);
+                next
+            });
+            let sum = &mut sums[id as usize];
+            for k in 0..3 {
+                sum[k] += c[k];
+            }
+            sum[3] += 1.0;
+            id
+        });
+        if !f.plus {
+            ring.reverse();
+        }
+        quads.push(ring);
+    }
+    drop(ids);
+    ctl.complete();
+    Ok(Net {
+        faces,
+        quads,
+        crossings,
+        vertices: sums.len(),
+        sums,
+    })
 }
 
 /// Gibson's constrained relaxation: `rounds` times, every vertex to the mean of its quad

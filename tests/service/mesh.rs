@@ -94,10 +94,14 @@ fn meshes_of_stored_volumes() {
     // Surface nets of the bit volume and of its sdf (a stored distance volume): watertight for
     // trimesh, close to the voxels' volume.
     let sdf = srv.created(&format!("/v1/volumes/{id}/sdf?band=2"), &[], &[]);
-    for of in [id.as_str(), sdf["id"].as_str().unwrap()] {
+    for (of, algorithm) in [
+        (id.as_str(), "surface-nets"),
+        (sdf["id"].as_str().unwrap(), "surface-nets"),
+        (sdf["id"].as_str().unwrap(), "marching-cubes"),
+    ] {
         let r = srv.req(
             "GET",
-            &format!("/v1/volumes/{of}/mesh?algorithm=surface-nets&format=ply"),
+            &format!("/v1/volumes/{of}/mesh?algorithm={algorithm}&format=ply"),
             &[],
             &[],
         );
@@ -106,7 +110,7 @@ fn meshes_of_stored_volumes() {
             let f = dir.join("nets.ply");
             std::fs::write(&f, &r.body).unwrap();
             let (watertight, consistent, volume, _) = crate::mesh_cli::trimesh_check(py, &f);
-            assert!(watertight && consistent, "surface nets of {of}");
+            assert!(watertight && consistent, "{algorithm} of {of}");
             let exact = want.count_ones() as f64 * 0.25f64.powi(3);
             assert!(
                 (volume / exact - 1.0).abs() < 0.1,
