@@ -10,7 +10,9 @@ use super::output::read_volume;
 pub fn mesh(input: &Path, output: &Path, algorithm: &str) -> Result<(), String> {
     let algorithm = Algorithm::parse(algorithm)?;
     let format = MeshFormat::of_path(output)?;
+    let t0 = std::time::Instant::now();
     let v = read_volume(input)?;
+    let t_read = t0.elapsed().as_secs_f64();
     let grid = *v.grid();
     let m = super::progress::with_bar(&input.display().to_string(), |ctl| match algorithm {
         Algorithm::Cubes => cubes::cubes(&occupancy(&v), ctl),
@@ -20,7 +22,9 @@ pub fn mesh(input: &Path, output: &Path, algorithm: &str) -> Result<(), String> 
         }
     })
     .map_err(|e| format!("{}: {e}", input.display()))?;
+    let t_extract = t0.elapsed().as_secs_f64() - t_read;
     let r = check::check(&m);
+    let t_check = t0.elapsed().as_secs_f64() - t_read - t_extract;
     if !r.is_valid() {
         return Err(format!(
             "{}: the extracted mesh failed its checks: {r:?}",
@@ -38,13 +42,16 @@ pub fn mesh(input: &Path, output: &Path, algorithm: &str) -> Result<(), String> 
             format!("{}: {e}", output.display())
         })?;
     println!(
-        "{} -> {}: {}, {} vertices, {} triangles, watertight, enclosing {} voxels",
+        "{} -> {}: {}, {} vertices, {} triangles, watertight, enclosing {} voxels \
+         ({:.3} s: read {t_read:.3}, extract {t_extract:.3}, check {t_check:.3}, write {:.3})",
         input.display(),
         output.display(),
         algorithm.as_str(),
         world.positions.len(),
         world.triangles.len(),
-        r.volume
+        r.volume,
+        t0.elapsed().as_secs_f64(),
+        t0.elapsed().as_secs_f64() - t_read - t_extract - t_check,
     );
     Ok(())
 }

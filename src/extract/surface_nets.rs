@@ -27,6 +27,8 @@
 use std::borrow::Cow;
 use std::collections::HashMap;
 
+use rayon::prelude::*;
+
 use super::TriMesh;
 use super::cubes::sheet_with;
 use crate::cancel::{Canceled, Control};
@@ -373,7 +375,7 @@ fn relax(
         };
         for (j, &v) in q.iter().enumerate() {
             cell[v as usize] = ring[j].map(f64::from);
-            start[v as usize + 1] += 2;
+            start[v as usize + 1] += 1;
         }
     }
     for i in 0..n {
@@ -381,13 +383,13 @@ fn relax(
     }
     let mut fill = start.clone();
     let mut adj = vec![0u32; start[n] as usize];
+    // Each neighbour once: the mesh is closed and consistently oriented, so each edge v → w
+    // is in exactly one quad.
     for q in quads {
         for j in 0..4 {
             let v = q[j] as usize;
-            for w in [q[(j + 1) % 4], q[(j + 3) % 4]] {
-                adj[fill[v] as usize] = w;
-                fill[v] += 1;
-            }
+            adj[fill[v] as usize] = q[(j + 1) % 4];
+            fill[v] += 1;
         }
     }
     let counter = ctl.counter(rounds as u64);
@@ -398,21 +400,22 @@ fn relax(
         // Taubin's pair of steps: towards the neighbours' mean (λ), then away from it (μ), so
         // that the surface is smoothed without shrinking.
         for factor in [TAUBIN.0, TAUBIN.1] {
-            for v in 0..n {
+            let now: &[[f64; 3]] = positions;
+            next.par_iter_mut().enumerate().for_each(|(v, out)| {
                 let nb = &adj[start[v] as usize..start[v + 1] as usize];
                 let mut s = [0.0; 3];
                 for &w in nb {
-                    for k in 0..3 {
-                        s[k] += positions[w as usize][k];
-                    }
+                    let p = now[w as usize];
+                    s[0] += p[0];
+                    s[1] += p[1];
+                    s[2] += p[2];
                 }
-                // Each neighbour is listed twice (once per quad edge it shares): a plain mean.
-                next[v] = [0, 1, 2].map(|k| {
+                *out = [0, 1, 2].map(|k| {
                     let mean = s[k] / nb.len() as f64;
-                    let p = positions[v][k] + factor * (mean - positions[v][k]);
+                    let p = now[v][k] + factor * (mean - now[v][k]);
                     p.clamp(cell[v][k] - m, cell[v][k] + m)
                 });
-            }
+            });
             positions.copy_from_slice(&next);
         }
         counter.add(1);
