@@ -242,14 +242,43 @@ pub fn triangle_bound(bits: &BitVolume) -> u64 {
 /// The boundary faces of `bits`' set voxels and its pinched edges (two set voxels meeting
 /// only along the edge), counted by word operations on the columns.
 pub fn boundary_counts(bits: &BitVolume) -> (u64, u64) {
+    let (mut faces, mut pinches) = (0u64, 0u64);
+    scan(bits, |_, _, _, f, p| {
+        faces += f;
+        pinches += p.iter().map(|m| u64::from(m.count_ones())).sum::<u64>();
+    });
+    (faces, pinches)
+}
+
+/// Every pinched lattice edge of `bits` (its lower end and axis).
+pub(super) fn pinched_edges(bits: &BitVolume) -> Vec<([u32; 3], u8)> {
+    let mut out = Vec::new();
+    scan(bits, |x, y, w, _, pinched| {
+        // Bit j of word w is the edge at z = 64w + j: along x from (x, y + 1, z + 1), along y
+        // from (x + 1, y, z + 1), along z from (x + 1, y + 1, z).
+        let lows = [[x, y + 1, 1], [x + 1, y, 1], [x + 1, y + 1, 0]];
+        for (axis, (mut t, lo)) in pinched.into_iter().zip(lows).enumerate() {
+            while t != 0 {
+                let z = (w * 64) as u32 + t.trailing_zeros();
+                t &= t - 1;
+                out.push(([lo[0], lo[1], z + lo[2]], axis as u8));
+            }
+        }
+    });
+    out
+}
+
+/// Visits every word `w` of every column (x, y) with the boundary faces of its voxels counted
+/// (each face once: across z within the column, across x and y with the next columns, and the
+/// grid's first layers' outer faces) and its pinched edges as bit masks along x, y and z (bit j:
+/// the edge whose lower voxel corner has z = 64w + j).
+fn scan(bits: &BitVolume, mut visit: impl FnMut(u32, u32, usize, u64, [u64; 3])) {
     let d = bits.dims().map(|n| n as usize);
     let wpc = bits.words_per_column();
     let col = |x: usize, y: usize| bits.column(x as u32, y as u32);
     // z + 1 of column c's word w (bit j: voxel 64w + j + 1).
     let up = |c: &[u64], w: usize| c[w] >> 1 | c.get(w + 1).map_or(0, |n| n << 63);
     let pinched = |a: u64, b: u64, c: u64, e: u64| (a & e & !b & !c) | (b & c & !a & !e);
-    let mut faces = 0u64;
-    let mut pinches = 0u64;
     for x in 0..d[0] {
         for y in 0..d[1] {
             let c = col(x, y);
@@ -262,7 +291,7 @@ pub fn boundary_counts(bits: &BitVolume) -> (u64, u64) {
                 // Faces across z: a voxel set and the one above unset, or the reverse (the
                 // lowest voxel's face below counted by the +1 of `below`).
                 let below_unset = !(v << 1 | if w > 0 { c[w - 1] >> 63 } else { 0 });
-                faces += u64::from((v & !u).count_ones() + (v & below_unset).count_ones());
+                let mut faces = u64::from((v & !u).count_ones() + (v & below_unset).count_ones());
                 // Across x and y: differences with the next column (the grid's first and last
                 // layers face outside).
                 for (next, first) in [(cx, x == 0), (cy, y == 0)] {
@@ -272,65 +301,16 @@ pub fn boundary_counts(bits: &BitVolume) -> (u64, u64) {
                         faces += u64::from(v.count_ones());
                     }
                 }
-                // Pinched edges along z (four columns), along y (columns x, x + 1 at z, z + 1)
-                // and along x (columns y, y + 1 at z, z + 1).
-                if let (Some(cx), Some(cy), Some(cxy)) = (cx, cy, cxy) {
-                    pinches += u64::from(pinched(v, cx[w], cy[w], cxy[w]).count_ones());
-                }
-                if let Some(cx) = cx {
-                    pinches += u64::from(pinched(v, cx[w], u, up(cx, w)).count_ones());
-                }
-                if let Some(cy) = cy {
-                    pinches += u64::from(pinched(v, cy[w], u, up(cy, w)).count_ones());
-                }
+                // Pinched edges along x (columns y, y + 1 at z, z + 1), along y (columns x,
+                // x + 1 at z, z + 1) and along z (four columns).
+                let along_x = cy.map_or(0, |cy| pinched(v, cy[w], u, up(cy, w)));
+                let along_y = cx.map_or(0, |cx| pinched(v, cx[w], u, up(cx, w)));
+                let along_z = match (cx, cy, cxy) {
+                    (Some(cx), Some(cy), Some(cxy)) => pinched(v, cx[w], cy[w], cxy[w]),
+                    _ => 0,
+                };
+                visit(x as u32, y as u32, w, faces, [along_x, along_y, along_z]);
             }
         }
     }
-    (faces, pinches)
-}
-
-/// Every pinched lattice edge of `bits` (its lower end and axis): two set voxels meeting only
-/// along it, found by the word operations of [`boundary_counts`].
-pub(super) fn pinched_edges(bits: &BitVolume) -> Vec<([u32; 3], u8)> {
-    let d = bits.dims().map(|n| n as usize);
-    let wpc = bits.words_per_column();
-    let col = |x: usize, y: usize| bits.column(x as u32, y as u32);
-    let up = |c: &[u64], w: usize| c[w] >> 1 | c.get(w + 1).map_or(0, |n| n << 63);
-    let pinched = |a: u64, b: u64, c: u64, e: u64| (a & e & !b & !c) | (b & c & !a & !e);
-    let mut out = Vec::new();
-    let mut emit = |mut t: u64, w: usize, at: &dyn Fn(u32) -> ([u32; 3], u8)| {
-        while t != 0 {
-            let z = (w * 64) as u32 + t.trailing_zeros();
-            t &= t - 1;
-            out.push(at(z));
-        }
-    };
-    for x in 0..d[0] {
-        for y in 0..d[1] {
-            let c = col(x, y);
-            let cx = (x + 1 < d[0]).then(|| col(x + 1, y));
-            let cy = (y + 1 < d[1]).then(|| col(x, y + 1));
-            let cxy = (x + 1 < d[0] && y + 1 < d[1]).then(|| col(x + 1, y + 1));
-            let (x, y) = (x as u32, y as u32);
-            for w in 0..wpc {
-                let u = up(c, w);
-                if let (Some(cx), Some(cy), Some(cxy)) = (cx, cy, cxy) {
-                    emit(pinched(c[w], cx[w], cy[w], cxy[w]), w, &|z| {
-                        ([x + 1, y + 1, z], 2)
-                    });
-                }
-                if let Some(cx) = cx {
-                    emit(pinched(c[w], cx[w], u, up(cx, w)), w, &|z| {
-                        ([x + 1, y, z + 1], 1)
-                    });
-                }
-                if let Some(cy) = cy {
-                    emit(pinched(c[w], cy[w], u, up(cy, w)), w, &|z| {
-                        ([x, y + 1, z + 1], 0)
-                    });
-                }
-            }
-        }
-    }
-    out
 }

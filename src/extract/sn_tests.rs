@@ -4,6 +4,7 @@
 
 use super::check::check;
 use super::surface_nets::{Field, surface_nets};
+use super::tests::random_bits;
 use crate::cancel::Control;
 use crate::grid::Grid;
 use crate::testkit::Rng;
@@ -28,22 +29,7 @@ fn valid(v: &Volume) -> super::TriMesh {
 fn random_bit_volumes_give_valid_manifold_meshes() {
     let mut rng = Rng::new(35);
     for case in 0..600 {
-        let dims = [
-            1 + rng.below(8) as u32,
-            1 + rng.below(8) as u32,
-            1 + rng.below(8) as u32,
-        ];
-        let mut b = BitVolume::new(grid(dims));
-        let p = [0.2, 0.35, 0.5, 0.65, 0.8][case % 5];
-        for x in 0..dims[0] {
-            for y in 0..dims[1] {
-                for z in 0..dims[2] {
-                    if rng.unit() < p {
-                        b.set(x, y, z, true);
-                    }
-                }
-            }
-        }
+        let b = random_bits(&mut rng, grid, 8, [0.2, 0.35, 0.5, 0.65, 0.8][case % 5]);
         let n = b.count_ones();
         let m = valid(&Volume::Bits(b));
         assert_eq!(m.triangles.is_empty(), n == 0);
@@ -202,22 +188,7 @@ mod marching {
     fn random_bit_volumes_give_valid_meshes() {
         let mut rng = Rng::new(36);
         for case in 0..400 {
-            let dims = [
-                1 + rng.below(8) as u32,
-                1 + rng.below(8) as u32,
-                1 + rng.below(8) as u32,
-            ];
-            let mut b = BitVolume::new(grid(dims));
-            let p = [0.2, 0.35, 0.5, 0.65, 0.8][case % 5];
-            for x in 0..dims[0] {
-                for y in 0..dims[1] {
-                    for z in 0..dims[2] {
-                        if rng.unit() < p {
-                            b.set(x, y, z, true);
-                        }
-                    }
-                }
-            }
+            let b = random_bits(&mut rng, grid, 8, [0.2, 0.35, 0.5, 0.65, 0.8][case % 5]);
             valid_mc(&Volume::Bits(b));
         }
     }

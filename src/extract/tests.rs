@@ -99,27 +99,35 @@ fn edge_and_point_contacts_stay_manifold() {
     round_trip(&d);
 }
 
+/// A volume on `grid(dims)` with dims drawn from 1..=max_dim, each voxel set with
+/// probability `p` (voxels on the grid's faces too).
+pub(super) fn random_bits(
+    rng: &mut Rng,
+    grid: impl Fn([u32; 3]) -> Grid,
+    max_dim: usize,
+    p: f64,
+) -> BitVolume {
+    let dims = [0; 3].map(|_| 1 + rng.below(max_dim) as u32);
+    let mut b = BitVolume::new(grid(dims));
+    for x in 0..dims[0] {
+        for y in 0..dims[1] {
+            for z in 0..dims[2] {
+                if rng.unit() < p {
+                    b.set(x, y, z, true);
+                }
+            }
+        }
+    }
+    b
+}
+
 #[test]
 fn random_volumes_round_trip() {
     let mut rng = Rng::new(33);
     for case in 0..60 {
-        let dims = [
-            1 + rng.below(9) as u32,
-            1 + rng.below(9) as u32,
-            1 + rng.below(9) as u32,
-        ];
-        let mut b = BitVolume::new(grid(dims));
-        // Sparse, dense and blocky volumes; set voxels on the grid's faces too.
-        let p = [0.1, 0.5, 0.85][case % 3];
-        for x in 0..dims[0] {
-            for y in 0..dims[1] {
-                for z in 0..dims[2] {
-                    if rng.unit() < p {
-                        b.set(x, y, z, true);
-                    }
-                }
-            }
-        }
+        // Sparse, dense and blocky volumes.
+        let b = random_bits(&mut rng, grid, 9, [0.1, 0.5, 0.85][case % 3]);
+        let dims = b.dims();
         assert_eq!(triangle_bound(&b), brute_bound(&b), "{dims:?}");
         round_trip(&b);
     }
