@@ -8,6 +8,7 @@ pub mod cpu;
 pub mod density;
 pub mod distance;
 pub mod fill;
+pub mod hermite;
 mod geom;
 pub mod gpu;
 pub mod sdf;
