@@ -43,11 +43,8 @@ fn main() -> ExitCode {
             level,
             output,
         } => cli::distance::threshold(&input, level, &output),
-        Command::Mesh {
-            input,
-            output,
-            algorithm,
-        } => cli::mesh::mesh(&input, &output, &algorithm),
+        Command::Mesh(a) => cli::mesh::mesh(&a),
+        Command::Hermite(a) => cli::mesh::hermite(&a),
         Command::Sdf {
             input,
             band,

@@ -59,9 +59,16 @@ pub const BYTES_PER_TRIANGLE: u64 = 96;
 /// boundary face and twelve per pinched edge; surface nets: exactly two per boundary face);
 /// `too-many-triangles` over the limit.
 pub fn plan(v: Volume, algorithm: Algorithm, limits: &Limits) -> Result<Planned> {
+    if algorithm == Algorithm::DualContouring {
+        return Err(Error::invalid(
+            "algorithm=dual-contouring needs the Hermite data of the mesh a volume was made \
+             from, and the service does not keep uploaded meshes yet: use `voxd mesh MESH \
+             --algorithm dual-contouring` (or surface-nets here)",
+        ));
+    }
     let (volume, bits) = match (algorithm, v) {
         (_, Volume::Bits(b)) => (None, b),
-        (Algorithm::Cubes, v) => (None, occupancy(&v)),
+        (Algorithm::Cubes | Algorithm::DualContouring, v) => (None, occupancy(&v)),
         (Algorithm::SurfaceNets | Algorithm::MarchingCubes, v) => {
             let bits = surface_nets::inside(&v).into_owned();
             (Some(v), bits)
@@ -72,6 +79,8 @@ pub fn plan(v: Volume, algorithm: Algorithm, limits: &Limits) -> Result<Planned>
         Algorithm::SurfaceNets => 2 * cubes::boundary_counts(&bits).0,
         // A polygon of k crossings is at most k triangles; each crossing is in four polygons.
         Algorithm::MarchingCubes => 4 * cubes::boundary_counts(&bits).0,
+        // Surface nets' quads, split.
+        Algorithm::DualContouring => 2 * cubes::boundary_counts(&bits).0,
     };
     let max = limits.max_triangles as u64;
     if triangles > max {
@@ -125,7 +134,9 @@ pub fn build(p: &Planned, ctl: &Control) -> Result<TriMesh> {
     let m = match (p.algorithm, &p.volume) {
         (Algorithm::Cubes, _) => cubes::cubes(&p.bits, ctl)?,
         (Algorithm::MarchingCubes, _) => marching_cubes::marching_cubes(&field, ctl)?,
-        (Algorithm::SurfaceNets, _) => surface_nets::surface_nets(&field, ctl)?,
+        (Algorithm::SurfaceNets | Algorithm::DualContouring, _) => {
+            surface_nets::surface_nets(&field, ctl)?
+        }
     };
     ctl.complete();
     Ok(m.to_world(&grid))

@@ -14,6 +14,7 @@ pub mod cost;
 pub mod distance;
 pub mod error;
 pub mod files;
+pub mod hermite;
 pub mod jobs;
 pub mod memory;
 pub mod mesh;

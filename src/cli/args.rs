@@ -111,16 +111,11 @@ pub enum Command {
         output: PathBuf,
     },
     /// A volume's boundary as a triangle mesh (docs/methods.md, "Meshes out").
-    Mesh {
-        /// A volume (.vxl .binvox .npy): its occupied voxels.
-        input: PathBuf,
-        /// The mesh (.obj .stl .ply, by extension).
-        #[arg(short, long)]
-        output: PathBuf,
-        /// The extraction algorithm: cubes (the exact boundary of the voxels).
-        #[arg(long, default_value = "cubes")]
-        algorithm: String,
-    },
+    Mesh(MeshArgs),
+    /// The Hermite data of a mesh's solid as .npz (docs/format.md, "Hermite data"): every
+    /// edge between neighbouring voxel centres that differs in solid, where the mesh crosses
+    /// it and the crossed triangle's normal.
+    Hermite(VoxelizeArgs),
     /// The exact signed distance transform of a bit volume, in a sparse band of BAND voxels
     /// (negative at its set voxels; docs/methods.md).
     Sdf {
@@ -164,6 +159,65 @@ pub enum Command {
         /// The key's name, as logs, job records and metrics show it (A-Z a-z 0-9 . _ -).
         name: String,
     },
+}
+
+#[derive(Args)]
+pub struct MeshArgs {
+    /// A volume (.vxl .binvox .npy: its occupied voxels, or its values for surface nets and
+    /// marching cubes of distance and density volumes), or a mesh (.obj .gltf .glb .stl .ply,
+    /// optionally .gz: its solid on the grid the options below give; dual-contouring needs one).
+    pub input: PathBuf,
+    /// The mesh (.obj .stl .ply .glb, by extension).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// cubes (the exact boundary of the voxels), surface-nets, marching-cubes or
+    /// dual-contouring (from the mesh's Hermite data: sharp edges stay sharp).
+    #[arg(long, default_value = "cubes")]
+    pub algorithm: String,
+    /// A mesh input: voxels along its longest axis (default 256 when no voxel size is given).
+    #[arg(long, conflicts_with = "voxel_size")]
+    pub resolution: Option<u32>,
+    /// A mesh input: the voxel's edge length in mesh units.
+    #[arg(long)]
+    pub voxel_size: Option<f64>,
+    /// A mesh input: how its solid decides inside (as `voxelize --fill`).
+    #[arg(long, value_parser = named::<Fill>())]
+    pub fill: Option<Fill>,
+    /// A mesh input: empty voxels added on every side.
+    #[arg(long, default_value_t = 1)]
+    pub padding: u32,
+    /// A mesh input: refuse grids with more voxels than this.
+    #[arg(long, default_value_t = Limits::LOCAL.max_voxels)]
+    pub max_voxels: u64,
+}
+
+impl MeshArgs {
+    /// The solid voxelization of a mesh input.
+    pub fn request(&self) -> voxd::app::Result<VoxelizeRequest> {
+        let limits = Limits {
+            max_voxels: self.max_voxels,
+            ..Limits::LOCAL
+        };
+        let method = MethodSpec::Bits(Method::Solid);
+        Ok(VoxelizeRequest {
+            source: MeshSource::File {
+                path: self.input.clone(),
+                format: None,
+            },
+            grid: GridOptions {
+                resolution: self.resolution,
+                voxel_size: self.voxel_size,
+                origin: None,
+                dims: None,
+                cubic: false,
+            }
+            .spec(limits.default_resolution)?,
+            padding: self.padding,
+            method,
+            fill: method.fill(self.fill)?,
+            limits,
+        })
+    }
 }
 
 #[derive(Args)]

@@ -6,6 +6,7 @@
 pub mod binvox;
 pub mod format;
 pub mod npy;
+pub mod npz;
 pub mod png;
 pub mod vdb;
 pub mod vxl;

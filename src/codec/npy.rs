@@ -42,10 +42,17 @@ pub fn header_of(v: &Volume) -> Vec<u8> {
 }
 
 fn typed_header(dims: [u32; 3], descr: &str) -> Vec<u8> {
-    let mut header = format!(
-        "{{'descr': '{descr}', 'fortran_order': False, 'shape': ({}, {}, {}), }}",
-        dims[0], dims[1], dims[2]
-    );
+    array_header(&dims.map(u64::from), descr)
+}
+
+/// The `.npy` header of a C-ordered array of `shape` and dtype `descr` (`<f8`, `<u4`, `|b1`…).
+pub fn array_header(shape: &[u64], descr: &str) -> Vec<u8> {
+    let dims: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
+    let shape = match dims.len() {
+        1 => format!("({},)", dims[0]),
+        _ => format!("({})", dims.join(", ")),
+    };
+    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
     // Magic (6) + version (2) + length (2) + header + '\n' must be a multiple of 64.
     while (10 + header.len() + 1) % 64 != 0 {
         header.push(' ');

@@ -70,7 +70,10 @@ fn ellipsoid(r: &mut Rng, g: &Grid) -> Mesh {
     let ext = g.dims.map(|d| d as f64 * g.voxel_size);
     let c = [0, 1, 2].map(|a| g.origin[a] + ext[a] * (0.35 + 0.3 * r.next()));
     let rad = [0, 1, 2].map(|a| ext[a] * (0.12 + 0.25 * r.next()));
-    let (ang1, ang2) = (r.next() * 6.283, r.next() * 6.283);
+    let (ang1, ang2) = (
+        r.next() * std::f64::consts::TAU,
+        r.next() * std::f64::consts::TAU,
+    );
     let (m, n) = (7, 11);
     let mut pos = vec![];
     for i in 0..=m {
@@ -192,7 +195,11 @@ fn random_closed_meshes_match_the_oracle_and_every_edge_is_crossed() {
     let mut r = Rng(0x9e37_79b9_7f4a_7c15);
     let mut total = 0;
     for i in 0..24 {
-        let g = grid([-0.3, 0.1, 0.2], 0.1 + 0.01 * i as f64, [9 + i % 5, 11, 8 + i % 3]);
+        let g = grid(
+            [-0.3, 0.1, 0.2],
+            0.1 + 0.01 * i as f64,
+            [9 + i % 5, 11, 8 + i % 3],
+        );
         let m = ellipsoid(&mut r, &g);
         let (n, uncrossed) = check(&m, &g, Fill::Parity);
         assert_eq!(uncrossed, 0, "mesh {i}");
@@ -207,9 +214,7 @@ fn a_box_through_voxel_centres_is_crossed_at_the_ends_of_its_edges() {
     let m = {
         let (lo, hi) = ([0.5, 0.5, 0.5], [3.5, 2.5, 4.5]);
         let v: Vec<[f64; 3]> = (0..8)
-            .map(|i| {
-                [0, 1, 2].map(|a| if i >> a & 1 == 0 { lo[a] } else { hi[a] })
-            })
+            .map(|i| [0, 1, 2].map(|a| if i >> a & 1 == 0 { lo[a] } else { hi[a] }))
             .collect();
         let f = vec![
             [0, 2, 1],

@@ -5,6 +5,8 @@
 //!   without T-junctions.
 //! * [`surface_nets`]: one vertex per surface component of each dual cell, smooth, 2-manifold.
 //! * [`marching_cubes`]: a vertex per crossed grid edge, the dual of surface nets' quads.
+//! * [`dual_contouring`]: surface nets' topology, each vertex where its Hermite planes meet
+//!   ([`qef`]), so sharp edges and corners stay sharp.
 //! * [`check`]: watertight and consistently oriented (every edge used once in each direction),
 //!   no degenerate or duplicate triangles, the enclosed volume.
 //! * [`write`]: OBJ, binary STL, binary PLY.
@@ -14,9 +16,12 @@
 
 pub mod check;
 pub mod cubes;
+pub mod dual_contouring;
 mod faces;
 pub mod marching_cubes;
+pub mod measure;
 mod pinches;
+pub mod qef;
 pub mod surface_nets;
 pub mod write;
 
@@ -45,13 +50,16 @@ pub enum Algorithm {
     Cubes,
     SurfaceNets,
     MarchingCubes,
+    /// From Hermite data: needs the mesh the volume was made from.
+    DualContouring,
 }
 
 impl Algorithm {
-    pub const ALL: [Algorithm; 3] = [
+    pub const ALL: [Algorithm; 4] = [
         Algorithm::Cubes,
         Algorithm::SurfaceNets,
         Algorithm::MarchingCubes,
+        Algorithm::DualContouring,
     ];
 
     pub fn as_str(self) -> &'static str {
@@ -59,6 +67,7 @@ impl Algorithm {
             Algorithm::Cubes => "cubes",
             Algorithm::SurfaceNets => "surface-nets",
             Algorithm::MarchingCubes => "marching-cubes",
+            Algorithm::DualContouring => "dual-contouring",
         }
     }
 
@@ -93,6 +102,8 @@ pub fn occupancy(v: &crate::volume::Volume) -> crate::volume::BitVolume {
     b
 }
 
+#[cfg(test)]
+mod dc_tests;
 #[cfg(test)]
 mod sn_tests;
 #[cfg(test)]

@@ -134,12 +134,12 @@ impl<'a> Field<'a> {
 /// A unit boundary face: across axis `a` at plane `k`, cell (u, v) on axes a+1, a+2; `plus`:
 /// the inside voxel is below (facing +a).
 #[derive(Clone, Copy)]
-struct Face {
-    a: usize,
+pub(super) struct Face {
+    pub(super) a: usize,
     k: u32,
     u: u32,
     v: u32,
-    plus: bool,
+    pub(super) plus: bool,
 }
 
 impl Face {
@@ -148,6 +148,12 @@ impl Face {
         p[self.a] = self.k;
         p[(self.a + 1) % 3] = self.u + du;
         p[(self.a + 2) % 3] = self.v + dv;
+        p
+    }
+    /// The face's grid edge: its lower voxel (the other is one step along `a`).
+    pub(super) fn lower(&self) -> [u32; 3] {
+        let mut p = self.point(0, 0);
+        p[self.a] -= 1;
         p
     }
     fn inside(&self) -> [u32; 3] {
@@ -271,7 +277,7 @@ pub fn surface_nets(field: &Field<'_>, ctl: &Control) -> Result<TriMesh, Cancele
 /// each face's crossing point, and each vertex's sum of its faces' crossing points (and their
 /// count).
 pub(super) struct Net {
-    faces: Vec<Face>,
+    pub faces: Vec<Face>,
     pub quads: Vec<[u32; 4]>,
     pub crossings: Vec<[f64; 3]>,
     sums: Vec<[f64; 4]>,
@@ -353,6 +359,24 @@ pub(super) fn net(field: &Field<'_>, ctl: &Control) -> Result<Net, Canceled> {
     })
 }
 
+/// Each of the `n` vertices' lattice point (the centre of its dual cell): a corner of any of
+/// its quads' faces.
+pub(super) fn lattice_points(quads: &[[u32; 4]], faces: &[Face], n: usize) -> Vec<[f64; 3]> {
+    let mut cell = vec![[0.0f64; 3]; n];
+    for (q, f) in quads.iter().zip(faces) {
+        let corners = [(0, 0), (1, 0), (1, 1), (0, 1)].map(|(du, dv)| f.point(du, dv));
+        let ring = if f.plus {
+            corners
+        } else {
+            [corners[3], corners[2], corners[1], corners[0]]
+        };
+        for (j, &v) in q.iter().enumerate() {
+            cell[v as usize] = ring[j].map(f64::from);
+        }
+    }
+    cell
+}
+
 /// Gibson's constrained relaxation: `rounds` times, every vertex to the mean of its quad
 /// neighbours, clamped to its dual cell (the unit cube about its lattice point) shrunk by 1/16.
 fn relax(
@@ -363,18 +387,10 @@ fn relax(
     ctl: &Control,
 ) -> Result<(), Canceled> {
     let n = positions.len();
-    // Each vertex's lattice point: a corner of any of its quads' faces.
-    let mut cell = vec![[0.0f64; 3]; n];
+    let cell = lattice_points(quads, faces, n);
     let mut start = vec![0u32; n + 1];
-    for (q, f) in quads.iter().zip(faces) {
-        let corners = [(0, 0), (1, 0), (1, 1), (0, 1)].map(|(du, dv)| f.point(du, dv));
-        let ring = if f.plus {
-            corners
-        } else {
-            [corners[3], corners[2], corners[1], corners[0]]
-        };
-        for (j, &v) in q.iter().enumerate() {
-            cell[v as usize] = ring[j].map(f64::from);
+    for q in quads {
+        for &v in q {
             start[v as usize + 1] += 1;
         }
     }

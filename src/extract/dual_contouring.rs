@@ -1,0 +1,163 @@
+//! `algorithm=dual-contouring` (Ju, Losasso, Schaefer & Warren 2002) from Hermite data
+//! ([`crate::engine::hermite`]): the topology of surface nets (one vertex per sheet of each dual
+//! cell, pinched edges split, so the mesh is closed, oriented and 2-manifold), each vertex
+//! placed where the planes of its sheet's crossings meet.
+//!
+//! * **Vertex.** The minimiser of its sheet's QEF (`Σ (n_i · (x − p_i))²` over the crossings
+//!   of its faces' edges; [`super::qef`]: about the mass point, eigenvalues of `AᵀA` under
+//!   2% of the largest truncated). Uncrossed edges (open meshes) add their midpoint to the mass
+//!   point only.
+//! * **Kept in its cell.** When the minimiser `x` leaves the vertex's dual cell (the cube
+//!   between its eight voxel centres), the vertex is moved back along the segment to the mass
+//!   point `m` (inside the cell: its points are on the cell's edges): `m + s·(x − m)` with the
+//!   largest `s ≤ 1` in the cell.
+//! * **Quads to triangles.** Each quad is split along the diagonal whose two triangles both
+//!   face the quad's outward axis, if only one split does; else along the one whose triangles
+//!   pass nearer the quad's own crossing point (the surface is there: at a sharp edge this is
+//!   the diagonal on the edge).
+
+use std::borrow::Cow;
+
+use super::TriMesh;
+use super::qef::Qef;
+use super::surface_nets::{Field, lattice_points, net};
+use crate::cancel::{Canceled, Control};
+use crate::engine::hermite::Hermite;
+use crate::volume::BitVolume;
+
+/// The dual contouring mesh of `bits` (the solid the Hermite data `h` was taken from), in
+/// lattice units.
+pub fn dual_contouring(bits: &BitVolume, h: &Hermite, ctl: &Control) -> Result<TriMesh, Canceled> {
+    let field = Field::bits(Cow::Borrowed(bits));
+    let n = net(&field, &ctl.stage(0.0, 0.6))?;
+    let ctl2 = ctl.stage(0.6, 1.0);
+    let counter = ctl2.counter(n.faces.len() as u64);
+    // Each face's crossing (lattice units) and normal.
+    let mut qefs = vec![Qef::default(); n.vertices];
+    let mut crossing = Vec::with_capacity(n.faces.len());
+    for (i, (f, q)) in n.faces.iter().zip(&n.quads).enumerate() {
+        if i % 65536 == 0 {
+            counter.check()?;
+            counter.add(65536.min((n.faces.len() - i) as u64));
+        }
+        let (p, normal) = match h.find(f.lower(), f.a) {
+            Some(e) => (e.point(), e.normal),
+            // Not in the Hermite data (a solid other than the one it was taken from): the
+            // edge's midpoint.
+            None => (n.crossings[i], [0.0; 3]),
+        };
+        for &v in q {
+            qefs[v as usize].add(p, normal);
+        }
+        crossing.push(p);
+    }
+    let cells = lattice_points(&n.quads, &n.faces, n.vertices);
+    let positions: Vec<[f64; 3]> = qefs
+        .iter()
+        .zip(&cells)
+        .map(|(q, c)| keep_in_cell(q.solve(), q.mass_point(), *c))
+        .collect();
+    let mut triangles = Vec::with_capacity(2 * n.quads.len());
+    for ((q, f), c) in n.quads.iter().zip(&n.faces).zip(&crossing) {
+        let mut dir = [0.0; 3];
+        dir[f.a] = if f.plus { 1.0 } else { -1.0 };
+        let splits = [
+            [[q[0], q[1], q[2]], [q[0], q[2], q[3]]],
+            [[q[0], q[1], q[3]], [q[1], q[2], q[3]]],
+        ];
+        let score = |s: &[[u32; 3]; 2]| {
+            let tri = s.map(|t| t.map(|i| positions[i as usize]));
+            let out = tri.iter().all(|t| dot(normal(t), dir) > 0.0);
+            let near = tri
+                .iter()
+                .map(|t| distance2(*c, t))
+                .fold(f64::INFINITY, f64::min);
+            (out, near)
+        };
+        let (a, b) = (score(&splits[0]), score(&splits[1]));
+        let pick = if a.0 != b.0 {
+            usize::from(b.0)
+        } else {
+            usize::from(b.1 < a.1)
+        };
+        triangles.extend(splits[pick]);
+    }
+    ctl.complete();
+    Ok(TriMesh {
+        positions,
+        triangles,
+    })
+}
+
+/// `x` when inside the unit cube about `c`; else `m + s·(x − m)` with the largest `s` that is
+/// (`m` is in the cube).
+fn keep_in_cell(x: [f64; 3], m: [f64; 3], c: [f64; 3]) -> [f64; 3] {
+    let mut s: f64 = 1.0;
+    for a in 0..3 {
+        let (lo, hi) = (c[a] - 0.5, c[a] + 0.5);
+        let d = x[a] - m[a];
+        if x[a] > hi && d > 0.0 {
+            s = s.min((hi - m[a]) / d);
+        } else if x[a] < lo && d < 0.0 {
+            s = s.min((lo - m[a]) / d);
+        }
+    }
+    let s = s.max(0.0);
+    let p = [0, 1, 2].map(|a| m[a] + s * (x[a] - m[a]));
+    // Round-off at the cube's faces: onto them.
+    [0, 1, 2].map(|a| p[a].clamp(c[a] - 0.5, c[a] + 0.5))
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn normal(t: &[[f64; 3]; 3]) -> [f64; 3] {
+    let (u, v) = (sub(t[1], t[0]), sub(t[2], t[0]));
+    [
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    ]
+}
+
+/// Squared distance from `p` to triangle `t` (Ericson's closest point, 5.1.5).
+pub(super) fn distance2(p: [f64; 3], t: &[[f64; 3]; 3]) -> f64 {
+    let [a, b, c] = *t;
+    let (ab, ac, ap) = (sub(b, a), sub(c, a), sub(p, a));
+    let at = |q: [f64; 3]| dot(sub(p, q), sub(p, q));
+    let (d1, d2) = (dot(ab, ap), dot(ac, ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return at(a);
+    }
+    let bp = sub(p, b);
+    let (d3, d4) = (dot(ab, bp), dot(ac, bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return at(b);
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return at([0, 1, 2].map(|k| a[k] + v * ab[k]));
+    }
+    let cp = sub(p, c);
+    let (d5, d6) = (dot(ab, cp), dot(ac, cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return at(c);
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return at([0, 1, 2].map(|k| a[k] + w * ac[k]));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return at([0, 1, 2].map(|k| b[k] + w * (c[k] - b[k])));
+    }
+    let den = 1.0 / (va + vb + vc);
+    let (v, w) = (vb * den, vc * den);
+    at([0, 1, 2].map(|k| a[k] + ab[k] * v + ac[k] * w))
+}

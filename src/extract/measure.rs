@@ -1,0 +1,327 @@
+//! Measures of an extracted mesh against its source, for the tests and the benchmark (not used
+//! by the extraction): two-sided Hausdorff distance (sampled), the dihedral angle across the
+//! source's feature edges, and self-intersections. All in the units of the meshes given
+//! (lattice units in the tests: a voxel is 1). Brute force over a uniform grid of unit cells.
+
+use std::collections::HashMap;
+
+type Map<K, V> = HashMap<K, V, foldhash::fast::RandomState>;
+
+use super::TriMesh;
+use super::dual_contouring::distance2;
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+fn unit(a: [f64; 3]) -> [f64; 3] {
+    let l = dot(a, a).sqrt();
+    if l == 0.0 { a } else { a.map(|c| c / l) }
+}
+fn angle(a: [f64; 3], b: [f64; 3]) -> f64 {
+    dot(unit(a), unit(b)).clamp(-1.0, 1.0).acos().to_degrees()
+}
+
+/// A mesh's triangles binned into unit cells by their bounding boxes.
+pub struct Bins<'a> {
+    m: &'a TriMesh,
+    cells: Map<[i64; 3], Vec<u32>>,
+}
+
+impl<'a> Bins<'a> {
+    pub fn new(m: &'a TriMesh) -> Bins<'a> {
+        let mut cells: Map<[i64; 3], Vec<u32>> = Map::default();
+        for (i, t) in m.triangles.iter().enumerate() {
+            let p = t.map(|v| m.positions[v as usize]);
+            let lo = [0, 1, 2].map(|a| p[0][a].min(p[1][a]).min(p[2][a]).floor() as i64);
+            let hi = [0, 1, 2].map(|a| p[0][a].max(p[1][a]).max(p[2][a]).floor() as i64);
+            for x in lo[0]..=hi[0] {
+                for y in lo[1]..=hi[1] {
+                    for z in lo[2]..=hi[2] {
+                        cells.entry([x, y, z]).or_default().push(i as u32);
+                    }
+                }
+            }
+        }
+        Bins { m, cells }
+    }
+
+    fn tri(&self, i: u32) -> [[f64; 3]; 3] {
+        self.m.triangles[i as usize].map(|v| self.m.positions[v as usize])
+    }
+
+    /// The nearest triangle to `p` within `reach` cells, and its distance.
+    pub fn nearest(&self, p: [f64; 3], reach: i64) -> Option<(u32, f64)> {
+        // Within 1 of `p`, a triangle meets a cell within one of p's: look there first.
+        let near = self.nearest_in(p, 1);
+        if reach <= 1 || near.is_some_and(|(_, d)| d <= 1.0) {
+            return near;
+        }
+        self.nearest_in(p, reach)
+    }
+
+    fn nearest_in(&self, p: [f64; 3], reach: i64) -> Option<(u32, f64)> {
+        let c = p.map(|x| x.floor() as i64);
+        let mut best: Option<(u32, f64)> = None;
+        for dx in -reach..=reach {
+            for dy in -reach..=reach {
+                for dz in -reach..=reach {
+                    let Some(ts) = self.cells.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else {
+                        continue;
+                    };
+                    for &t in ts {
+                        let d = distance2(p, &self.tri(t));
+                        if best.is_none_or(|b| d < b.1) {
+                            best = Some((t, d));
+                        }
+                    }
+                }
+            }
+        }
+        best.map(|(t, d)| (t, d.sqrt()))
+    }
+
+    /// The nearest triangle's normal at `p`.
+    pub fn normal_near(&self, p: [f64; 3], reach: i64) -> Option<[f64; 3]> {
+        self.nearest(p, reach).map(|(t, _)| {
+            let q = self.tri(t);
+            unit(cross(sub(q[1], q[0]), sub(q[2], q[0])))
+        })
+    }
+}
+
+/// Points on `m`: its vertices, and points on each triangle spaced about `step` apart.
+pub fn samples(m: &TriMesh, step: f64) -> Vec<[f64; 3]> {
+    let mut out = m.positions.clone();
+    for t in &m.triangles {
+        let p = t.map(|v| m.positions[v as usize]);
+        let long = (0..3)
+            .map(|i| dot(sub(p[(i + 1) % 3], p[i]), sub(p[(i + 1) % 3], p[i])).sqrt())
+            .fold(0.0, f64::max);
+        let n = ((long / step).ceil() as usize).clamp(1, 64);
+        for i in 0..=n {
+            for j in 0..=n - i {
+                let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
+                let w = 1.0 - u - v;
+                out.push([0, 1, 2].map(|a| w * p[0][a] + u * p[1][a] + v * p[2][a]));
+            }
+        }
+    }
+    out
+}
+
+/// The largest distance from a sample of `a` to `b` (∞ when some sample has no triangle of
+/// `b` within `reach` cells).
+pub fn one_sided(a: &TriMesh, b: &Bins<'_>, step: f64, reach: i64) -> f64 {
+    samples(a, step)
+        .iter()
+        .map(|&p| b.nearest(p, reach).map_or(f64::INFINITY, |(_, d)| d))
+        .fold(0.0, f64::max)
+}
+
+/// Two-sided Hausdorff distance between `a` and `b`, sampled every `step`.
+pub fn hausdorff(a: &TriMesh, b: &TriMesh, step: f64) -> f64 {
+    let (ba, bb) = (Bins::new(a), Bins::new(b));
+    one_sided(a, &bb, step, 3).max(one_sided(b, &ba, step, 3))
+}
+
+/// A feature edge of a source mesh: its ends and the angle between its two faces' normals.
+#[derive(Clone, Copy, Debug)]
+pub struct Feature {
+    pub a: [f64; 3],
+    pub b: [f64; 3],
+    pub normals: [[f64; 3]; 2],
+    /// The directions into each face, perpendicular to the edge.
+    pub into: [[f64; 3]; 2],
+    pub angle: f64,
+}
+
+/// The edges of `m` whose two triangles' normals differ by more than `min_angle` degrees.
+pub fn features(m: &TriMesh, min_angle: f64) -> Vec<Feature> {
+    let mut sides: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
+    for (i, t) in m.triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            sides.entry((a.min(b), a.max(b))).or_default().push(i);
+        }
+    }
+    let tri = |i: usize| m.triangles[i].map(|v| m.positions[v as usize]);
+    let mut out = vec![];
+    for ((a, b), ts) in sides {
+        if ts.len() != 2 {
+            continue;
+        }
+        let (pa, pb) = (m.positions[a as usize], m.positions[b as usize]);
+        let normals = [0, 1].map(|s| {
+            let q = tri(ts[s]);
+            unit(cross(sub(q[1], q[0]), sub(q[2], q[0])))
+        });
+        let ang = angle(normals[0], normals[1]);
+        if ang <= min_angle {
+            continue;
+        }
+        let e = unit(sub(pb, pa));
+        let into = [0, 1].map(|s| {
+            let d = unit(cross(normals[s], e));
+            // Towards the face's third vertex.
+            let third = m.triangles[ts[s]]
+                .iter()
+                .find(|&&v| v != a && v != b)
+                .map(|&v| m.positions[v as usize])
+                .unwrap();
+            if dot(d, sub(third, pa)) < 0.0 {
+                d.map(|c| -c)
+            } else {
+                d
+            }
+        });
+        out.push(Feature {
+            a: pa,
+            b: pb,
+            normals,
+            into,
+            angle: ang,
+        });
+    }
+    out.sort_by(|x, y| {
+        x.a.partial_cmp(&y.a)
+            .unwrap()
+            .then(x.b.partial_cmp(&y.b).unwrap())
+    });
+    out
+}
+
+/// Per feature with a probe: |dihedral of `out` − dihedral of `src`| in degrees, averaged over
+/// the probes along it. A probe is a point `p` on the edge (at ¼, ½, ¾ of it, none within
+/// `clear` of a corner — an end shared by three or more feature edges); each side's dihedral
+/// normal is the normal of the nearest triangle to `p + r·into` (the mesh's at that point of
+/// the face, `r` from the edge), in `src` and in `out` alike.
+pub fn dihedral_errors(
+    src: &TriMesh,
+    out: &TriMesh,
+    features: &[Feature],
+    r: f64,
+    clear: f64,
+) -> Vec<f64> {
+    let (bs, bo) = (Bins::new(src), Bins::new(out));
+    let mut errors = vec![];
+    for (f, ps) in features.iter().zip(probes(features, clear)) {
+        let mut sum = 0.0;
+        let mut n = 0;
+        for p in ps {
+            let q = [0, 1].map(|i| [0, 1, 2].map(|k| p[k] + r * f.into[i][k]));
+            let ns = q.map(|q| bs.normal_near(q, 2));
+            let no = q.map(|q| bo.normal_near(q, 2));
+            let (Some(s0), Some(s1), Some(o0), Some(o1)) = (ns[0], ns[1], no[0], no[1]) else {
+                sum += 180.0;
+                n += 1;
+                continue;
+            };
+            sum += (angle(o0, o1) - angle(s0, s1)).abs();
+            n += 1;
+        }
+        if n > 0 {
+            errors.push(sum / n as f64);
+        }
+    }
+    errors
+}
+
+/// The probes of [`dihedral_errors`] on each feature (points at ¼, ½, ¾ of it, none within
+/// `clear` of a corner), one list per feature.
+fn probes(features: &[Feature], clear: f64) -> Vec<Vec<[f64; 3]>> {
+    let mut degree: HashMap<[u64; 3], usize> = HashMap::new();
+    let key = |p: [f64; 3]| p.map(f64::to_bits);
+    for f in features {
+        *degree.entry(key(f.a)).or_default() += 1;
+        *degree.entry(key(f.b)).or_default() += 1;
+    }
+    let corners: Vec<[f64; 3]> = features
+        .iter()
+        .flat_map(|f| [f.a, f.b])
+        .filter(|&p| degree[&key(p)] >= 3)
+        .collect();
+    features
+        .iter()
+        .map(|f| {
+            [0.25, 0.5, 0.75]
+                .iter()
+                .map(|s| [0, 1, 2].map(|k| f.a[k] + s * (f.b[k] - f.a[k])))
+                .filter(|&p| {
+                    !corners
+                        .iter()
+                        .any(|c| dot(sub(*c, p), sub(*c, p)).sqrt() < clear)
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Per feature with a probe: the mean distance from its probes to `out` (how far the mesh
+/// cuts the edge off; 0 when the edge is on the mesh).
+pub fn feature_distances(out: &TriMesh, features: &[Feature], clear: f64) -> Vec<f64> {
+    let bo = Bins::new(out);
+    probes(features, clear)
+        .iter()
+        .filter(|ps| !ps.is_empty())
+        .map(|ps| {
+            ps.iter()
+                .map(|&p| bo.nearest(p, 3).map_or(f64::INFINITY, |(_, d)| d))
+                .sum::<f64>()
+                / ps.len() as f64
+        })
+        .collect()
+}
+
+/// Pairs of triangles of `m` that cross each other (an edge of one through the other's
+/// interior, exactly by the signs of f64 determinants; triangles sharing a vertex are tested
+/// with the edges away from it, sharing an edge not at all).
+pub fn self_intersections(m: &TriMesh) -> usize {
+    let bins = Bins::new(m);
+    let orient = |a: [f64; 3], b: [f64; 3], c: [f64; 3], d: [f64; 3]| {
+        dot(cross(sub(b, a), sub(c, a)), sub(d, a))
+    };
+    let crosses = |p: [f64; 3], q: [f64; 3], t: [[f64; 3]; 3]| {
+        let (s, e) = (orient(t[0], t[1], t[2], p), orient(t[0], t[1], t[2], q));
+        if !(s > 0.0 && e < 0.0 || s < 0.0 && e > 0.0) {
+            return false;
+        }
+        let w = [0, 1, 2].map(|i| orient(p, q, t[i], t[(i + 1) % 3]));
+        w.iter().all(|&x| x > 0.0) || w.iter().all(|&x| x < 0.0)
+    };
+    let mut seen = std::collections::HashSet::new();
+    let mut count = 0;
+    for ts in bins.cells.values() {
+        for (i, &a) in ts.iter().enumerate() {
+            for &b in &ts[i + 1..] {
+                let (ta, tb) = (m.triangles[a as usize], m.triangles[b as usize]);
+                let shared = ta.iter().filter(|v| tb.contains(v)).count();
+                if shared >= 2 || !seen.insert((a.min(b), a.max(b))) {
+                    continue;
+                }
+                let (pa, pb) = (bins.tri(a), bins.tri(b));
+                let mut hit = false;
+                for (x, tx, y, py) in [(ta, pa, tb, pb), (tb, pb, ta, pa)] {
+                    for k in 0..3 {
+                        let (u, v) = (x[k], x[(k + 1) % 3]);
+                        if y.contains(&u) || y.contains(&v) {
+                            continue;
+                        }
+                        hit |= crosses(tx[k], tx[(k + 1) % 3], py);
+                    }
+                }
+                count += usize::from(hit);
+            }
+        }
+    }
+    count
+}
