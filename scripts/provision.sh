@@ -194,6 +194,14 @@ part_readme() {
   fi
 }
 
+# browser: Debian's chromium, which loads the viewer page headless (tests/service/viewer.rs).
+part_browser() {
+  if ! [[ -x /usr/bin/chromium ]] && can_apt; then
+    echo "installing chromium for the viewer page's browser test"
+    apt_install chromium || true
+  fi
+}
+
 # fuzz: cargo-fuzz, pinned, for scripts/fuzz.sh.
 CARGO_FUZZ_VERSION=0.13.2
 part_fuzz() {
@@ -203,11 +211,11 @@ part_fuzz() {
   fi
 }
 
-ALL=(python redis nginx s3 mesh deploy vulkan contract client deploy-check image readme fuzz)
+ALL=(python redis nginx s3 mesh browser deploy vulkan contract client deploy-check image readme fuzz)
 (($# > 0)) || set -- "${ALL[@]}"
 for part in "$@"; do
   case $part in
-    python | redis | nginx | s3 | mesh | deploy | vulkan | contract | client | image | readme | fuzz) "part_$part" ;;
+    python | redis | nginx | s3 | mesh | browser | deploy | vulkan | contract | client | image | readme | fuzz) "part_$part" ;;
     deploy-check) part_deploy_check ;;
     *) echo "provision.sh: unknown part '$part' (parts: ${ALL[*]})" >&2; exit 2 ;;
   esac

@@ -42,6 +42,8 @@ if "$MESH_VENV/bin/python" -c 'import trimesh' 2>/dev/null; then
 else
   echo "NOTICE: no trimesh venv; the extracted meshes' trimesh checks will skip"
 fi
+# Headless Chromium loads the viewer page (tests/service/viewer.rs); once installed it is required.
+if [[ -x /usr/bin/chromium ]]; then export VOXD_REQUIRE_CHROMIUM=1; else echo "NOTICE: no chromium; the viewer page's browser test will skip"; fi
 # The native deployment test (scripts/deploy-e2e.sh: deploy/local.sh starts the compose topology
 # on 127.0.0.1) runs the replicas under tini, reads the compose file with PyYAML and starts
 # Debian's Prometheus (the binary only: the packaged service stays off). With tini, PyYAML,

@@ -245,14 +245,24 @@ fn dual_contouring_of_spot_and_its_hermite_data_read_back() {
         "--resolution",
         "40",
     ]);
-    assert!(said.contains("dual-contouring") && said.contains("watertight"), "{said}");
+    assert!(
+        said.contains("dual-contouring") && said.contains("watertight"),
+        "{said}"
+    );
     let npz = dir.join("spot.npz");
     let said = ok(&["hermite", s(&spot), "-o", s(&npz), "--resolution", "40"]);
     assert!(said.contains("(0 uncrossed)"), "{said}");
     // A volume has no Hermite data.
     let vol = dir.join("spot.vxl");
     ok(&["voxelize", s(&spot), "-o", s(&vol), "--resolution", "40"]);
-    let o = voxd(&["mesh", s(&vol), "-o", s(&out), "--algorithm", "dual-contouring"]);
+    let o = voxd(&[
+        "mesh",
+        s(&vol),
+        "-o",
+        s(&out),
+        "--algorithm",
+        "dual-contouring",
+    ]);
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("needs Hermite data"));
     let Some(py) = trimesh_python() else { return };

@@ -26,6 +26,7 @@ mod inputs;
 mod jobs;
 mod mesh;
 mod ops;
+mod viewer;
 
 pub(crate) struct Server {
     pub child: Child,

@@ -8,6 +8,7 @@ mod download;
 mod health;
 mod jobs;
 mod mesh;
+mod viewer;
 mod volumes;
 mod voxelize;
 
@@ -49,6 +50,8 @@ pub const ROUTES: &[(&str, &[&str])] = &[
     ("/v1/volumes/{id}/normals", &["GET"]),
     ("/v1/volumes/{id}/preview.png", &["GET"]),
     ("/v1/volumes/{id}/mesh", &["GET"]),
+    ("/v1/volumes/{id}/view", &["GET"]),
+    ("/v1/viewer/{file}", &["GET"]),
     ("/healthz", &["GET"]),
     ("/readyz", &["GET"]),
     ("/metrics", &["GET"]),
@@ -88,6 +91,8 @@ pub fn router(app: Arc<App>) -> Router {
         .route("/v1/volumes/{id}/normals", get(volumes::normals))
         .route("/v1/volumes/{id}/preview.png", get(volumes::preview))
         .route("/v1/volumes/{id}/mesh", get(mesh::mesh))
+        .route("/v1/volumes/{id}/view", get(viewer::page))
+        .route("/v1/viewer/{file}", get(viewer::file))
         .merge(probes())
         .route("/openapi.yaml", get(health::openapi))
         .fallback(|| async {
