@@ -9,21 +9,7 @@ use crate::engine::cpu::CpuEngine;
 use crate::engine::fill::{self, Fill};
 use crate::mesh::Mesh;
 
-type P = [i128; 3];
-
-fn sub(a: P, b: P) -> P {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: P, b: P) -> i128 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn cross(a: P, b: P) -> P {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
+use crate::engine::exact::{P, cross, dot, sub};
 
 /// Where segment a→b meets triangle t: (t as f64, interior: strictly inside the triangle and
 /// strictly between the ends), or `None`. Closed: touching an edge or an end counts.

@@ -7,6 +7,8 @@
 pub mod cpu;
 pub mod density;
 pub mod distance;
+#[cfg(test)]
+pub(crate) mod exact;
 pub mod fill;
 mod geom;
 pub mod gpu;

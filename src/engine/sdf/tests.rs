@@ -9,21 +9,7 @@ use super::*;
 use crate::engine::cpu::CpuEngine;
 use crate::mesh::Mesh;
 
-type P = [i128; 3];
-
-fn sub(a: P, b: P) -> P {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: P, b: P) -> i128 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn cross(a: P, b: P) -> P {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
+use crate::engine::exact::{P, cross, dot, sub};
 
 /// Squared distance from p to segment ab, as (numerator, denominator).
 fn segment2(p: P, a: P, b: P) -> (i128, i128) {
