@@ -6,6 +6,7 @@ from .csg_expression_op import CsgExpressionOp
 from .distance_stats import DistanceStats
 from .get_healthz_response_200 import GetHealthzResponse200
 from .get_readyz_response_200 import GetReadyzResponse200
+from .get_v1_viewer_file_file import GetV1ViewerFileFile
 from .get_v1_volumes_id_data_format import GetV1VolumesIdDataFormat
 from .get_v1_volumes_id_mesh_algorithm import GetV1VolumesIdMeshAlgorithm
 from .get_v1_volumes_id_mesh_format import GetV1VolumesIdMeshFormat
@@ -63,6 +64,7 @@ __all__ = (
     "DistanceStats",
     "GetHealthzResponse200",
     "GetReadyzResponse200",
+    "GetV1ViewerFileFile",
     "GetV1VolumesIdDataFormat",
     "GetV1VolumesIdMeshAlgorithm",
     "GetV1VolumesIdMeshFormat",
