@@ -95,6 +95,14 @@ const glb = await expect("get /v1/volumes/{id}/mesh", 200, client.GET("/v1/volum
   params: { path: { id: a.id }, query: { algorithm: "cubes", format: "glb" } }, parseAs: "arrayBuffer",
 }));
 if (new TextDecoder().decode((glb as ArrayBuffer).slice(0, 4)) !== "glTF") throw new Error("the mesh is no GLB");
+const page = await expect("get /v1/volumes/{id}/view", 200, client.GET("/v1/volumes/{id}/view", {
+  params: { path: { id: a.id } }, parseAs: "text",
+}));
+if (!String(page).includes("/v1/viewer/three.module.min.js")) throw new Error("the viewer page names no three.js");
+const licence = await expect("get /v1/viewer/{file}", 200, client.GET("/v1/viewer/{file}", {
+  params: { path: { file: "LICENSE-three.txt" } }, parseAs: "text",
+}));
+if (!String(licence).includes("MIT License")) throw new Error("three.js's licence is not MIT");
 const npy = await expect("get /v1/volumes/{id}/data", 200, client.GET("/v1/volumes/{id}/data", {
   params: { path: { id: a.id }, query: { format: "npy" } }, parseAs: "arrayBuffer",
 }));

@@ -28,6 +28,7 @@ from voxd_client.generated.api.default import (
     get_openapi_yaml,
     get_readyz,
     get_v1_jobs_id,
+    get_v1_viewer_file,
     get_v1_volumes,
     get_v1_volumes_id,
     get_v1_volumes_id_data,
@@ -35,6 +36,7 @@ from voxd_client.generated.api.default import (
     get_v1_volumes_id_normals,
     get_v1_volumes_id_preview_png,
     get_v1_volumes_id_stats,
+    get_v1_volumes_id_view,
     post_v1_volumes_csg,
     post_v1_volumes_id_morphology,
     post_v1_volumes_id_query,
@@ -46,6 +48,7 @@ from voxd_client.generated.api.default import (
 from voxd_client.generated.models import (
     CsgExpression,
     CsgExpressionOp,
+    GetV1ViewerFileFile,
     GetV1VolumesIdDataFormat,
     GetV1VolumesIdMeshAlgorithm,
     GetV1VolumesIdMeshFormat,
@@ -274,6 +277,10 @@ def test_volume_operations(vox, client, box):
         a.id, client=client, algorithm=GetV1VolumesIdMeshAlgorithm.CUBES, format_=GetV1VolumesIdMeshFormat.GLB
     )
     assert glb.payload.read(4) == b"glTF"
+    page = ran(get_v1_volumes_id_view).sync(a.id, client=client)
+    assert isinstance(page, str) and "/v1/viewer/three.module.min.js" in page
+    licence = ran(get_v1_viewer_file).sync(GetV1ViewerFileFile.LICENSE_THREE_TXT, client=client)
+    assert isinstance(licence, str) and "MIT License" in licence
     raw = ran(get_v1_volumes_id_data).sync(a.id, client=client, format_=GetV1VolumesIdDataFormat.RAW)
     assert len(raw.payload.read()) == 8 * 8 * 8
     for fmt in ("vxl", "binvox", "npy", "raw"):
