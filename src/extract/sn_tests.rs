@@ -221,3 +221,66 @@ mod marching {
         assert!((vol / exact - 1.0).abs() < 0.02, "{vol} vs {exact}");
     }
 }
+
+/// A sparse distance volume's inside, taken brick by brick, is the voxels with the sign bit set
+/// (read one by one): bricks with random signs, negative and positive tiles, a grid that ends
+/// inside its last bricks.
+#[test]
+fn a_sparse_volumes_inside_is_its_negative_voxels() {
+    use crate::volume::Sparse;
+    let g = crate::grid::Grid {
+        origin: [0.0; 3],
+        voxel_size: 1.0,
+        dims: [21, 17, 70],
+    };
+    let mut s = 0x853c_49e6_748f_ea9bu64;
+    let mut r = move || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        s
+    };
+    for tile in [-3.0f32, 3.0] {
+        let mut v = Sparse::with_tile_value(g, 3.0, tile);
+        let bd = v.brick_dims();
+        for bx in 0..bd[0] {
+            for by in 0..bd[1] {
+                for bz in 0..bd[2] {
+                    match r() % 4 {
+                        0 => v.set_tile([bx, by, bz], true).unwrap(),
+                        1 => {
+                            // The background past the grid, as a brick must hold.
+                            let vals = std::array::from_fn(|i| {
+                                let (dx, dy, dz) = (i as u32 / 64, i as u32 / 8 % 8, i as u32 % 8);
+                                let p = [bx * 8 + dx, by * 8 + dy, bz * 8 + dz];
+                                if p[0] >= 21 || p[1] >= 17 || p[2] >= 70 {
+                                    return 3.0;
+                                }
+                                match r() % 3 {
+                                    0 => -0.0,
+                                    1 => -1.5,
+                                    _ => 0.5,
+                                }
+                            });
+                            v.insert_brick([bx, by, bz], vals).unwrap();
+                        }
+                        _ => {}
+                    }
+                }
+            }
+        }
+        let vol = Volume::SparseDistance(v.clone());
+        let bits = super::surface_nets::inside(&vol);
+        let mut n = 0;
+        for x in 0..21 {
+            for y in 0..17 {
+                for z in 0..70 {
+                    let want = v.get(x, y, z).is_sign_negative();
+                    assert_eq!(bits.get(x, y, z), want, "{x} {y} {z} tile {tile}");
+                    n += usize::from(want);
+                }
+            }
+        }
+        assert!(n > 1000, "{n}");
+    }
+}
