@@ -37,7 +37,7 @@ pub fn mesh(a: &MeshArgs) -> Result<(), String> {
              the mesh file (with --resolution or --voxel-size) instead of a volume"
         ));
     }
-    let (m, _grid, t_read) = if is_mesh {
+    let (m, t_read) = if is_mesh {
         let req = a.request().map_err(|e| format!("{name}: {e}"))?;
         let s = solid(&req, &name)?;
         let t_read = t0.elapsed().as_secs_f64();
@@ -45,19 +45,17 @@ pub fn mesh(a: &MeshArgs) -> Result<(), String> {
             Algorithm::DualContouring => {
                 let w = super::progress::with_bar(&name, |ctl| dual_contour(&s, ctl))
                     .map_err(|e| format!("{name}: {e}"))?;
-                (w, s.prepared.grid, t_read)
+                (w, t_read)
             }
             _ => {
                 let v = Volume::Bits(s.bits);
-                let grid = *v.grid();
-                (extract(&v, algorithm, &name)?.to_world(&grid), grid, t_read)
+                (extract(&v, algorithm, &name)?.to_world(v.grid()), t_read)
             }
         }
     } else {
         let v = read_volume(input)?;
         let t_read = t0.elapsed().as_secs_f64();
-        let grid = *v.grid();
-        (extract(&v, algorithm, &name)?.to_world(&grid), grid, t_read)
+        (extract(&v, algorithm, &name)?.to_world(v.grid()), t_read)
     };
     let t_extract = t0.elapsed().as_secs_f64() - t_read;
     let r = check::check(&m);

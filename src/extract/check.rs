@@ -3,6 +3,7 @@
 use rayon::slice::ParallelSliceMut;
 
 use super::TriMesh;
+use super::vec3::{cross, sub};
 
 /// What [`check`] found.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -33,17 +34,6 @@ impl Report {
             && self.unused == 0
             && (self.volume > 0.0 || self.triangles == 0)
     }
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
 }
 
 /// Checks `m` (any units; exact for lattice-unit meshes with coordinates below 2¹⁶).

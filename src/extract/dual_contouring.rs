@@ -21,6 +21,7 @@ use std::borrow::Cow;
 use super::TriMesh;
 use super::qef::Qef;
 use super::surface_nets::{Field, lattice_points, net};
+use super::vec3::{cross, dot, sub};
 use crate::cancel::{Canceled, Control};
 use crate::engine::hermite::Hermite;
 use crate::volume::BitVolume;
@@ -108,19 +109,8 @@ fn keep_in_cell(x: [f64; 3], m: [f64; 3], c: [f64; 3]) -> [f64; 3] {
     [0, 1, 2].map(|a| p[a].clamp(c[a] - 0.5, c[a] + 0.5))
 }
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
 fn normal(t: &[[f64; 3]; 3]) -> [f64; 3] {
-    let (u, v) = (sub(t[1], t[0]), sub(t[2], t[0]));
-    [
-        u[1] * v[2] - u[2] * v[1],
-        u[2] * v[0] - u[0] * v[2],
-        u[0] * v[1] - u[1] * v[0],
-    ]
+    cross(sub(t[1], t[0]), sub(t[2], t[0]))
 }
 
 /// Squared distance from `p` to triangle `t` (Ericson's closest point, 5.1.5).

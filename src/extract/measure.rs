@@ -9,20 +9,8 @@ type Map<K, V> = HashMap<K, V, foldhash::fast::RandomState>;
 
 use super::TriMesh;
 use super::dual_contouring::distance2;
+use super::vec3::{cross, dot, sub};
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
 fn unit(a: [f64; 3]) -> [f64; 3] {
     let l = dot(a, a).sqrt();
     if l == 0.0 { a } else { a.map(|c| c / l) }

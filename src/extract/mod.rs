@@ -23,6 +23,7 @@ pub mod measure;
 mod pinches;
 pub mod qef;
 pub mod surface_nets;
+mod vec3;
 pub mod write;
 
 use crate::grid::Grid;
