@@ -47,6 +47,7 @@ fn meta(id: &str, data: &[u8]) -> VolumeMeta {
             compression: None,
             sha256: String::new(),
             triangles: 1,
+            kept: false,
         },
         diagnostics: None,
         fill: None,
@@ -496,3 +497,74 @@ fn wrong_credentials_a_missing_bucket_or_no_server_refuse_to_open() {
 }
 
 // ---- the service ----
+
+/// Kept meshes on S3 (`store/s3/sources.rs`): one object per key whichever replica keeps it,
+/// counted by the quota's LIST; each volume that keeps it writes its marker before its data and
+/// removes it with its delete; a release on either replica removes the mesh only once no
+/// volume refers to it; a marker without metadata (a put in progress) refers while young.
+#[test]
+fn kept_sources_on_s3_are_shared_counted_and_go_with_their_last_volume() {
+    let Some(weed) = s3::shared() else { return };
+    let prefix = s3::prefix("sources");
+    rt().block_on(async {
+        use voxd::app::sources::release;
+        let a = open(weed, &prefix, 1 << 30).await;
+        let b = open(weed, &prefix, 1 << 30).await;
+        let key = sha256_hex(b"an upload");
+        let src = Bytes::from(patterned(3000, 5));
+        a.put_source(&key, src.clone()).await.unwrap();
+        b.put_source(&key, src.clone()).await.unwrap();
+        assert_eq!(bytes_in_bucket(weed, &prefix).await, 3000);
+        assert_eq!(a.list_sources().await.unwrap().len(), 1);
+        assert!(!a.source_referred(&key).await.unwrap());
+        let d = patterned(500, 1);
+        let keeping = |id: &str| {
+            let mut m = meta(id, &d);
+            m.source.kept = true;
+            m.source.sha256 = key.clone();
+            m
+        };
+        a.put(keeping("k1"), Vxl::new(Bytes::from(d.clone())))
+            .await
+            .unwrap();
+        b.put(keeping("k2"), Vxl::new(Bytes::from(d.clone())))
+            .await
+            .unwrap();
+        // The mesh counts in the usage with the volumes (once), and listing shows volumes only.
+        let used = a.usage().await.unwrap();
+        assert!(used.bytes > 3000 + 2 * 500, "{used:?}");
+        assert_eq!(used.volumes, 2);
+        let (page, _) = b.list(None, 10).await.unwrap();
+        assert_eq!(page.len(), 2);
+        assert!(b.source_referred(&key).await.unwrap());
+        assert!(a.delete("k1").await.unwrap());
+        assert!(!release(&b, &key).await.unwrap());
+        assert_eq!(&a.get_source(&key).await.unwrap().unwrap()[..], &src[..]);
+        assert!(b.delete("k2").await.unwrap());
+        assert!(release(&a, &key).await.unwrap());
+        assert!(b.get_source(&key).await.unwrap().is_none());
+        assert_eq!(bytes_in_bucket(weed, &prefix).await, 0);
+        let client = weed.client();
+        let markers = Key::from(format!("{prefix}/sources"));
+        assert_eq!(
+            object_store::ObjectStore::list(&client, Some(&markers))
+                .count()
+                .await,
+            0
+        );
+        // The sweep of leftovers leaves kept meshes to the application.
+        a.put_source(&key, src.clone()).await.unwrap();
+        assert_eq!(a.sweep(Duration::ZERO).await.unwrap(), 0);
+        assert!(a.get_source(&key).await.unwrap().is_some());
+        // A put in progress (its marker, no metadata yet) refers to the mesh: not released.
+        client
+            .put(
+                &Key::from(format!("{prefix}/sources/{key}/0123456789abcdef")),
+                Bytes::new().into(),
+            )
+            .await
+            .unwrap();
+        assert!(!release(&b, &key).await.unwrap());
+        assert!(a.get_source(&key).await.unwrap().is_some());
+    });
+}

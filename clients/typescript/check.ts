@@ -95,6 +95,10 @@ const glb = await expect("get /v1/volumes/{id}/mesh", 200, client.GET("/v1/volum
   params: { path: { id: a.id }, query: { algorithm: "cubes", format: "glb" } }, parseAs: "arrayBuffer",
 }));
 if (new TextDecoder().decode((glb as ArrayBuffer).slice(0, 4)) !== "glTF") throw new Error("the mesh is no GLB");
+const npz = await expect("get /v1/volumes/{id}/hermite", 200, client.GET("/v1/volumes/{id}/hermite", {
+  ...id, parseAs: "arrayBuffer",
+}));
+if (new TextDecoder().decode((npz as ArrayBuffer).slice(0, 2)) !== "PK") throw new Error("the Hermite data is no .npz");
 const page = await expect("get /v1/volumes/{id}/view", 200, client.GET("/v1/volumes/{id}/view", {
   params: { path: { id: a.id } }, parseAs: "text",
 }));

@@ -100,6 +100,9 @@ error_kinds! {
     RateLimited = "rate-limited", 429, "Too many requests for this API key";
     /// The API key already has its most jobs queued or running.
     TooManyJobs = "too-many-jobs", 429, "Too many jobs for this API key";
+    /// The volume does not keep the mesh it was made from (a derived volume, one stored before
+    /// meshes were kept) or the store lost it: its Hermite data and dual contouring need it.
+    SourceNotKept = "source-not-kept", 409, "The volume does not keep its mesh";
     Internal = "internal", 500, "Internal error";
 }
 

@@ -1,21 +1,29 @@
 //! Hermite data and dual contouring from a mesh (issue 33; docs/methods.md, "Hermite data" and
-//! "dual-contouring"): the `solid` of a voxelization request, then the crossings of its
-//! differing edges with the mesh. Bounded: the solid by the request's voxel limit, the Hermite
-//! data by the solid's boundary (one edge per boundary face, [`hermite::BYTES_PER_EDGE`] each,
-//! checked against the memory limit before it is built).
+//! "dual-contouring"): the `solid` of the mesh on a grid, then the crossings of its differing
+//! edges with the mesh. From a request (`voxd hermite`, `voxd mesh --algorithm
+//! dual-contouring`) or from a stored volume's kept mesh ([`super::sources`]) on the volume's
+//! grid with the fill it used (`GET /v1/volumes/{id}/hermite`, `…/mesh?algorithm=
+//! dual-contouring`). Bounded: the solid by the grid's voxels, the Hermite data by the solid's
+//! boundary (one edge per boundary face, [`hermite::BYTES_PER_EDGE`] each, checked before it is
+//! built).
 
 use super::error::{Error, ErrorKind, Result};
 use super::request::{MethodSpec, VoxelizeRequest};
-use super::voxelize::{Prepared, load, run};
+use super::store::{VolumeMeta, VolumeStore};
+use super::voxelize::load;
 use crate::cancel::Control;
+use crate::engine::fill::{self, Fill};
 use crate::engine::hermite::{self, Hermite};
 use crate::engine::{Engine, FIXED_ONE, Method};
 use crate::extract::{TriMesh, cubes, dual_contouring};
-use crate::volume::{BitVolume, Volume};
+use crate::grid::Grid;
+use crate::limits::Limits;
+use crate::mesh::{ExternalResources, LoadOptions, Mesh, MeshDiagnostics};
+use crate::volume::BitVolume;
 
-/// A mesh's solid and its Hermite data.
+/// A mesh's solid on a grid and its Hermite data.
 pub struct Solid {
-    pub prepared: Prepared,
+    pub grid: Grid,
     pub bits: BitVolume,
     pub hermite: Hermite,
 }
@@ -35,35 +43,168 @@ pub fn solid_and_hermite(
             req.method.name()
         )));
     }
-    let prepared = load(req)?.fit(req)?;
-    let v = run(&prepared, engine, &ctl.stage(0.0, 0.5))?;
-    let Volume::Bits(bits) = v.volume else {
-        return Err(Error::invalid("method=solid gave no bit volume"));
-    };
-    let (faces, _) = cubes::boundary_counts(&bits);
-    let need = faces.saturating_mul(hermite::BYTES_PER_EDGE);
+    let p = load(req)?.fit(req)?;
+    let (solid, _) = solid_of(
+        &p.mesh,
+        &p.diagnostics,
+        &p.grid,
+        p.fill,
+        engine,
+        max_bytes,
+        ctl,
+    )?;
+    Ok(solid)
+}
+
+/// The solid of `mesh` on `grid` with `fill` and its Hermite data (as [`solid_and_hermite`]),
+/// and the bytes of the Hermite data's bound.
+pub fn solid_of(
+    mesh: &Mesh,
+    diagnostics: &MeshDiagnostics,
+    grid: &Grid,
+    fill: Fill,
+    engine: &dyn Engine,
+    max_bytes: u64,
+    ctl: &Control,
+) -> Result<(Solid, u64)> {
+    let (bits, _) = fill::voxelize_with(
+        engine,
+        mesh,
+        grid,
+        Method::Solid,
+        fill,
+        diagnostics,
+        &ctl.stage(0.0, 0.5),
+    )?;
+    let need = hermite_bytes(&bits);
     if need > max_bytes {
         return Err(Error::new(
             ErrorKind::TooManyTriangles,
             format!(
-                "the solid's {faces} boundary edges need {need} bytes of Hermite data, over the \
-                 limit of {max_bytes}: use a coarser grid"
+                "the solid's {} boundary edges need {need} bytes of Hermite data, over the \
+                 limit of {max_bytes}: use a coarser grid",
+                need / hermite::BYTES_PER_EDGE
             ),
         ));
     }
     let tris =
-        crate::engine::sdf::lattice_triangles(&prepared.mesh, &prepared.grid, Some(FIXED_ONE))
-            .map_err(Error::from)?;
+        crate::engine::sdf::lattice_triangles(mesh, grid, Some(FIXED_ONE)).map_err(Error::from)?;
     let hermite = hermite::hermite(&tris, &bits, &ctl.stage(0.5, 1.0))?;
-    Ok(Solid {
-        prepared,
-        bits,
-        hermite,
-    })
+    Ok((
+        Solid {
+            grid: *grid,
+            bits,
+            hermite,
+        },
+        need,
+    ))
+}
+
+/// Bytes the Hermite data of `bits` takes at most: [`hermite::BYTES_PER_EDGE`] per boundary face.
+pub fn hermite_bytes(bits: &BitVolume) -> u64 {
+    cubes::boundary_counts(bits)
+        .0
+        .saturating_mul(hermite::BYTES_PER_EDGE)
 }
 
 /// The dual contouring mesh of `s`, in world coordinates.
 pub fn dual_contour(s: &Solid, ctl: &Control) -> Result<TriMesh> {
     let m = dual_contouring::dual_contouring(&s.bits, &s.hermite, ctl)?;
-    Ok(m.to_world(&s.prepared.grid))
+    Ok(m.to_world(&s.grid))
+}
+
+/// Bytes the solid of a stored volume's kept mesh needs before its Hermite data: the source
+/// object read and the mesh decoded from it (about twice its bytes), the mesh's lattice
+/// triangles (96 bytes each), and the solid's bit grids (as a `solid` job's).
+pub fn stored_solid_cost(meta: &VolumeMeta) -> u64 {
+    let tris = meta.source.triangles as u64;
+    let source =
+        crate::mesh::binary::encoded_len(3 * meta.source.triangles, meta.source.triangles) as u64;
+    source
+        .saturating_mul(2)
+        .saturating_add(tris.saturating_mul(96))
+        .saturating_add(super::cost::voxelize_job(
+            &meta.grid,
+            &MethodSpec::Bits(Method::Solid),
+            0,
+        ))
+}
+
+/// The fill a stored volume's solid is taken with: the one it used (`auto` resolved), else
+/// `auto`.
+fn fill_of(meta: &VolumeMeta) -> Fill {
+    meta.fill.as_ref().map_or(Fill::Auto, |f| f.used)
+}
+
+/// A stored volume's kept mesh and its solid on the volume's grid, before the Hermite data.
+pub struct StoredSolid {
+    mesh: Mesh,
+    pub grid: Grid,
+    pub bits: BitVolume,
+    /// Boundary faces of the solid: its differing edges, the Hermite data's length.
+    pub faces: u64,
+}
+
+impl StoredSolid {
+    /// Bytes its Hermite data takes at most.
+    pub fn hermite_bytes(&self) -> u64 {
+        self.faces.saturating_mul(hermite::BYTES_PER_EDGE)
+    }
+}
+
+/// The kept mesh of stored volume `meta` and its solid on the volume's grid with the fill it
+/// used, on the CPU engine ([`stored_solid_cost`] bytes); `source-not-kept` when the volume
+/// keeps no mesh. Cancelled when the future is dropped.
+pub async fn stored_solid(
+    store: &dyn VolumeStore,
+    meta: &VolumeMeta,
+    limits: &Limits,
+    ctl: &Control,
+) -> Result<StoredSolid> {
+    let opts = LoadOptions {
+        external: ExternalResources::Deny,
+        max_triangles: limits.max_triangles,
+        max_decompressed_bytes: limits.max_decompressed_bytes,
+    };
+    let mesh = super::sources::load(store, meta, opts).await?;
+    let diagnostics = match meta.diagnostics.clone() {
+        Some(d) => d,
+        None => MeshDiagnostics::of(&mesh),
+    };
+    let (grid, fill) = (meta.grid, fill_of(meta));
+    super::ops::blocking_with(ctl, move |ctl| {
+        let (bits, _) = fill::voxelize_with(
+            &crate::engine::cpu::CpuEngine,
+            &mesh,
+            &grid,
+            Method::Solid,
+            fill,
+            &diagnostics,
+            ctl,
+        )?;
+        let faces = cubes::boundary_counts(&bits).0;
+        Ok(StoredSolid {
+            mesh,
+            grid,
+            bits,
+            faces,
+        })
+    })
+    .await
+}
+
+/// The Hermite data of `s` ([`StoredSolid::hermite_bytes`] more). Cancelled when the future
+/// is dropped.
+pub async fn stored_hermite(s: StoredSolid, ctl: &Control) -> Result<Solid> {
+    super::ops::blocking_with(ctl, move |ctl| {
+        let tris = crate::engine::sdf::lattice_triangles(&s.mesh, &s.grid, Some(FIXED_ONE))
+            .map_err(Error::from)?;
+        let hermite = hermite::hermite(&tris, &s.bits, ctl)?;
+        Ok(Solid {
+            grid: s.grid,
+            bits: s.bits,
+            hermite,
+        })
+    })
+    .await
 }

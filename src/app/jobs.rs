@@ -16,7 +16,8 @@ use super::metadata::{self, Origin};
 use super::ops::blocking;
 use super::queue::{Claim, CommitGuard, JobQueue, Work};
 use super::request::JobSpec;
-use super::store::{VolumeMeta, VolumeStore};
+use super::sources;
+use super::store::{VolumeMeta, VolumeStore, source_key};
 use super::voxelize::Prepared;
 use crate::cancel::Canceled;
 use crate::engine::Engine;
@@ -93,7 +94,7 @@ async fn build(
     let gpu = engine.name() == "gpu";
     let job = move || {
         let v = super::voxelize::run(&work, &*engine, &ctl)?;
-        metadata::build(
+        let mut built = metadata::build(
             &v.volume,
             &Origin::Mesh {
                 prepared: &work,
@@ -102,7 +103,15 @@ async fn build(
             },
             name,
             &engine.describe(),
-        )
+        )?;
+        // An upload's mesh is kept under its sha256 for the volume's mesh-based downloads
+        // (Hermite data, dual contouring): `sources`.
+        if let Some(key) = work.source.sha256.as_deref().filter(|k| source_key(k)) {
+            built.meta.source.kept = true;
+            built.meta.source.sha256 = key.to_string();
+            built.source = Some(super::sources::encode(&work.mesh));
+        }
+        Ok(built)
     };
     // The GPU engine waits for its device (for the batch its slab went in, or to lead the
     // next): not on the CPU pool, where a job taken up by a pool thread waiting inside another
@@ -143,7 +152,20 @@ async fn keep(
     if let Some(guard) = guard {
         guard.confirm().await?;
     }
-    store.put(built.meta.clone(), built.vxl).await?;
+    let key = built.meta.source.sha256.clone();
+    let Some(source) = built.source else {
+        store.put(built.meta.clone(), built.vxl).await?;
+        return Ok(built.meta);
+    };
+    // The mesh first, then the volume, then the mesh is made sure of (`sources`).
+    sources::keep(store, &key, &source).await?;
+    if let Err(e) = store.put(built.meta.clone(), built.vxl).await {
+        if let Err(e) = sources::release(store, &key).await {
+            tracing::warn!(source = %key, "cannot remove the mesh of a volume not stored: {e}");
+        }
+        return Err(e.into());
+    }
+    sources::kept(store, &key, source).await;
     Ok(built.meta)
 }
 
@@ -581,6 +603,21 @@ mod tests {
         }
         async fn delete_upload(&self, id: &str) -> StoreResult<()> {
             self.inner.delete_upload(id).await
+        }
+        async fn put_source(&self, key: &str, bytes: Bytes) -> StoreResult<()> {
+            self.inner.put_source(key, bytes).await
+        }
+        async fn get_source(&self, key: &str) -> StoreResult<Option<Bytes>> {
+            self.inner.get_source(key).await
+        }
+        async fn delete_source(&self, key: &str) -> StoreResult<()> {
+            self.inner.delete_source(key).await
+        }
+        async fn source_referred(&self, key: &str) -> StoreResult<bool> {
+            self.inner.source_referred(key).await
+        }
+        async fn list_sources(&self) -> StoreResult<Vec<(String, std::time::SystemTime)>> {
+            self.inner.list_sources().await
         }
         fn describe(&self) -> String {
             self.inner.describe()

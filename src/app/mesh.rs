@@ -61,9 +61,8 @@ pub const BYTES_PER_TRIANGLE: u64 = 96;
 pub fn plan(v: Volume, algorithm: Algorithm, limits: &Limits) -> Result<Planned> {
     if algorithm == Algorithm::DualContouring {
         return Err(Error::invalid(
-            "algorithm=dual-contouring needs the Hermite data of the mesh a volume was made \
-             from, and the service does not keep uploaded meshes yet: use `voxd mesh MESH \
-             --algorithm dual-contouring` (or surface-nets here)",
+            "algorithm=dual-contouring is contoured from the Hermite data of the mesh a volume \
+             was made from, not from the volume (app::hermite)",
         ));
     }
     let (volume, bits) = match (algorithm, v) {

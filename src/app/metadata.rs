@@ -139,6 +139,8 @@ pub fn counts(v: &Volume) -> (u64, f64) {
 pub struct Built {
     pub meta: VolumeMeta,
     pub vxl: Vxl,
+    /// The source object of the mesh it keeps (`meta.source.kept`: [`super::sources`]).
+    pub source: Option<bytes::Bytes>,
 }
 
 /// Encodes `volume` as `.vxl` and describes it, under a new id.
@@ -163,6 +165,7 @@ pub fn build(
                 compression: p.source.compression.clone(),
                 sha256: p.source.sha256.clone().unwrap_or_default(),
                 triangles: p.mesh.triangles().len(),
+                kept: false,
             },
             Some(p.diagnostics.clone()),
             Some((*fill).clone()),
@@ -173,6 +176,7 @@ pub fn build(
                 compression: None,
                 sha256: super::sha256_hex(&serde_json::to_vec(provenance).unwrap_or_default()),
                 triangles: 0,
+                kept: false,
             },
             None,
             None,
@@ -202,5 +206,9 @@ pub fn build(
         // The caller sets it (a job's tenant, an operation's).
         owner: None,
     };
-    Ok(Built { meta, vxl })
+    Ok(Built {
+        meta,
+        vxl,
+        source: None,
+    })
 }

@@ -22,6 +22,7 @@ pub mod metadata;
 pub mod ops;
 pub mod queue;
 pub mod request;
+pub mod sources;
 pub mod store;
 pub mod stream;
 pub mod voxelize;

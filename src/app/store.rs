@@ -116,6 +116,11 @@ pub struct SourceInfo {
     pub compression: Option<String>,
     pub sha256: String,
     pub triangles: usize,
+    /// The mesh is kept in the store under `sha256` (its source object, [`crate::app::sources`]),
+    /// for the Hermite data and dual contouring of the volume; absent (false) for derived
+    /// volumes, files given on a command line and volumes stored before meshes were kept.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub kept: bool,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -208,8 +213,29 @@ pub trait VolumeStore: Send + Sync {
     async fn list_uploads(&self) -> Result<Vec<(String, std::time::SystemTime)>, StoreError> {
         Ok(vec![])
     }
+    /// Keeps source object `key` (a mesh a volume was made from: [`crate::app::sources`]) if
+    /// it is not there yet; counted against the quota (`Full` when it does not fit). Whether
+    /// it was there is not said: a source under a key is always the same bytes.
+    async fn put_source(&self, key: &str, bytes: Bytes) -> Result<(), StoreError>;
+    /// Source object `key`, as stored (the caller checks it: its bytes carry their hash).
+    async fn get_source(&self, key: &str) -> Result<Option<Bytes>, StoreError>;
+    /// Removes source object `key` (none is not an error).
+    async fn delete_source(&self, key: &str) -> Result<(), StoreError>;
+    /// Does a stored volume refer to source `key` (its `source.kept`, its `source.sha256`), or,
+    /// in a store shared by replicas, may a put in progress?
+    async fn source_referred(&self, key: &str) -> Result<bool, StoreError>;
+    /// The source objects kept, each with when it was written.
+    async fn list_sources(&self) -> Result<Vec<(String, std::time::SystemTime)>, StoreError>;
     /// Where the store is, for logs.
     fn describe(&self) -> String;
+}
+
+/// Is `key` a source object's key: a sha256 in lowercase hex?
+pub fn source_key(key: &str) -> bool {
+    key.len() == 64
+        && key
+            .bytes()
+            .all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b))
 }
 
 /// A volume's `.vxl` bytes with their sha256, hashed once when made ([`Vxl::new`]): what a

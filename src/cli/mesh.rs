@@ -115,7 +115,7 @@ pub fn hermite(a: &VoxelizeArgs) -> Result<(), String> {
     let bytes = voxd::codec::npz::encode_hermite(&s.hermite);
     voxd::atomic::write_with(&a.output, |w| std::io::Write::write_all(w, &bytes))
         .map_err(|e| format!("{}: {e}", a.output.display()))?;
-    let d = s.prepared.grid.dims;
+    let d = s.grid.dims;
     println!(
         "{name}: {}x{}x{} solid -> {}: {} edges ({} uncrossed), {:.3} s",
         d[0],

@@ -218,3 +218,33 @@ fn rocker_arm_stays_sharp() {
     assert_eq!(dc.intersections, 0);
     assert!(mean(&dc.dihedral) < mean(&sn.dihedral) && mean(&dc.dihedral) < mean(&mc.dihedral));
 }
+
+/// A solid the grid cuts (a box reaching past the grid on every side of x and y): the faces on
+/// the grid's sides have no edge in the Hermite data (their outside voxel is off the grid) and
+/// take their midpoints; the mesh is still valid, and closed where the box is inside the grid.
+#[test]
+fn a_solid_cut_by_the_grid_contours_to_a_valid_mesh() {
+    let sq = |x0: f64, y0: f64, x1: f64, y1: f64| vec![[x0, y0], [x1, y0], [x1, y1], [x0, y1]];
+    let m = prism(&sq(-2.3, -1.7, 14.6, 13.2), 2.6, 9.2, [0.0; 3], [0.0; 3]);
+    let g = grid([12, 11, 12]);
+    let ctl = Control::none();
+    let diag = m.diagnostics();
+    let (bits, _) =
+        fill::voxelize_with(&CpuEngine, &m, &g, Method::Solid, Fill::Parity, &diag, &ctl).unwrap();
+    assert!(bits.get(0, 0, 5));
+    assert!(bits.get(11, 10, 5));
+    let tris = crate::engine::sdf::lattice_triangles(&m, &g, Some(FIXED_ONE)).unwrap();
+    let h = hermite::hermite(&tris, &bits, &ctl).unwrap();
+    let out = dual_contouring::dual_contouring(&bits, &h, &ctl).unwrap();
+    let r = check::check(&out);
+    assert!(r.is_valid(), "{r:?}");
+    // The top and bottom stay at the box's planes, as the lattice holds them (1/256 voxel).
+    let zs: Vec<f64> = out.positions.iter().map(|p| p[2]).collect();
+    let lo = zs.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = zs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let step = 1.0 / FIXED_ONE as f64;
+    assert!(
+        (lo - 2.6).abs() <= step && (hi - 9.2).abs() <= step,
+        "{lo} {hi}"
+    );
+}

@@ -41,10 +41,11 @@ pub fn dual_contouring(bits: &BitVolume, h: &Hermite, ctl: &Control) -> Result<T
             counter.check()?;
             counter.add(65536.min((n.faces.len() - i) as u64));
         }
-        let (p, normal) = match h.find(f.lower(), f.a) {
+        let (p, normal) = match f.lower().and_then(|l| h.find(l, f.a)) {
             Some(e) => (e.point(), e.normal),
-            // Not in the Hermite data (a solid other than the one it was taken from): the
-            // edge's midpoint.
+            // Not in the Hermite data: a face on the grid's boundary (the solid cut by the
+            // grid: the edge leaves the grid, where nothing is inside), or a solid other than
+            // the one it was taken from. The edge's midpoint, with no normal.
             None => (n.crossings[i], [0.0; 3]),
         };
         for &v in q {

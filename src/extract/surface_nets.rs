@@ -190,11 +190,13 @@ impl Face {
         p[(self.a + 2) % 3] = self.v + dv;
         p
     }
-    /// The face's grid edge: its lower voxel (the other is one step along `a`).
-    pub(super) fn lower(&self) -> [u32; 3] {
+    /// The face's grid edge: its lower voxel (the other is one step along `a`); `None` for a
+    /// face on the grid's lower side (its outside voxel is off the grid: no edge between voxel
+    /// centres crosses it).
+    pub(super) fn lower(&self) -> Option<[u32; 3]> {
         let mut p = self.point(0, 0);
-        p[self.a] -= 1;
-        p
+        p[self.a] = p[self.a].checked_sub(1)?;
+        Some(p)
     }
     fn inside(&self) -> [u32; 3] {
         let mut p = self.point(0, 0);

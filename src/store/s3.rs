@@ -52,6 +52,7 @@ use object_store::{ClientConfigKey, ObjectStore, ObjectStoreExt, PutPayload};
 
 mod connect;
 mod quota;
+mod sources;
 
 pub use connect::{Location, retry_config};
 use connect::{builder, endpoint_of, instance_name};
@@ -387,7 +388,15 @@ impl Shared {
                 .await;
             fault::abort(fault::Site::MidData);
         }
+        // A volume that keeps its mesh says so before its data (`sources.rs`).
+        let source_marker = meta
+            .source
+            .kept
+            .then(|| self.marker_key(&meta.source.sha256, id));
         let committed = async {
+            if let Some(m) = &source_marker {
+                self.put_object(&doing, m, Bytes::new()).await?;
+            }
             self.put_object(&doing, &data_key, vxl).await?;
             fault::point(fault::Site::AfterData);
             self.put_object(&format!("committing volume {id}"), &meta_key, json)
@@ -400,6 +409,9 @@ impl Shared {
             // listed volume is never left without data. What cannot be removed now is swept.
             if self.delete_object(&doing, &meta_key).await.is_ok() {
                 let _ = self.delete_object(&doing, &data_key).await;
+                if let Some(m) = &source_marker {
+                    let _ = self.delete_object(&doing, m).await;
+                }
             }
             let _ = self.delete_object(&doing, &marker).await;
             return committed;
@@ -540,12 +552,10 @@ impl VolumeStore for S3Store {
             return Ok(false);
         }
         let meta_key = s.meta_key(id);
-        if !s
-            .exists(&format!("deleting volume {id}"), &meta_key)
-            .await?
-        {
+        // The metadata says whether a source marker goes with it.
+        let Some(meta) = s.read_meta(id).await? else {
             return Ok(false);
-        }
+        };
         // Metadata first: once it is gone the volume is gone, whatever happens next.
         s.delete_object(&format!("deleting volume {id}"), &meta_key)
             .await?;
@@ -559,6 +569,17 @@ impl VolumeStore for S3Store {
             .await
         {
             // Unlisted already; the sweep removes the data later.
+            tracing::warn!("{e}");
+        }
+        if meta.source.kept
+            && let Err(e) = s
+                .delete_object(
+                    &format!("deleting volume {id}'s source marker"),
+                    &s.marker_key(&meta.source.sha256, id),
+                )
+                .await
+        {
+            // Its volume is gone: whoever next asks whether the source is referred removes it.
             tracing::warn!("{e}");
         }
         Ok(true)
@@ -631,6 +652,26 @@ impl VolumeStore for S3Store {
             .await?;
         // A record removed since the listing is simply not there.
         Ok(records.into_iter().flatten().collect())
+    }
+
+    async fn put_source(&self, key: &str, bytes: Bytes) -> Result<(), StoreError> {
+        self.shared.put_source(key, bytes).await
+    }
+
+    async fn get_source(&self, key: &str) -> Result<Option<Bytes>, StoreError> {
+        self.shared.get_source(key).await
+    }
+
+    async fn delete_source(&self, key: &str) -> Result<(), StoreError> {
+        self.shared.delete_source(key).await
+    }
+
+    async fn source_referred(&self, key: &str) -> Result<bool, StoreError> {
+        self.shared.source_referred(key).await
+    }
+
+    async fn list_sources(&self) -> Result<Vec<(String, std::time::SystemTime)>, StoreError> {
+        self.shared.list_sources().await
     }
 
     async fn put_upload(&self, id: &str, bytes: Bytes) -> Result<(), StoreError> {

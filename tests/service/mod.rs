@@ -21,6 +21,7 @@ use voxd::volume::Volume;
 mod contract;
 mod distance;
 mod distance_ops;
+mod hermite;
 mod http;
 mod inputs;
 mod jobs;

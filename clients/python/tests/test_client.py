@@ -32,6 +32,7 @@ from voxd_client.generated.api.default import (
     get_v1_volumes,
     get_v1_volumes_id,
     get_v1_volumes_id_data,
+    get_v1_volumes_id_hermite,
     get_v1_volumes_id_mesh,
     get_v1_volumes_id_normals,
     get_v1_volumes_id_preview_png,
@@ -277,6 +278,8 @@ def test_volume_operations(vox, client, box):
         a.id, client=client, algorithm=GetV1VolumesIdMeshAlgorithm.CUBES, format_=GetV1VolumesIdMeshFormat.GLB
     )
     assert glb.payload.read(4) == b"glTF"
+    npz = ran(get_v1_volumes_id_hermite).sync(a.id, client=client)
+    assert npz.payload.read(2) == b"PK"  # the .npz of the kept mesh's Hermite data
     page = ran(get_v1_volumes_id_view).sync(a.id, client=client)
     assert isinstance(page, str) and "/v1/viewer/three.module.min.js" in page
     licence = ran(get_v1_viewer_file).sync(GetV1ViewerFileFile.LICENSE_THREE_TXT, client=client)

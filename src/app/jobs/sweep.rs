@@ -47,8 +47,8 @@ pub async fn sweep(store: &dyn VolumeStore, queue: &dyn JobQueue, grace: Duratio
     swept
 }
 
-/// Sweeps at once, then every quarter of `grace` (between 5 s and 15 min), until the queue is
-/// dropped.
+/// Sweeps uploads and kept meshes ([`crate::app::sources::sweep`]) at once, then every quarter
+/// of `grace` (between 5 s and 15 min), until the queue is dropped.
 pub async fn sweep_periodically(
     store: Arc<dyn VolumeStore>,
     queue: std::sync::Weak<dyn JobQueue>,
@@ -59,6 +59,9 @@ pub async fn sweep_periodically(
         let Some(q) = queue.upgrade() else { return };
         sweep(&*store, &*q, grace).await;
         drop(q);
+        // And the kept meshes no volume refers to (a process killed between keeping one and
+        // committing its volume), after the same grace.
+        super::super::sources::sweep(&*store, grace).await;
         tokio::time::sleep(every).await;
     }
 }

@@ -17,8 +17,10 @@ use super::AppState;
 use super::conditional::{self, Coding};
 use super::volumes::{Caller, etag_sha, meta_of};
 use crate::app::mesh::{self, MeshRequest};
-use crate::app::{cost, stream};
+use crate::app::ops::blocking_with;
+use crate::app::{Error, ErrorKind, cost, hermite, stream};
 use crate::cancel::Control;
+use crate::extract::Algorithm;
 use crate::extract::write;
 
 #[derive(Debug, Deserialize)]
@@ -58,6 +60,9 @@ pub async fn mesh(
     if let Some(not_modified) = conditional::preconditions(&headers, &etag, what)? {
         return Ok(not_modified);
     }
+    if algorithm == Algorithm::DualContouring {
+        return dual_contouring(&app, &meta, format, coding, &etag).await;
+    }
     let loading = app
         .admit(
             cost::read_only(&meta, cost::bits_bytes(&meta.grid)),
@@ -77,14 +82,74 @@ pub async fn mesh(
         )
         .await?;
     let m = mesh::build_async(planned, &ctl).await?;
+    Ok(respond(
+        m,
+        (loading, building),
+        &meta,
+        format,
+        coding,
+        &etag,
+    ))
+}
+
+/// Dual contouring of the kept mesh's Hermite data (`app::hermite`): the solid (admitted and
+/// bounded as `GET …/hermite` does), the triangle bound of its quads, the memory for the
+/// Hermite data and the mesh, then the contouring.
+async fn dual_contouring(
+    app: &crate::service::App,
+    meta: &crate::app::store::VolumeMeta,
+    format: write::MeshFormat,
+    coding: Coding,
+    etag: &str,
+) -> Result<Response, Problem> {
+    let id = &meta.id;
+    let what = format!("the dual-contouring mesh of volume {id}");
+    let ctl = Control::new();
+    let (s, solid) = super::hermite::solid_of_stored(app, meta, &what, &ctl).await?;
+    // Surface nets' quads, split: two triangles per differing edge.
+    let triangles = 2 * s.faces;
+    let max = app.limits.max_triangles as u64;
+    if triangles > max {
+        return Err(Error::new(
+            ErrorKind::TooManyTriangles,
+            format!(
+                "{what} could have up to {triangles} triangles, over the limit of {max}: \
+                 extract a coarser volume"
+            ),
+        )
+        .into());
+    }
+    let building = app
+        .admit(
+            s.hermite_bytes()
+                .saturating_add(triangles.saturating_mul(mesh::BYTES_PER_TRIANGLE))
+                .saturating_add(format.size_bound(triangles, triangles)),
+            &format!("{what} (up to {triangles} triangles)"),
+        )
+        .await?;
+    let h = hermite::stored_hermite(s, &ctl).await?;
+    let m = blocking_with(&ctl, move |ctl| hermite::dual_contour(&h, ctl)).await?;
+    Ok(respond(m, (solid, building), meta, format, coding, etag))
+}
+
+/// The mesh `m` written while it is sent, `held` (its memory) kept until the last byte.
+fn respond<H: Send + 'static>(
+    m: crate::extract::TriMesh,
+    held: H,
+    meta: &crate::app::store::VolumeMeta,
+    format: write::MeshFormat,
+    coding: Coding,
+    etag: &str,
+) -> Response {
+    let id = &meta.id;
     let len = write::encoded_len(&m, format);
     let body = stream::from_writer(move |w| {
         // The memory stays counted until the mesh is written.
-        let _held = (loading, building);
+        let _held = held;
         write::write(&m, format, w)
     });
     let mut r = conditional::encode(body.fuse(), coding);
-    conditional::representation_headers(&mut r, &etag);
+    conditional::representation_headers(&mut r, etag);
     let h = r.headers_mut();
     if let (Some(n), Coding::Identity) = (len, coding) {
         h.insert(header::CONTENT_LENGTH, HeaderValue::from(n));
@@ -93,9 +158,9 @@ pub async fn mesh(
         header::CONTENT_TYPE,
         HeaderValue::from_static(format.media_type()),
     );
-    let disposition = super::disposition::attachment(meta.name.as_deref(), &id, format.as_str());
+    let disposition = super::disposition::attachment(meta.name.as_deref(), id, format.as_str());
     if let Ok(v) = HeaderValue::from_str(&disposition) {
         h.insert(header::CONTENT_DISPOSITION, v);
     }
-    Ok(r)
+    r
 }

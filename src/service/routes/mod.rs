@@ -6,6 +6,7 @@ mod disposition;
 mod distance;
 mod download;
 mod health;
+mod hermite;
 mod jobs;
 mod mesh;
 mod viewer;
@@ -50,6 +51,7 @@ pub const ROUTES: &[(&str, &[&str])] = &[
     ("/v1/volumes/{id}/normals", &["GET"]),
     ("/v1/volumes/{id}/preview.png", &["GET"]),
     ("/v1/volumes/{id}/mesh", &["GET"]),
+    ("/v1/volumes/{id}/hermite", &["GET"]),
     ("/v1/volumes/{id}/view", &["GET"]),
     ("/v1/viewer/{file}", &["GET"]),
     ("/healthz", &["GET"]),
@@ -91,6 +93,7 @@ pub fn router(app: Arc<App>) -> Router {
         .route("/v1/volumes/{id}/normals", get(volumes::normals))
         .route("/v1/volumes/{id}/preview.png", get(volumes::preview))
         .route("/v1/volumes/{id}/mesh", get(mesh::mesh))
+        .route("/v1/volumes/{id}/hermite", get(hermite::hermite))
         .route("/v1/volumes/{id}/view", get(viewer::page))
         .route("/v1/viewer/{file}", get(viewer::file))
         .merge(probes())

@@ -199,6 +199,7 @@ pub async fn delete(
     // Only a volume the caller may see may be deleted (with keys, its owner is read first).
     let conditional_request =
         headers.contains_key(header::IF_MATCH) || headers.contains_key(header::IF_NONE_MATCH);
+    let mut known = None;
     if caller.is_some() || conditional_request {
         let meta = meta_of(&app, &caller, &id).await?;
         let tags = volume_etags(&meta)?;
@@ -210,8 +211,17 @@ pub async fn delete(
             )
             .into());
         }
+        known = Some(meta);
     }
+    // The metadata says whether the volume keeps a mesh, removed after it if no other does.
+    let meta = match known {
+        Some(m) => Some(m),
+        None => app.store.get(&id).await.map_err(Error::from)?,
+    };
     if app.store.delete(&id).await.map_err(Error::from)? {
+        if let Some(meta) = meta {
+            crate::app::sources::released(&*app.store, &meta).await;
+        }
         Ok(StatusCode::NO_CONTENT.into_response())
     } else {
         Err(Error::not_found("volume", &id).into())

@@ -33,6 +33,7 @@ use bytes::Bytes;
 mod commit;
 mod joblog;
 mod packs;
+mod sources;
 #[cfg(test)]
 pub(crate) mod tests;
 mod volumes;
@@ -54,6 +55,8 @@ pub struct FsStore {
     /// The job records: `jobs/records.log`.
     records: Arc<Mutex<JobLog>>,
     uploads: PathBuf,
+    /// The meshes volumes were made from (`sources/{sha256}`: `sources.rs`).
+    sources: PathBuf,
     limit: u64,
     inner: Arc<Mutex<Inner>>,
     /// The packs small volumes are kept in ([`super::packs`]). Lock order: the packs, then
@@ -101,8 +104,10 @@ struct Pending {
 
 struct Inner {
     index: BTreeMap<String, Entry>,
-    /// Bytes of the volumes in `index` (data and metadata files).
+    /// Bytes of the volumes in `index` (data and metadata files) and of the source objects.
     used: u64,
+    /// The source objects' sizes by key (`sources.rs`).
+    sources: BTreeMap<String, u64>,
     /// Bytes of puts in progress: counted against the quota from the check to the commit.
     reserved: u64,
     /// When a write last succeeded (a put or a probe) and whether the last write failed.
@@ -159,7 +164,9 @@ impl FsStore {
         let volumes = data_dir.join("volumes");
         let jobs = data_dir.join("jobs");
         let uploads = data_dir.join("uploads");
+        let sources_dir = data_dir.join("sources");
         std::fs::create_dir_all(&volumes)?;
+        std::fs::create_dir_all(&sources_dir)?;
         std::fs::create_dir_all(&jobs)?;
         std::fs::create_dir_all(&uploads)?;
         let mut index = BTreeMap::new();
@@ -240,10 +247,12 @@ impl FsStore {
         let packs = Arc::new(Mutex::new(packs));
         let records = Arc::new(Mutex::new(JobLog::open(&jobs)?));
         tracing::info!(volumes = index.len(), dir = %volumes.display(), "store opened");
-        let used = index.values().map(|e| e.stored).sum();
+        let sources = sources::open(&sources_dir)?;
+        let used = index.values().map(|e| e.stored).sum::<u64>() + sources.values().sum::<u64>();
         let inner = Arc::new(Mutex::new(Inner {
             index,
             used,
+            sources,
             reserved: 0,
             last_ok_write: None,
             last_write_failed: false,
@@ -258,6 +267,7 @@ impl FsStore {
             volumes,
             records,
             uploads,
+            sources: sources_dir,
             limit,
             inner,
             packs,

@@ -25,6 +25,7 @@ pub(crate) fn meta(id: &str, data: &[u8]) -> VolumeMeta {
             compression: None,
             sha256: String::new(),
             triangles: 1,
+            kept: false,
         },
         diagnostics: None,
         fill: None,
@@ -427,4 +428,76 @@ fn bytes_dir_entry(dir: &Path, name: &str) -> u64 {
     std::fs::metadata(dir.join("volumes").join(name))
         .unwrap()
         .len()
+}
+
+/// Kept meshes (`app::sources`): one file per key whatever the number of puts, counted in the
+/// usage (and again when reopened), refused past the quota, referred to by the volumes whose
+/// metadata keeps them, and removed by a release only once no volume refers to them.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn kept_sources_count_once_and_go_with_their_last_volume() {
+    use crate::app::sources;
+    let dir = scratch("sources");
+    let store = FsStore::open_files(&dir, 1 << 20).unwrap();
+    let key = sha256_hex(b"an upload");
+    let mesh = crate::mesh::Mesh::new(
+        vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+        vec![[0, 1, 2]],
+    )
+    .unwrap();
+    let bytes = sources::encode(&mesh);
+    let keeping = |id: &str| {
+        let mut m = meta(id, b"data");
+        m.source.kept = true;
+        m.source.sha256 = key.clone();
+        m
+    };
+    for _ in 0..3 {
+        sources::keep(&store, &key, &bytes).await.unwrap();
+    }
+    let one = store.usage().await.unwrap().bytes;
+    assert_eq!(one, bytes.len() as u64);
+    assert!(!store.source_referred(&key).await.unwrap());
+    for id in ["k1", "k2"] {
+        store
+            .put(keeping(id), Vxl::from(b"data".to_vec()))
+            .await
+            .unwrap();
+    }
+    assert!(store.source_referred(&key).await.unwrap());
+    let two = store.usage().await.unwrap().bytes;
+    // Reopened, the mesh still counts (once).
+    drop(store);
+    let store = FsStore::open_files(&dir, 1 << 20).unwrap();
+    assert_eq!(store.usage().await.unwrap().bytes, two);
+    let got = store.get_source(&key).await.unwrap().unwrap();
+    let opts = crate::mesh::LoadOptions {
+        external: crate::mesh::ExternalResources::Deny,
+        max_triangles: 10,
+        max_decompressed_bytes: 1 << 20,
+    };
+    assert_eq!(sources::decode(&got, &opts).unwrap(), mesh);
+    // Damage is found, never decoded into another mesh.
+    let mut bad = got.to_vec();
+    *bad.last_mut().unwrap() ^= 1;
+    assert!(sources::decode(&bad, &opts).is_err());
+    // Released while a volume refers to it: kept.
+    assert!(store.delete("k1").await.unwrap());
+    assert!(!sources::release(&store, &key).await.unwrap());
+    assert!(store.get_source(&key).await.unwrap().is_some());
+    assert!(store.delete("k2").await.unwrap());
+    assert!(sources::release(&store, &key).await.unwrap());
+    assert!(store.get_source(&key).await.unwrap().is_none());
+    assert_eq!(store.usage().await.unwrap().bytes, 0);
+    assert_eq!(std::fs::read_dir(dir.join("sources")).unwrap().count(), 0);
+    // Past the quota: refused with the numbers, nothing written.
+    let small = FsStore::open_files(&dir, 10).unwrap();
+    match small.put_source(&key, bytes.clone()).await {
+        Err(StoreError::Full {
+            need, limit: 10, ..
+        }) => assert_eq!(need, bytes.len() as u64),
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(std::fs::read_dir(dir.join("sources")).unwrap().count(), 0);
+    // A key that is not a sha256 is refused.
+    assert!(small.put_source("../x", Bytes::new()).await.is_err());
 }

@@ -294,6 +294,26 @@ impl VolumeStore for FsStore {
         .await
     }
 
+    async fn put_source(&self, key: &str, bytes: Bytes) -> Result<(), StoreError> {
+        self.put_source_file(key, bytes).await
+    }
+
+    async fn get_source(&self, key: &str) -> Result<Option<Bytes>, StoreError> {
+        self.get_source_file(key).await
+    }
+
+    async fn delete_source(&self, key: &str) -> Result<(), StoreError> {
+        self.delete_source_file(key).await
+    }
+
+    async fn source_referred(&self, key: &str) -> Result<bool, StoreError> {
+        Ok(self.source_referred_here(key))
+    }
+
+    async fn list_sources(&self) -> Result<Vec<(String, std::time::SystemTime)>, StoreError> {
+        self.list_source_files().await
+    }
+
     fn describe(&self) -> String {
         format!("directory {}", self.volumes.display())
     }

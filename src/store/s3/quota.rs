@@ -25,6 +25,10 @@ impl Shared {
             let Some((id, is_meta)) = volume_object(&o.location) else {
                 continue;
             };
+            // A source's objects are the application's to remove (its reservation: below).
+            if id.starts_with(super::sources::GROUP) && reservation_of(&o.location).is_none() {
+                continue;
+            }
             if is_meta {
                 committed.insert(id.to_string());
             } else {

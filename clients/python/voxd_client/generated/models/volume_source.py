@@ -18,15 +18,19 @@ class VolumeSource:
     Attributes:
         format_ (str): the mesh's format (obj, glb, gltf, stl, ply; of the mesh inside a gzip'd upload); for a derived
             volume, how it was made
-        sha256 (str):
+        sha256 (str): sha256 of the uploaded bytes (of a derived volume: of its provenance)
         triangles (int):
         compression (VolumeSourceCompression | Unset): set when the upload was gzip'd
+        kept (bool | Unset): true when the mesh is kept in the store (under sha256, shared by the volumes made from the
+            same upload, counted in the quota, removed with the last of them) for GET /v1/volumes/{id}/hermite and
+            algorithm=dual-contouring; absent otherwise
     """
 
     format_: str
     sha256: str
     triangles: int
     compression: VolumeSourceCompression | Unset = UNSET
+    kept: bool | Unset = UNSET
     additional_properties: dict[str, Any] = _attrs_field(init=False, factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
@@ -40,6 +44,8 @@ class VolumeSource:
         if not isinstance(self.compression, Unset):
             compression = self.compression.value
 
+        kept = self.kept
+
         field_dict: dict[str, Any] = {}
         field_dict.update(self.additional_properties)
         field_dict.update(
@@ -51,6 +57,8 @@ class VolumeSource:
         )
         if compression is not UNSET:
             field_dict["compression"] = compression
+        if kept is not UNSET:
+            field_dict["kept"] = kept
 
         return field_dict
 
@@ -70,11 +78,14 @@ class VolumeSource:
         else:
             compression = VolumeSourceCompression(_compression)
 
+        kept = d.pop("kept", UNSET)
+
         volume_source = cls(
             format_=format_,
             sha256=sha256,
             triangles=triangles,
             compression=compression,
+            kept=kept,
         )
 
         volume_source.additional_properties = d
