@@ -137,6 +137,33 @@ struct Data {
     len: u64,
 }
 
+/// The files of `dir` whose names `keep` takes, each with when it was written (on the
+/// blocking pool; a file removed meanwhile is left out).
+async fn files_with_times(
+    dir: PathBuf,
+    keep: fn(&str) -> bool,
+) -> Result<Vec<(String, std::time::SystemTime)>, StoreError> {
+    blocking(move || {
+        let mut out = vec![];
+        for e in std::fs::read_dir(&dir)? {
+            let e = e?;
+            let Some(name) = e.file_name().to_str().map(str::to_string) else {
+                continue;
+            };
+            if !keep(&name) {
+                continue;
+            }
+            match e.metadata().and_then(|m| m.modified()) {
+                Ok(t) => out.push((name, t)),
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+                Err(e) => return Err(e.into()),
+            }
+        }
+        Ok(out)
+    })
+    .await
+}
+
 /// Runs blocking file work off the async runtime.
 async fn blocking<T: Send + 'static>(
     f: impl FnOnce() -> Result<T, StoreError> + Send + 'static,

@@ -110,23 +110,6 @@ impl FsStore {
     pub(super) async fn list_source_files(
         &self,
     ) -> Result<Vec<(String, std::time::SystemTime)>, StoreError> {
-        let dir = self.sources.clone();
-        blocking(move || {
-            let mut out = vec![];
-            for e in std::fs::read_dir(&dir)? {
-                let e = e?;
-                let name = e.file_name().to_string_lossy().to_string();
-                if !source_key(&name) {
-                    continue;
-                }
-                match e.metadata().and_then(|m| m.modified()) {
-                    Ok(t) => out.push((name, t)),
-                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-                    Err(e) => return Err(e.into()),
-                }
-            }
-            Ok(out)
-        })
-        .await
+        super::files_with_times(self.sources.clone(), source_key).await
     }
 }

@@ -271,27 +271,8 @@ impl VolumeStore for FsStore {
     }
 
     async fn list_uploads(&self) -> Result<Vec<(String, std::time::SystemTime)>, StoreError> {
-        let dir = self.uploads.clone();
-        blocking(move || {
-            let mut out = vec![];
-            for e in std::fs::read_dir(&dir)? {
-                let e = e?;
-                let Some(name) = e.file_name().to_str().map(str::to_string) else {
-                    continue;
-                };
-                // Temporary files of atomic writes are not uploads (yet).
-                if !safe_id(&name) {
-                    continue;
-                }
-                match e.metadata().and_then(|m| m.modified()) {
-                    Ok(t) => out.push((name, t)),
-                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-                    Err(e) => return Err(e.into()),
-                }
-            }
-            Ok(out)
-        })
-        .await
+        // Temporary files of atomic writes are not uploads (yet).
+        super::files_with_times(self.uploads.clone(), safe_id).await
     }
 
     async fn put_source(&self, key: &str, bytes: Bytes) -> Result<(), StoreError> {
