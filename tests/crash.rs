@@ -653,13 +653,20 @@ fn check(srv: &Server, dir: &Path, known: &mut Known, round: usize) {
         // `finish`): a kill in between loses the state change, never the volume (checked above).
         eprintln!("NOTICE: crash round {round}: job states regressed: {regressed:?}");
     }
-    // The quota counts every byte stored: volume files and live pack records.
+    // The quota counts every byte stored: volume files, live pack records and kept meshes
+    // (`sources/`, temporaries of interrupted writes aside: removed at open).
+    let kept: u64 = files(&dir.join("sources"))
+        .iter()
+        .filter(|(n, _)| !n.starts_with('.'))
+        .map(|(_, len)| len)
+        .sum();
     let on_disk: u64 = vols
         .iter()
         .filter(|(n, _)| n.ends_with(".vxl") || n.ends_with(".json"))
         .map(|(_, len)| len)
         .sum::<u64>()
-        + packed.values().sum::<u64>();
+        + packed.values().sum::<u64>()
+        + kept;
     let ready = srv.must("GET", "/readyz", b"");
     assert_eq!(
         ready.status,
@@ -670,7 +677,7 @@ fn check(srv: &Server, dir: &Path, known: &mut Known, round: usize) {
     assert_eq!(
         ready.try_json().unwrap()["stored_bytes"].as_u64(),
         Some(on_disk),
-        "round {round}: stored_bytes against the files in volumes/"
+        "round {round}: stored_bytes against the files in volumes/ and sources/"
     );
     eprintln!(
         "crash round {round}: {} volumes ({on_disk} bytes), {} jobs checked",

@@ -254,9 +254,15 @@ pub async fn work(
 }
 
 /// Memory a voxelization job holds while it runs: the engine's volume and working set by its
-/// grid and method ([`cost::voxelize_job`]) and its mesh (positions and triangles).
+/// grid and method ([`cost::voxelize_job`]) and its mesh (positions and triangles, and its
+/// encoding to be kept when it was uploaded).
 pub fn job_bytes(work: &Prepared) -> u64 {
-    let mesh = (24 * work.mesh.positions().len() + 12 * work.mesh.triangles().len()) as u64;
+    let (v, t) = (work.mesh.positions().len(), work.mesh.triangles().len());
+    let mut mesh = (24 * v + 12 * t) as u64;
+    if work.source.sha256.is_some() {
+        // The mesh kept for the volume (`sources`), encoded beside it until it is stored.
+        mesh += crate::mesh::binary::encoded_len(v, t) as u64;
+    }
     cost::voxelize_job(&work.grid, &work.method, work.candidate_bricks).saturating_add(mesh)
 }
 

@@ -387,7 +387,14 @@ fn a_replica_killed_between_data_and_commit_leaves_nothing_listed() {
         let store = open(weed, &prefix, 1 << 30).await;
         // Each left its reservation and its (torn or whole) data.
         assert_eq!(store.sweep(Duration::ZERO).await.unwrap(), 4);
-        assert_eq!(bytes_in_bucket(weed, &prefix).await, 0);
+        // And the mesh they kept (before their data), one object for both, is left to the
+        // kept meshes' sweep: their markers say a put may still be in progress for an hour.
+        let kept = store.list_sources().await.unwrap();
+        assert_eq!(kept.len(), 1, "{kept:?}");
+        let mesh = store.get_source(&kept[0].0).await.unwrap().unwrap();
+        assert_eq!(bytes_in_bucket(weed, &prefix).await, mesh.len() as u64);
+        assert_eq!(voxd::app::sources::sweep(&store, Duration::ZERO).await, 0);
+        assert!(store.source_referred(&kept[0].0).await.unwrap());
     });
 }
 
