@@ -188,8 +188,8 @@ pub fn features(m: &TriMesh, min_angle: f64) -> Vec<Feature> {
     out
 }
 
-/// Per feature with a probe: |dihedral of `out` − dihedral of `src`| in degrees, averaged over
-/// the probes along it. A probe is a point `p` on the edge (at ¼, ½, ¾ of it, none within
+/// Per feature (in order; `None` for one without a probe): |dihedral of `out` − dihedral of
+/// `src`| in degrees, averaged over the probes along it. A probe is a point `p` on the edge (at ¼, ½, ¾ of it, none within
 /// `clear` of a corner — an end shared by three or more feature edges); each side's dihedral
 /// normal is the normal of the nearest triangle to `p + r·into` (the mesh's at that point of
 /// the face, `r` from the edge), in `src` and in `out` alike.
@@ -199,7 +199,7 @@ pub fn dihedral_errors(
     features: &[Feature],
     r: f64,
     clear: f64,
-) -> Vec<f64> {
+) -> Vec<Option<f64>> {
     let (bs, bo) = (Bins::new(src), Bins::new(out));
     let mut errors = vec![];
     for (f, ps) in features.iter().zip(probes(features, clear)) {
@@ -217,9 +217,7 @@ pub fn dihedral_errors(
             sum += (angle(o0, o1) - angle(s0, s1)).abs();
             n += 1;
         }
-        if n > 0 {
-            errors.push(sum / n as f64);
-        }
+        errors.push((n > 0).then(|| sum / n as f64));
     }
     errors
 }
@@ -254,18 +252,19 @@ fn probes(features: &[Feature], clear: f64) -> Vec<Vec<[f64; 3]>> {
         .collect()
 }
 
-/// Per feature with a probe: the mean distance from its probes to `out` (how far the mesh
-/// cuts the edge off; 0 when the edge is on the mesh).
-pub fn feature_distances(out: &TriMesh, features: &[Feature], clear: f64) -> Vec<f64> {
+/// Per feature (in order; `None` for one without a probe): the mean distance from its probes
+/// to `out` (how far the mesh cuts the edge off; 0 when the edge is on the mesh).
+pub fn feature_distances(out: &TriMesh, features: &[Feature], clear: f64) -> Vec<Option<f64>> {
     let bo = Bins::new(out);
     probes(features, clear)
         .iter()
-        .filter(|ps| !ps.is_empty())
         .map(|ps| {
-            ps.iter()
-                .map(|&p| bo.nearest(p, 3).map_or(f64::INFINITY, |(_, d)| d))
-                .sum::<f64>()
-                / ps.len() as f64
+            (!ps.is_empty()).then(|| {
+                ps.iter()
+                    .map(|&p| bo.nearest(p, 3).map_or(f64::INFINITY, |(_, d)| d))
+                    .sum::<f64>()
+                    / ps.len() as f64
+            })
         })
         .collect()
 }
