@@ -184,7 +184,10 @@ def run(a):
                 best.update(check_ply(chk) if str(chk).endswith(".ply") else check(chk))
                 for p in scratch.glob(f"{tag}-{kind}-*"):
                     p.unlink()
-                row = {"mesh": mesh, "res": res, "dims": res + 6, "volume": kind, "tool": name, **best}
+                # The check's enclosed volume (in each tool's own units: not compared) is kept
+                # apart from `volume`, which names the input (bits or sdf).
+                row = {"mesh": mesh, "res": res, "dims": res + 6, "tool": name, **best,
+                       "enclosed": best.get("volume"), "volume": kind}
                 rows.append(row)
                 print(f"{mesh} {res + 6}³ {kind:4} {name:30} {best['secs']:7.2f} s {best['peak_kb'] / 1024:7.0f} MiB "
                       f"{best['triangles']:>9} tris watertight={best['watertight']} "
