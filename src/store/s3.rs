@@ -552,9 +552,16 @@ impl VolumeStore for S3Store {
             return Ok(false);
         }
         let meta_key = s.meta_key(id);
-        // The metadata says whether a source marker goes with it.
-        let Some(meta) = s.read_meta(id).await? else {
-            return Ok(false);
+        // The metadata says whether a source marker goes with it. Unreadable metadata is
+        // deleted all the same (a marker it may have had is removed as dead when next met).
+        let meta = match s.read_meta(id).await {
+            Ok(Some(m)) => Some(m),
+            Ok(None) => return Ok(false),
+            Err(StoreError::Corrupt(e)) => {
+                tracing::warn!("deleting volume {id}, whose metadata is unreadable: {e}");
+                None
+            }
+            Err(e) => return Err(e),
         };
         // Metadata first: once it is gone the volume is gone, whatever happens next.
         s.delete_object(&format!("deleting volume {id}"), &meta_key)
@@ -571,7 +578,7 @@ impl VolumeStore for S3Store {
             // Unlisted already; the sweep removes the data later.
             tracing::warn!("{e}");
         }
-        if meta.source.kept
+        if let Some(meta) = meta.filter(|m| m.source.kept)
             && let Err(e) = s
                 .delete_object(
                     &format!("deleting volume {id}'s source marker"),

@@ -213,10 +213,11 @@ pub async fn delete(
         }
         known = Some(meta);
     }
-    // The metadata says whether the volume keeps a mesh, removed after it if no other does.
+    // The metadata says whether the volume keeps a mesh, removed after it if no other does
+    // (unreadable metadata does not stop the delete: such a mesh is left to the sweep).
     let meta = match known {
         Some(m) => Some(m),
-        None => app.store.get(&id).await.map_err(Error::from)?,
+        None => app.store.get(&id).await.ok().flatten(),
     };
     if app.store.delete(&id).await.map_err(Error::from)? {
         if let Some(meta) = meta {
