@@ -164,6 +164,16 @@ async fn files_with_times(
     .await
 }
 
+/// The bytes of file `p`, `None` when there is none (on the blocking pool).
+async fn read_if_there(p: PathBuf) -> Result<Option<Bytes>, StoreError> {
+    blocking(move || match std::fs::read(&p) {
+        Ok(b) => Ok(Some(Bytes::from(b))),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(e) => Err(e.into()),
+    })
+    .await
+}
+
 /// Runs blocking file work off the async runtime.
 async fn blocking<T: Send + 'static>(
     f: impl FnOnce() -> Result<T, StoreError> + Send + 'static,

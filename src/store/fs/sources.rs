@@ -71,13 +71,7 @@ impl FsStore {
         if !source_key(key) {
             return Ok(None);
         }
-        let p = self.sources.join(key);
-        blocking(move || match std::fs::read(&p) {
-            Ok(b) => Ok(Some(Bytes::from(b))),
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
-            Err(e) => Err(e.into()),
-        })
-        .await
+        super::read_if_there(self.sources.join(key)).await
     }
 
     pub(super) async fn delete_source_file(&self, key: &str) -> Result<(), StoreError> {

@@ -249,13 +249,7 @@ impl VolumeStore for FsStore {
         if !safe_id(id) {
             return Ok(None);
         }
-        let p = self.uploads.join(id);
-        blocking(move || match std::fs::read(&p) {
-            Ok(b) => Ok(Some(Bytes::from(b))),
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
-            Err(e) => Err(e.into()),
-        })
-        .await
+        super::read_if_there(self.uploads.join(id)).await
     }
 
     async fn delete_upload(&self, id: &str) -> Result<(), StoreError> {
