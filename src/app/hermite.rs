@@ -44,67 +44,26 @@ pub fn solid_and_hermite(
         )));
     }
     let p = load(req)?.fit(req)?;
-    let (solid, _) = solid_of(
-        &p.mesh,
+    let s = MeshSolid::new(
+        p.mesh,
         &p.diagnostics,
-        &p.grid,
+        p.grid,
         p.fill,
         engine,
-        max_bytes,
-        ctl,
-    )?;
-    Ok(solid)
-}
-
-/// The solid of `mesh` on `grid` with `fill` and its Hermite data (as [`solid_and_hermite`]),
-/// and the bytes of the Hermite data's bound.
-pub fn solid_of(
-    mesh: &Mesh,
-    diagnostics: &MeshDiagnostics,
-    grid: &Grid,
-    fill: Fill,
-    engine: &dyn Engine,
-    max_bytes: u64,
-    ctl: &Control,
-) -> Result<(Solid, u64)> {
-    let (bits, _) = fill::voxelize_with(
-        engine,
-        mesh,
-        grid,
-        Method::Solid,
-        fill,
-        diagnostics,
         &ctl.stage(0.0, 0.5),
     )?;
-    let need = hermite_bytes(&bits);
+    let need = s.hermite_bytes();
     if need > max_bytes {
         return Err(Error::new(
             ErrorKind::TooManyTriangles,
             format!(
                 "the solid's {} boundary edges need {need} bytes of Hermite data, over the \
                  limit of {max_bytes}: use a coarser grid",
-                need / hermite::BYTES_PER_EDGE
+                s.faces
             ),
         ));
     }
-    let tris =
-        crate::engine::sdf::lattice_triangles(mesh, grid, Some(FIXED_ONE)).map_err(Error::from)?;
-    let hermite = hermite::hermite(&tris, &bits, &ctl.stage(0.5, 1.0))?;
-    Ok((
-        Solid {
-            grid: *grid,
-            bits,
-            hermite,
-        },
-        need,
-    ))
-}
-
-/// Bytes the Hermite data of `bits` takes at most: [`hermite::BYTES_PER_EDGE`] per boundary face.
-pub fn hermite_bytes(bits: &BitVolume) -> u64 {
-    cubes::boundary_counts(bits)
-        .0
-        .saturating_mul(hermite::BYTES_PER_EDGE)
+    s.hermite(&ctl.stage(0.5, 1.0))
 }
 
 /// The dual contouring mesh of `s`, in world coordinates.
@@ -136,8 +95,9 @@ fn fill_of(meta: &VolumeMeta) -> Fill {
     meta.fill.as_ref().map_or(Fill::Auto, |f| f.used)
 }
 
-/// A stored volume's kept mesh and its solid on the volume's grid, before the Hermite data.
-pub struct StoredSolid {
+/// A mesh and its solid on a grid, before the Hermite data: the two steps apart, so that a
+/// caller can bound the Hermite data (by [`MeshSolid::faces`]) before it is built.
+pub struct MeshSolid {
     mesh: Mesh,
     pub grid: Grid,
     pub bits: BitVolume,
@@ -145,10 +105,42 @@ pub struct StoredSolid {
     pub faces: u64,
 }
 
-impl StoredSolid {
-    /// Bytes its Hermite data takes at most.
+impl MeshSolid {
+    /// The solid of `mesh` on `grid` with `fill` (`method=solid`'s) on `engine`.
+    pub fn new(
+        mesh: Mesh,
+        diagnostics: &MeshDiagnostics,
+        grid: Grid,
+        fill: Fill,
+        engine: &dyn Engine,
+        ctl: &Control,
+    ) -> Result<MeshSolid> {
+        let (bits, _) =
+            fill::voxelize_with(engine, &mesh, &grid, Method::Solid, fill, diagnostics, ctl)?;
+        let faces = cubes::boundary_counts(&bits).0;
+        Ok(MeshSolid {
+            mesh,
+            grid,
+            bits,
+            faces,
+        })
+    }
+
+    /// Bytes its Hermite data takes at most: [`hermite::BYTES_PER_EDGE`] per boundary face.
     pub fn hermite_bytes(&self) -> u64 {
         self.faces.saturating_mul(hermite::BYTES_PER_EDGE)
+    }
+
+    /// The solid with its Hermite data ([`MeshSolid::hermite_bytes`] more).
+    pub fn hermite(self, ctl: &Control) -> Result<Solid> {
+        let tris = crate::engine::sdf::lattice_triangles(&self.mesh, &self.grid, Some(FIXED_ONE))
+            .map_err(Error::from)?;
+        let hermite = hermite::hermite(&tris, &self.bits, ctl)?;
+        Ok(Solid {
+            grid: self.grid,
+            bits: self.bits,
+            hermite,
+        })
     }
 }
 
@@ -160,7 +152,7 @@ pub async fn stored_solid(
     meta: &VolumeMeta,
     limits: &Limits,
     ctl: &Control,
-) -> Result<StoredSolid> {
+) -> Result<MeshSolid> {
     let opts = LoadOptions {
         external: ExternalResources::Deny,
         max_triangles: limits.max_triangles,
@@ -173,38 +165,20 @@ pub async fn stored_solid(
     };
     let (grid, fill) = (meta.grid, fill_of(meta));
     super::ops::blocking_with(ctl, move |ctl| {
-        let (bits, _) = fill::voxelize_with(
-            &crate::engine::cpu::CpuEngine,
-            &mesh,
-            &grid,
-            Method::Solid,
-            fill,
-            &diagnostics,
-            ctl,
-        )?;
-        let faces = cubes::boundary_counts(&bits).0;
-        Ok(StoredSolid {
+        MeshSolid::new(
             mesh,
+            &diagnostics,
             grid,
-            bits,
-            faces,
-        })
+            fill,
+            &crate::engine::cpu::CpuEngine,
+            ctl,
+        )
     })
     .await
 }
 
-/// The Hermite data of `s` ([`StoredSolid::hermite_bytes`] more). Cancelled when the future
-/// is dropped.
-pub async fn stored_hermite(s: StoredSolid, ctl: &Control) -> Result<Solid> {
-    super::ops::blocking_with(ctl, move |ctl| {
-        let tris = crate::engine::sdf::lattice_triangles(&s.mesh, &s.grid, Some(FIXED_ONE))
-            .map_err(Error::from)?;
-        let hermite = hermite::hermite(&tris, &s.bits, ctl)?;
-        Ok(Solid {
-            grid: s.grid,
-            bits: s.bits,
-            hermite,
-        })
-    })
-    .await
+/// The Hermite data of `s` ([`MeshSolid::hermite_bytes`] more). Cancelled when the future is
+/// dropped.
+pub async fn stored_hermite(s: MeshSolid, ctl: &Control) -> Result<Solid> {
+    super::ops::blocking_with(ctl, move |ctl| s.hermite(ctl)).await
 }

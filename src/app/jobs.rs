@@ -152,11 +152,11 @@ async fn keep(
     if let Some(guard) = guard {
         guard.confirm().await?;
     }
-    let key = built.meta.source.sha256.clone();
     let Some(source) = built.source else {
         store.put(built.meta.clone(), built.vxl).await?;
         return Ok(built.meta);
     };
+    let key = built.meta.source.sha256.clone();
     // The mesh first, then the volume, then the mesh is made sure of (`sources`).
     sources::keep(store, &key, &source).await?;
     if let Err(e) = store.put(built.meta.clone(), built.vxl).await {

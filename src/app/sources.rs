@@ -134,25 +134,36 @@ pub async fn sweep(store: &dyn VolumeStore, grace: Duration) -> usize {
     swept
 }
 
+/// `source-not-kept` unless volume `meta` keeps the mesh it was made from (`why`: the mesh is
+/// missing from the store).
+fn not_kept(meta: &VolumeMeta, why: &str) -> Error {
+    Error::new(
+        ErrorKind::SourceNotKept,
+        format!(
+            "volume {} {why}: voxelize the mesh again to have it kept",
+            meta.id
+        ),
+    )
+}
+
+/// `source-not-kept` unless volume `meta` keeps the mesh it was made from: what a caller asks
+/// before it admits any work on that mesh.
+pub fn require_kept(meta: &VolumeMeta) -> Result<()> {
+    if meta.source.kept {
+        return Ok(());
+    }
+    Err(not_kept(
+        meta,
+        "does not keep the mesh it was made from (derived volumes and volumes stored before meshes were kept do not)",
+    ))
+}
+
 /// The mesh volume `meta` was made from, read from the store; `source-not-kept` when the
 /// volume did not keep one (or it is missing).
 pub async fn load(store: &dyn VolumeStore, meta: &VolumeMeta, opts: LoadOptions) -> Result<Mesh> {
-    let missing = |why: &str| {
-        Error::new(
-            ErrorKind::SourceNotKept,
-            format!(
-                "volume {} {why}: voxelize the mesh again to have it kept",
-                meta.id
-            ),
-        )
-    };
-    if !meta.source.kept {
-        return Err(missing(
-            "does not keep the mesh it was made from (derived volumes and volumes stored before meshes were kept do not)",
-        ));
-    }
+    require_kept(meta)?;
     let Some(bytes) = store.get_source(&meta.source.sha256).await? else {
-        return Err(missing("kept its mesh, but the store has lost it"));
+        return Err(not_kept(meta, "kept its mesh, but the store has lost it"));
     };
     super::ops::blocking(move || decode(&bytes, &opts)).await
 }

@@ -13,7 +13,7 @@ use super::super::problem::Problem;
 use super::AppState;
 use super::conditional;
 use super::volumes::{Caller, etag_sha, meta_of};
-use crate::app::hermite::{self, StoredSolid};
+use crate::app::hermite::{self, MeshSolid};
 use crate::app::{Error, ErrorKind};
 use crate::cancel::Control;
 
@@ -28,20 +28,13 @@ pub(super) async fn solid_of_stored(
     meta: &crate::app::store::VolumeMeta,
     what: &str,
     ctl: &Control,
-) -> Result<(StoredSolid, crate::app::memory::MemoryPermit), Problem> {
-    if !meta.source.kept {
-        // Said before any memory is asked for.
-        return Err(Error::new(
-            ErrorKind::SourceNotKept,
-            format!(
-                "volume {} does not keep the mesh it was made from (derived volumes and volumes \
-                 stored before meshes were kept do not): {what} is computed from that mesh; \
-                 voxelize the mesh again",
-                meta.id
-            ),
-        )
-        .into());
-    }
+) -> Result<(MeshSolid, crate::app::memory::MemoryPermit), Problem> {
+    // Said before any memory is asked for.
+    crate::app::sources::require_kept(meta).map_err(|e| {
+        e.context(format!(
+            "{what} is computed from the mesh the volume was made from"
+        ))
+    })?;
     let permit = app
         .admit(
             hermite::stored_solid_cost(meta),

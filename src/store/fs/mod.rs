@@ -518,6 +518,18 @@ impl FsStore {
 }
 
 impl Inner {
+    /// Reserves `need` bytes against the quota `limit` until the write that needs them ends
+    /// (the caller gives them back from `reserved`); `Full` with the numbers when what is
+    /// stored, what other writes reserved and `need` do not fit.
+    fn reserve(&mut self, need: u64, limit: u64) -> Result<(), StoreError> {
+        let used = self.used + self.reserved;
+        if used + need > limit {
+            return Err(StoreError::Full { need, used, limit });
+        }
+        self.reserved += need;
+        Ok(())
+    }
+
     /// What the health check reads: whether the last write failed, and when one last succeeded.
     fn note_write(&mut self, ok: bool) {
         self.last_write_failed = !ok;

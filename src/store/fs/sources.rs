@@ -46,15 +46,7 @@ impl FsStore {
             if i.sources.contains_key(key) {
                 return Ok(());
             }
-            let used = i.used + i.reserved;
-            if used + need > self.limit {
-                return Err(StoreError::Full {
-                    need,
-                    used,
-                    limit: self.limit,
-                });
-            }
-            i.reserved += need;
+            i.reserve(need, self.limit)?;
         }
         let p = self.sources.join(key);
         let r = blocking(move || Ok(atomic::write(&p, &bytes)?)).await;

@@ -40,18 +40,7 @@ impl VolumeStore for FsStore {
                 (json, false, need)
             }
         };
-        {
-            let mut i = self.lock();
-            let used = i.used + i.reserved;
-            if used + need > self.limit {
-                return Err(StoreError::Full {
-                    need,
-                    used,
-                    limit: self.limit,
-                });
-            }
-            i.reserved += need;
-        }
+        self.lock().reserve(need, self.limit)?;
         // The committer releases the reservation and catalogues the volume, whether or not
         // this future is still there to hear how it went.
         let (done, outcome) = tokio::sync::oneshot::channel();
