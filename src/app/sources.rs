@@ -98,13 +98,33 @@ pub async fn release(store: &dyn VolumeStore, key: &str) -> std::result::Result<
 
 /// [`release`] after deleting `meta`'s volume, logged, never failing the delete: what cannot
 /// be removed now is left to [`sweep`].
-pub async fn released(store: &dyn VolumeStore, meta: &VolumeMeta) {
+async fn released(store: &dyn VolumeStore, meta: &VolumeMeta) {
     if !meta.source.kept {
         return;
     }
     if let Err(e) = release(store, &meta.source.sha256).await {
         tracing::warn!(source = %meta.source.sha256, "cannot remove a mesh no volume keeps: {e}");
     }
+}
+
+/// Deletes volume `id` and then, if no other volume keeps it, the mesh it kept ([`released`]):
+/// every delete of a volume goes through here. `meta` is its metadata when the caller has read
+/// it already; unreadable metadata does not stop the delete (such a mesh is left to [`sweep`]).
+/// Whether there was a volume.
+pub async fn delete_volume(
+    store: &dyn VolumeStore,
+    id: &str,
+    meta: Option<VolumeMeta>,
+) -> std::result::Result<bool, StoreError> {
+    let meta = match meta {
+        Some(m) => Some(m),
+        None => store.get(id).await.ok().flatten(),
+    };
+    let deleted = store.delete(id).await?;
+    if deleted && let Some(meta) = &meta {
+        released(store, meta).await;
+    }
+    Ok(deleted)
 }
 
 /// Removes the sources older than `grace` that no volume refers to; how many.

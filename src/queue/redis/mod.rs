@@ -322,9 +322,11 @@ impl Inner {
         }
         if !keep_volume {
             let volume = volume_id_for(id);
-            if let Ok(Some(_)) = self.store.get(&volume).await {
+            if let Ok(Some(meta)) = self.store.get(&volume).await {
                 tracing::info!(job = %id, %volume, "removing the volume of a run whose result is discarded");
-                if let Err(e) = self.store.delete(&volume).await {
+                let deleted =
+                    crate::app::sources::delete_volume(&*self.store, &volume, Some(meta)).await;
+                if let Err(e) = deleted {
                     tracing::warn!(job = %id, "cannot remove a discarded volume: {e}");
                 }
             }

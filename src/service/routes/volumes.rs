@@ -213,16 +213,11 @@ pub async fn delete(
         }
         known = Some(meta);
     }
-    // The metadata says whether the volume keeps a mesh, removed after it if no other does
-    // (unreadable metadata does not stop the delete: such a mesh is left to the sweep).
-    let meta = match known {
-        Some(m) => Some(m),
-        None => app.store.get(&id).await.ok().flatten(),
-    };
-    if app.store.delete(&id).await.map_err(Error::from)? {
-        if let Some(meta) = meta {
-            crate::app::sources::released(&*app.store, &meta).await;
-        }
+    // With the mesh it kept, if no other volume keeps it.
+    if crate::app::sources::delete_volume(&*app.store, &id, known)
+        .await
+        .map_err(Error::from)?
+    {
         Ok(StatusCode::NO_CONTENT.into_response())
     } else {
         Err(Error::not_found("volume", &id).into())
