@@ -20,7 +20,7 @@ use std::borrow::Cow;
 
 use super::TriMesh;
 use super::qef::Qef;
-use super::surface_nets::{Field, lattice_points, net};
+use super::surface_nets::{Field, net};
 use super::vec3::{cross, dot, sub};
 use crate::cancel::{Canceled, Control};
 use crate::engine::hermite::Hermite;
@@ -53,7 +53,7 @@ pub fn dual_contouring(bits: &BitVolume, h: &Hermite, ctl: &Control) -> Result<T
         }
         crossing.push(p);
     }
-    let cells = lattice_points(&n.quads, &n.faces, n.vertices);
+    let cells: Vec<[f64; 3]> = n.cells.iter().map(|c| c.map(f64::from)).collect();
     let positions: Vec<[f64; 3]> = qefs
         .iter()
         .zip(&cells)

@@ -22,6 +22,7 @@ pub mod marching_cubes;
 pub mod measure;
 mod pinches;
 pub mod qef;
+mod slabs;
 pub mod surface_nets;
 mod vec3;
 pub mod write;

@@ -284,3 +284,46 @@ fn a_sparse_volumes_inside_is_its_negative_voxels() {
         assert!(n > 1000, "{n}");
     }
 }
+
+#[test]
+fn a_net_built_in_runs_is_the_net_built_in_one() {
+    // Runs of a few faces join at shared slabs; built in one run nothing is joined. Same
+    // vertices (numbered the same), quads, crossings and cells; sums equal up to the order of
+    // their additions.
+    use super::surface_nets::net_in_runs;
+    let mut rng = Rng::new(36);
+    let mut volumes: Vec<Volume> = (0..40)
+        .map(|case| Volume::Bits(random_bits(&mut rng, grid, 9, [0.3, 0.5, 0.7][case % 3])))
+        .collect();
+    let (g, f) = sphere(20, 6.3);
+    let mut d = Dense::<f32>::new(g, 0.0);
+    for x in 0..20 {
+        for y in 0..20 {
+            for z in 0..20 {
+                d.set(x, y, z, f(x, y, z) as f32);
+            }
+        }
+    }
+    volumes.push(Volume::Distance(d));
+    for (case, v) in volumes.iter().enumerate() {
+        let field = Field::of(v);
+        let one = net_in_runs(&field, &Control::none(), usize::MAX).unwrap();
+        for run_faces in [1, 7, 50] {
+            let runs = net_in_runs(&field, &Control::none(), run_faces).unwrap();
+            assert_eq!(runs.vertices, one.vertices, "case {case}");
+            assert_eq!(runs.quads, one.quads, "case {case}");
+            assert_eq!(runs.cells, one.cells, "case {case}");
+            assert_eq!(runs.crossings, one.crossings, "case {case}");
+            for (a, b) in runs.sums.iter().zip(&one.sums) {
+                for k in 0..4 {
+                    assert!(
+                        (a[k] - b[k]).abs() <= 1e-9 * b[k].abs().max(1.0),
+                        "case {case}"
+                    );
+                }
+                // Every vertex is in at least three quads (a closed 2-manifold).
+                assert!(a[3] >= 3.0, "case {case}");
+            }
+        }
+    }
+}

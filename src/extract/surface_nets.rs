@@ -21,18 +21,20 @@
 //!   `RELAX` rounds of Gibson's constrained relaxation, each round Taubin's two
 //!   steps (towards the mean of the vertex's neighbours by λ = 0.5, then by μ = −0.526), so the
 //!   steps are smoothed away without the shrinking of plain averaging; every vertex is clamped
-//!   to its cell shrunk by 1/16 voxel after each step.
+//!   to its cell shrunk by 1/16 voxel after each step. The rounds work in f32 on each vertex's
+//!   offset from its lattice point.
 //! * Each quad is split along its shorter diagonal, counter-clockwise seen from outside.
 
-use std::borrow::Cow;
-use std::collections::HashMap;
-
 use rayon::prelude::*;
+use std::borrow::Cow;
 
 use super::TriMesh;
-use super::cubes::sheet_with;
+use super::slabs::Slabs;
 use crate::cancel::{Canceled, Control};
 use crate::volume::{BitVolume, Volume};
+
+/// Faces per run of the quad mesh's parallel build (about; runs end at slab boundaries).
+const RUN_FACES: usize = 1 << 17;
 
 /// Rounds of constrained relaxation for bit volumes.
 pub const RELAX: usize = 12;
@@ -285,7 +287,7 @@ fn faces(bits: &BitVolume, ctl: &Control) -> Result<Vec<Face>, Canceled> {
 /// The surface nets mesh of `field`, in lattice units.
 pub fn surface_nets(field: &Field<'_>, ctl: &Control) -> Result<TriMesh, Canceled> {
     let Net {
-        faces, quads, sums, ..
+        cells, quads, sums, ..
     } = net(field, &ctl.stage(0.0, 0.7))?;
     // Cells: each vertex's lattice point, for the clamp (recovered from its faces below).
     let mut positions: Vec<[f64; 3]> = sums
@@ -293,7 +295,7 @@ pub fn surface_nets(field: &Field<'_>, ctl: &Control) -> Result<TriMesh, Cancele
         .map(|s| [s[0] / s[3], s[1] / s[3], s[2] / s[3]])
         .collect();
     if field.value.is_none() {
-        relax(&mut positions, &quads, &faces, RELAX, &ctl.stage(0.7, 0.95))?;
+        relax(&mut positions, &quads, &cells, RELAX, &ctl.stage(0.7, 0.95))?;
     }
     let mut out = TriMesh {
         positions,
@@ -322,31 +324,139 @@ pub(super) struct Net {
     pub faces: Vec<Face>,
     pub quads: Vec<[u32; 4]>,
     pub crossings: Vec<[f64; 3]>,
-    sums: Vec<[f64; 4]>,
+    pub(super) sums: Vec<[f64; 4]>,
+    /// Each vertex's lattice point (the centre of its dual cell).
+    pub cells: Vec<[u32; 3]>,
     pub vertices: usize,
 }
 
 /// The [`Net`] of `field`.
 pub(super) fn net(field: &Field<'_>, ctl: &Control) -> Result<Net, Canceled> {
+    net_in_runs(field, ctl, RUN_FACES)
+}
+
+/// The [`Net`] of `field`, built in runs of about `run_faces` faces.
+pub(super) fn net_in_runs(
+    field: &Field<'_>,
+    ctl: &Control,
+    run_faces: usize,
+) -> Result<Net, Canceled> {
     let bits: &BitVolume = &field.inside;
-    let d = bits.dims();
     let faces = faces(bits, &ctl.stage(0.0, 0.4))?;
     let joins = super::pinches::Joins::decide(bits);
-    let occ = |p: [i64; 3]| {
-        (0..3).all(|a| p[a] >= 0 && p[a] < i64::from(d[a]))
-            && bits.get(p[0] as u32, p[1] as u32, p[2] as u32)
-    };
     let ctl2 = ctl.stage(0.4, 1.0);
     let counter = ctl2.counter(faces.len() as u64);
-    // Vertices by (lattice point, sheet); their position sums and counts.
-    let mut ids: HashMap<([u32; 3], u8), u32, foldhash::fast::RandomState> = HashMap::default();
+    // The faces in runs of whole lattice slabs, one run a task: each numbers its vertices from
+    // its first slab on, and the runs are joined where they share a slab. The runs depend on
+    // the faces only, not on the threads, so the sums (and the mesh) are the same on any
+    // machine.
+    let x_of = |f: &Face| f.point(0, 0)[0];
+    let runs = faces.len().div_ceil(run_faces.max(1)).max(1);
+    let mut cuts = vec![0];
+    for r in 1..runs {
+        let mut i = (faces.len() * r / runs).max(*cuts.last().expect("a cut"));
+        while i > 0 && i < faces.len() && x_of(&faces[i]) == x_of(&faces[i - 1]) {
+            i += 1;
+        }
+        if i < faces.len() && i > *cuts.last().expect("a cut") {
+            cuts.push(i);
+        }
+    }
+    cuts.push(faces.len());
+    // No empty run (no faces: no runs).
+    cuts.dedup();
+    let last = bits.dims()[0];
+    // Each run fills its faces' quads and crossings in place.
+    let mut quads = vec![[0u32; 4]; faces.len()];
+    let mut crossings = vec![[0.0f64; 3]; faces.len()];
+    let mut jobs = Vec::new();
+    let (mut q_rest, mut c_rest) = (&mut quads[..], &mut crossings[..]);
+    for w in cuts.windows(2) {
+        let (q, qr) = std::mem::take(&mut q_rest).split_at_mut(w[1] - w[0]);
+        let (c, cr) = std::mem::take(&mut c_rest).split_at_mut(w[1] - w[0]);
+        (q_rest, c_rest) = (qr, cr);
+        jobs.push((w[0]..w[1], q, c));
+    }
+    let parts = jobs
+        .into_par_iter()
+        .map(|(range, q, c)| {
+            let upto = faces.get(range.end).map_or(last, x_of);
+            run(field, &joins, &faces[range], upto, q, c, &counter)
+        })
+        .collect::<Result<Vec<Run>, Canceled>>()?;
+    // Join the runs: run r's vertices from `shared` on are the first of run r + 1's.
+    let mut offsets = Vec::with_capacity(parts.len());
+    let mut offset = 0u32;
+    let (mut sums, mut cells) = (Vec::new(), Vec::new());
+    let mut carry: Vec<[f64; 4]> = Vec::new();
+    let n = parts.len();
+    for (r, mut part) in parts.into_iter().enumerate() {
+        offsets.push(offset);
+        for (s, c) in part.sums.iter_mut().zip(&carry) {
+            *s = [0, 1, 2, 3].map(|k| c[k] + s[k]);
+        }
+        if r + 1 < n {
+            carry = part.sums.split_off(part.shared);
+            part.points.truncate(part.shared);
+            offset += part.shared as u32;
+        }
+        sums.extend(part.sums);
+        cells.extend(part.points);
+    }
+    let mut q_rest = &mut quads[..];
+    let mut jobs = Vec::new();
+    for (w, &offset) in cuts.windows(2).zip(&offsets) {
+        let (q, qr) = std::mem::take(&mut q_rest).split_at_mut(w[1] - w[0]);
+        q_rest = qr;
+        jobs.push((q, offset));
+    }
+    jobs.into_par_iter().for_each(|(q, offset)| {
+        for v in q.iter_mut().flatten() {
+            *v += offset;
+        }
+    });
+    ctl.complete();
+    Ok(Net {
+        faces,
+        quads,
+        crossings,
+        vertices: sums.len(),
+        sums,
+        cells,
+    })
+}
+
+/// A run of faces' part of a [`Net`], its vertices numbered from its first slab on.
+struct Run {
+    pub(super) sums: Vec<[f64; 4]>,
+    points: Vec<[u32; 3]>,
+    /// The first vertex of slab `upto` (shared with the next run).
+    shared: usize,
+}
+
+/// The [`Run`] of `faces` (whole slabs, in order), numbering the slabs from the first face's
+/// up to `upto`; their quads (vertices numbered from the run's first) and crossings go to
+/// `quads` and `crossings`.
+fn run(
+    field: &Field<'_>,
+    joins: &super::pinches::Joins,
+    faces: &[Face],
+    upto: u32,
+    quads: &mut [[u32; 4]],
+    crossings: &mut [[f64; 3]],
+    counter: &crate::cancel::Counter,
+) -> Result<Run, Canceled> {
+    let mut slabs = Slabs::new(&field.inside, joins, faces[0].point(0, 0)[0]);
     let mut sums: Vec<[f64; 4]> = Vec::new();
-    let mut quads: Vec<[u32; 4]> = Vec::with_capacity(faces.len());
-    let mut crossings: Vec<[f64; 3]> = Vec::with_capacity(faces.len());
     for (i, f) in faces.iter().enumerate() {
         if i % 65536 == 0 {
             counter.check()?;
             counter.add(65536.min((faces.len() - i) as u64));
+        }
+        // The face's corners are in lattice slabs x and x + 1 (faces come in order of x).
+        slabs.reach(f.point(0, 0)[0] + 1);
+        if sums.len() < slabs.vertices {
+            sums.resize(slabs.vertices, [0.0; 4]);
         }
         // The crossing point on the segment between the face's two voxel centres.
         let mut c = [0.0; 3];
@@ -368,16 +478,14 @@ pub(super) fn net(field: &Field<'_>, ctl: &Control) -> Result<Net, Canceled> {
             let ci = f64::from(inn[f.a] as i32) + 0.5;
             c[f.a] = ci + t * if f.plus { 1.0 } else { -1.0 };
         }
-        crossings.push(c);
-        // Corners counter-clockwise seen from +a.
+        crossings[i] = c;
+        // Corners counter-clockwise seen from +a; at corner (u + du, v + dv) the face is the
+        // block's internal face across a between the octants with bits (1 − du, 1 − dv).
         let mut ring = [(0, 0), (1, 0), (1, 1), (0, 1)].map(|(du, dv)| {
-            let p = f.point(du, dv);
-            let s = sheet_with(&occ, p, f.a, f.inside(), |set| joins.flags(p, set));
-            let next = sums.len() as u32;
-            let id = *ids.entry((p, s)).or_insert_with(|| {
-                sums.push([0.0; 4]);
-                next
-            });
+            let id = slabs.vertex(
+                f.point(du, dv),
+                f.a * 4 + (1 - du as usize) + 2 * (1 - dv as usize),
+            );
             let sum = &mut sums[id as usize];
             for k in 0..3 {
                 sum[k] += c[k];
@@ -388,35 +496,16 @@ pub(super) fn net(field: &Field<'_>, ctl: &Control) -> Result<Net, Canceled> {
         if !f.plus {
             ring.reverse();
         }
-        quads.push(ring);
+        quads[i] = ring;
     }
-    drop(ids);
-    ctl.complete();
-    Ok(Net {
-        faces,
-        quads,
-        crossings,
-        vertices: sums.len(),
+    slabs.reach(upto);
+    sums.resize(slabs.vertices, [0.0; 4]);
+    // The last slab numbered is `upto` (the faces' slabs are below it).
+    Ok(Run {
         sums,
+        shared: slabs.last_start,
+        points: slabs.points,
     })
-}
-
-/// Each of the `n` vertices' lattice point (the centre of its dual cell): a corner of any of
-/// its quads' faces.
-pub(super) fn lattice_points(quads: &[[u32; 4]], faces: &[Face], n: usize) -> Vec<[f64; 3]> {
-    let mut cell = vec![[0.0f64; 3]; n];
-    for (q, f) in quads.iter().zip(faces) {
-        let corners = [(0, 0), (1, 0), (1, 1), (0, 1)].map(|(du, dv)| f.point(du, dv));
-        let ring = if f.plus {
-            corners
-        } else {
-            [corners[3], corners[2], corners[1], corners[0]]
-        };
-        for (j, &v) in q.iter().enumerate() {
-            cell[v as usize] = ring[j].map(f64::from);
-        }
-    }
-    cell
 }
 
 /// Gibson's constrained relaxation: `rounds` times, every vertex to the mean of its quad
@@ -424,12 +513,12 @@ pub(super) fn lattice_points(quads: &[[u32; 4]], faces: &[Face], n: usize) -> Ve
 fn relax(
     positions: &mut [[f64; 3]],
     quads: &[[u32; 4]],
-    faces: &[Face],
+    cells: &[[u32; 3]],
     rounds: usize,
     ctl: &Control,
 ) -> Result<(), Canceled> {
     let n = positions.len();
-    let cell = lattice_points(quads, faces, n);
+    let cell: Vec<[f64; 3]> = cells.iter().map(|c| c.map(f64::from)).collect();
     let mut start = vec![0u32; n + 1];
     for q in quads {
         for &v in q {
@@ -441,42 +530,81 @@ fn relax(
     }
     let mut fill = start.clone();
     let mut adj = vec![0u32; start[n] as usize];
+    // The sum of each vertex's neighbours' lattice points less its own (the neighbours are
+    // in the next cells: −1, 0 or 1 on each axis).
+    let mut steps = vec![[0.0f32; 4]; n];
     // Each neighbour once: the mesh is closed and consistently oriented, so each edge v → w
     // is in exactly one quad.
     for q in quads {
         for j in 0..4 {
-            let v = q[j] as usize;
-            adj[fill[v] as usize] = q[(j + 1) % 4];
+            let (v, w) = (q[j] as usize, q[(j + 1) % 4] as usize);
+            adj[fill[v] as usize] = w as u32;
+            for k in 0..3 {
+                steps[v][k] += (cells[w][k] as f32) - (cells[v][k] as f32);
+            }
             fill[v] += 1;
         }
     }
     let counter = ctl.counter(rounds as u64);
-    let m = 0.5 - 1.0 / 16.0;
-    let mut next = positions.to_vec();
+    // The rounds work on each vertex's offset from its lattice point, in f32: half the memory
+    // traffic of f64 positions (the passes are bound by it), with a rounding error of at most
+    // 2⁻²⁴ voxel per step, whatever the grid's size.
+    let m = 0.5f32 - 1.0 / 16.0;
+    let mut now: Vec<[f32; 4]> = positions
+        .iter()
+        .zip(&cell)
+        .map(|(p, c)| [0, 1, 2, 3].map(|k| if k < 3 { (p[k] - c[k]) as f32 } else { 0.0 }))
+        .collect();
+    let mut next = vec![[0.0f32; 4]; n];
+    // Vertices per parallel task: enough to make a task's overhead small.
+    const CHUNK: usize = 8192;
+    const INVERSE: [f32; 16] = {
+        let mut t = [0.0f32; 16];
+        let mut i = 1;
+        while i < 16 {
+            t[i] = 1.0 / i as f32;
+            i += 1;
+        }
+        t
+    };
     for _ in 0..rounds {
         counter.check()?;
         // Taubin's pair of steps: towards the neighbours' mean (λ), then away from it (μ), so
         // that the surface is smoothed without shrinking.
-        for factor in [TAUBIN.0, TAUBIN.1] {
-            let now: &[[f64; 3]] = positions;
-            next.par_iter_mut().enumerate().for_each(|(v, out)| {
-                let nb = &adj[start[v] as usize..start[v + 1] as usize];
-                let mut s = [0.0; 3];
-                for &w in nb {
-                    let p = now[w as usize];
-                    s[0] += p[0];
-                    s[1] += p[1];
-                    s[2] += p[2];
-                }
-                *out = [0, 1, 2].map(|k| {
-                    let mean = s[k] / nb.len() as f64;
-                    let p = now[v][k] + factor * (mean - now[v][k]);
-                    p.clamp(cell[v][k] - m, cell[v][k] + m)
+        for factor in [TAUBIN.0 as f32, TAUBIN.1 as f32] {
+            let (now_ref, adj, steps, start) = (&now, &adj, &steps, &start);
+            next.par_chunks_mut(CHUNK)
+                .enumerate()
+                .for_each(|(chunk, out)| {
+                    let first = chunk * CHUNK;
+                    for (j, out) in out.iter_mut().enumerate() {
+                        let v = first + j;
+                        let (lo, hi) = (start[v] as usize, start[v + 1] as usize);
+                        // The neighbours' offsets, plus their lattice points' from this one's.
+                        let mut s = steps[v];
+                        for &w in &adj[lo..hi] {
+                            let p = now_ref[w as usize];
+                            for k in 0..4 {
+                                s[k] += p[k];
+                            }
+                        }
+                        // 1/valence from a table: a division per vertex stalled the pass.
+                        let inv = INVERSE
+                            .get(hi - lo)
+                            .copied()
+                            .unwrap_or(1.0 / (hi - lo) as f32);
+                        let p = now_ref[v];
+                        out[0] = (p[0] + factor * (s[0] * inv - p[0])).clamp(-m, m);
+                        out[1] = (p[1] + factor * (s[1] * inv - p[1])).clamp(-m, m);
+                        out[2] = (p[2] + factor * (s[2] * inv - p[2])).clamp(-m, m);
+                    }
                 });
-            });
-            positions.copy_from_slice(&next);
+            std::mem::swap(&mut now, &mut next);
         }
         counter.add(1);
+    }
+    for ((p, c), o) in positions.iter_mut().zip(&cell).zip(&now) {
+        *p = [0, 1, 2].map(|k| c[k] + f64::from(o[k]));
     }
     Ok(())
 }

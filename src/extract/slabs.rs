@@ -1,0 +1,221 @@
+//! The vertices of a [`Net`](super::surface_nets::Net) numbered lattice slab by lattice slab:
+//! every lattice point whose 2×2×2 block of voxels is mixed gets one vertex per sheet of the
+//! boundary around it (`cubes::sheets_for`, with the pinched edges `pinches::Joins` joined),
+//! numbered in (x, y, z, sheet) order. The blocks are read from the column words 64 lattice
+//! points at a time, and the numbers are kept for two slabs only (the faces are visited in
+//! order of their lowest lattice x, and a face's corners lie in its slab and the next), so a
+//! face's four vertices are found by table lookups instead of a hash map keyed by point.
+
+use std::sync::OnceLock;
+
+use super::cubes::sheets_for;
+use super::pinches::Joins;
+use crate::volume::BitVolume;
+
+/// For each block occupancy with no pinch joined: each internal face's sheet as 0..count (in
+/// the order of the sheets' names; `u8::MAX` for a face that is not a boundary face), and the
+/// count.
+static COMPACT: OnceLock<Vec<([u8; 12], u8)>> = OnceLock::new();
+
+/// Is internal face `f` (0..12, `cubes::face_index`) of block occupancy `set` a boundary face?
+fn boundary(set: u8, f: usize) -> bool {
+    let a = f / 4;
+    let o = ((f & 1) << ((a + 1) % 3)) | ((f >> 1 & 1) << ((a + 2) % 3));
+    (set >> o & 1) != (set >> (o | 1 << a) & 1)
+}
+
+/// The sheets of `set` (named as `cubes::sheets_for` names them) numbered 0..count.
+fn compact(set: u8, names: &[u8; 12]) -> ([u8; 12], u8) {
+    let mut rank = [u8::MAX; 12];
+    let mut out = [u8::MAX; 12];
+    let mut n = 0;
+    for f in (0..12).filter(|&f| boundary(set, f)) {
+        let s = usize::from(names[f]);
+        if rank[s] == u8::MAX {
+            rank[s] = n;
+            n += 1;
+        }
+        out[f] = rank[s];
+    }
+    (out, n)
+}
+
+fn compact_table() -> &'static [([u8; 12], u8)] {
+    COMPACT.get_or_init(|| {
+        (0..=255u8)
+            .map(|set| compact(set, &sheets_for(set, 0)))
+            .collect()
+    })
+}
+
+/// A lattice point's first vertex, block occupancy and joined half-edges (one load per
+/// corner: the two slabs' tables are larger than a core's cache).
+#[derive(Clone, Copy, Default)]
+struct Block {
+    base: u32,
+    set: u8,
+    flags: u8,
+}
+
+/// Two slabs of lattice-point vertex numbers, advanced as the faces are visited.
+pub(super) struct Slabs<'a> {
+    bits: &'a BitVolume,
+    joins: &'a Joins,
+    table: &'static [([u8; 12], u8)],
+    zero: Vec<u64>,
+    /// Lattice points per slab row (dims z + 1).
+    stride: usize,
+    /// By slab parity, by (y, z): the lattice point's block.
+    blocks: [Vec<Block>; 2],
+    /// The first slab not numbered yet.
+    next: u32,
+    /// Vertices numbered so far.
+    pub vertices: usize,
+    /// Each vertex's lattice point.
+    pub points: Vec<[u32; 3]>,
+    /// The first vertex of the last slab numbered.
+    pub last_start: usize,
+}
+
+impl<'a> Slabs<'a> {
+    /// Slabs numbered from slab `from` on (its first vertex numbered 0).
+    pub(super) fn new(bits: &'a BitVolume, joins: &'a Joins, from: u32) -> Slabs<'a> {
+        let d = bits.dims();
+        let n = (d[1] as usize + 1) * (d[2] as usize + 1);
+        Slabs {
+            bits,
+            joins,
+            table: compact_table(),
+            zero: vec![0; bits.words_per_column()],
+            stride: d[2] as usize + 1,
+            blocks: [vec![Block::default(); n], vec![Block::default(); n]],
+            next: from,
+            vertices: 0,
+            last_start: 0,
+            points: Vec::new(),
+        }
+    }
+
+    /// Numbers the slabs up to `x` (at most the last lattice slab, dims x), those before it
+    /// first; only the last two numbered are kept.
+    pub(super) fn reach(&mut self, x: u32) {
+        let last = x.min(self.bits.dims()[0]);
+        while self.next <= last {
+            self.number(self.next);
+            self.next += 1;
+        }
+    }
+
+    /// The vertex of lattice point `p` (in one of the last two slabs numbered) on the sheet
+    /// that holds internal face `face` of its block (a boundary face).
+    pub(super) fn vertex(&self, p: [u32; 3], face: usize) -> u32 {
+        let par = (p[0] & 1) as usize;
+        let i = p[1] as usize * self.stride + p[2] as usize;
+        let Block { base, set, flags } = self.blocks[par][i];
+        let r = if flags == 0 {
+            self.table[usize::from(set)].0[face]
+        } else {
+            compact(set, &sheets_for(set, flags)).0[face]
+        };
+        debug_assert!(r != u8::MAX, "a boundary face of the block");
+        base + u32::from(r)
+    }
+
+    fn number(&mut self, x: u32) {
+        let bits = self.bits;
+        let d = bits.dims();
+        let par = (x & 1) as usize;
+        // Words of lattice z: 64w..64w + 64, up to dims z.
+        let nw = d[2] as usize / 64 + 1;
+        self.last_start = self.vertices;
+        for y in 0..=d[1] {
+            // The four columns around the lattice row, k = dx + 2·dy (voxel x − 1 + dx,
+            // y − 1 + dy).
+            let cols: [&[u64]; 4] = std::array::from_fn(|k| {
+                let (cx, cy) = (
+                    i64::from(x) - 1 + (k & 1) as i64,
+                    i64::from(y) - 1 + (k >> 1) as i64,
+                );
+                if cx < 0 || cy < 0 || cx >= i64::from(d[0]) || cy >= i64::from(d[1]) {
+                    &self.zero[..]
+                } else {
+                    bits.column(cx as u32, cy as u32)
+                }
+            });
+            let mut carry = [0u64; 4];
+            for w in 0..nw {
+                // Bit t: the voxel at z = 64w + t (up) and at z − 1 (lo).
+                let mut up = [0u64; 4];
+                let mut lo = [0u64; 4];
+                for (k, col) in cols.iter().enumerate() {
+                    let word = col.get(w).copied().unwrap_or(0);
+                    up[k] = word;
+                    lo[k] = word << 1 | carry[k];
+                    carry[k] = word >> 63;
+                }
+                let any = up.iter().chain(&lo).fold(0, |a, &b| a | b);
+                let all = up.iter().chain(&lo).fold(u64::MAX, |a, &b| a & b);
+                let mut mixed = any & !all;
+                let room = i64::from(d[2]) - 64 * w as i64;
+                if room < 63 {
+                    mixed &= (1u64 << (room + 1)) - 1;
+                }
+                while mixed != 0 {
+                    let t = mixed.trailing_zeros();
+                    mixed &= mixed - 1;
+                    let mut set = 0u8;
+                    for k in 0..4 {
+                        set |= ((lo[k] >> t & 1) as u8) << k;
+                        set |= ((up[k] >> t & 1) as u8) << (k + 4);
+                    }
+                    let z = 64 * w as u32 + t;
+                    let flags = self.joins.flags([x, y, z], set);
+                    let n = if flags == 0 {
+                        self.table[usize::from(set)].1
+                    } else {
+                        compact(set, &sheets_for(set, flags)).1
+                    };
+                    let i = y as usize * self.stride + z as usize;
+                    self.blocks[par][i] = Block {
+                        base: self.vertices as u32,
+                        set,
+                        flags,
+                    };
+                    self.vertices += usize::from(n);
+                    for _ in 0..n {
+                        self.points.push([x, y, z]);
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::extract::cubes::{SHEETS, sheets};
+
+    #[test]
+    fn compact_numbers_keep_the_sheets_apart_and_together() {
+        // Independent of the numbering: two boundary faces share a number iff `sheets` names
+        // the same sheet for them, and the count is the number of distinct names.
+        for set in 0..=255u8 {
+            let names = SHEETS.get_or_init(sheets)[usize::from(set)];
+            let (nums, n) = compact_table()[usize::from(set)];
+            let faces: Vec<usize> = (0..12).filter(|&f| boundary(set, f)).collect();
+            let mut distinct: Vec<u8> = faces.iter().map(|&f| names[f]).collect();
+            distinct.sort_unstable();
+            distinct.dedup();
+            assert_eq!(usize::from(n), distinct.len(), "set {set:08b}");
+            for &f in &faces {
+                assert!(nums[f] < n);
+                for &g in &faces {
+                    assert_eq!(names[f] == names[g], nums[f] == nums[g], "set {set:08b}");
+                }
+            }
+            // No boundary face at all exactly when the block is all in or all out.
+            assert_eq!(faces.is_empty(), set == 0 || set == 255);
+        }
+    }
+}
