@@ -400,7 +400,7 @@ fn bad_input_exits_non_zero_with_one_line_naming_the_file() {
 /// A Python interpreter that can import `modules`: `python3` from PATH, else the system one.
 /// Skips (None, with a notice) when there is none, unless VOXD_REQUIRE_PYTHON=1 (set by
 /// scripts/test.sh once it has made them available), where that is a failure.
-fn python_with(modules: &str) -> Option<&'static str> {
+pub(crate) fn python_with(modules: &str) -> Option<&'static str> {
     let found = ["python3", "/usr/bin/python3"].into_iter().find(|py| {
         Command::new(py)
             .args(["-c", &format!("import {modules}")])
@@ -776,4 +776,60 @@ fn fill_options() {
         .unwrap();
         assert_eq!(got, want, "{fill}");
     }
+}
+
+/// `-o x.vox` and `-o x.indices.npy` pick the formats by extension; dot_vox reads the `.vox`
+/// (one model, every voxel of the `.vxl` once), and the indices are the set voxels in C order.
+#[test]
+fn voxelize_writes_vox_and_indices_by_extension() {
+    let run = |out: &Path| {
+        let o = voxd(&[
+            "voxelize",
+            s(&data("spot.obj")),
+            "-o",
+            s(out),
+            "--resolution",
+            "33",
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let vxl = tmp("spot-vox.vxl");
+    run(&vxl);
+    let Volume::Bits(v) = read(&vxl) else {
+        panic!()
+    };
+    let vox = tmp("spot.vox");
+    let warned = run(&vox);
+    assert!(warned.contains("vox keeps only the voxels"), "{warned}");
+    let data = dot_vox::load(s(&vox)).unwrap();
+    assert_eq!(data.models.len(), 1);
+    let m = &data.models[0];
+    assert_eq!(m.voxels.len() as u64, v.count_ones());
+    for p in &m.voxels {
+        assert!(v.get(u32::from(p.x), u32::from(p.y), u32::from(p.z)));
+    }
+    let idx = tmp("spot.indices.npy");
+    run(&idx);
+    let bytes = std::fs::read(&idx).unwrap();
+    let header = voxd::codec::indices::header(v.count_ones());
+    assert_eq!(&bytes[..header.len()], &header[..]);
+    let rows: Vec<[u32; 3]> = bytes[header.len()..]
+        .chunks(12)
+        .map(|r| {
+            std::array::from_fn(|k| u32::from_le_bytes(r[4 * k..4 * k + 4].try_into().unwrap()))
+        })
+        .collect();
+    let mut want = vec![];
+    let d = v.dims();
+    for x in 0..d[0] {
+        for y in 0..d[1] {
+            for z in 0..d[2] {
+                if v.get(x, y, z) {
+                    want.push([x, y, z]);
+                }
+            }
+        }
+    }
+    assert_eq!(rows, want);
 }

@@ -353,7 +353,16 @@ pub fn check_format(kind: VolumeKind, format: VolumeFormat) -> Result<()> {
 /// are sparse where the volume is: not bounded here.
 pub fn check_conversion(grid: &Grid, format: VolumeFormat, limits: &Limits) -> Result<()> {
     let voxels: u128 = match format {
-        VolumeFormat::Vxl | VolumeFormat::Vdb => return Ok(()),
+        // Sparse: as large as the volume's set voxels, at most.
+        VolumeFormat::Vxl | VolumeFormat::Vdb | VolumeFormat::Indices => return Ok(()),
+        VolumeFormat::Vox => {
+            return crate::codec::vox::check_world(grid.dims).map_err(|e| {
+                Error::new(
+                    ErrorKind::GridTooLarge,
+                    format!("as vox: {e}; download it as vxl, or voxelize at a coarser resolution"),
+                )
+            });
+        }
         VolumeFormat::Binvox => u128::from(*grid.dims.iter().max().expect("three dims")).pow(3),
         _ => grid.dims.iter().map(|&d| u128::from(d)).product(),
     };
@@ -429,7 +438,11 @@ pub fn conversion_warning(grid: &Grid, format: VolumeFormat) -> Option<String> {
             d[2],
             n = d.iter().max().expect("three dims")
         )),
-        VolumeFormat::Npy | VolumeFormat::Raw => Some(format!(
+        VolumeFormat::Vox => Some(format!(
+            "vox keeps only the voxels, placed centred on MagicaVoxel's ground in models of at most 256³: the grid's origin {:?} and voxel size {} are not stored (keep the .vxl for them)",
+            grid.origin, grid.voxel_size
+        )),
+        VolumeFormat::Npy | VolumeFormat::Raw | VolumeFormat::Indices => Some(format!(
             "{} keeps only the voxels: the grid's origin {:?} and voxel size {} are not stored (keep the .vxl for them)",
             format.name(),
             grid.origin,

@@ -63,8 +63,13 @@ pub fn voxelize(a: &VoxelizeArgs) -> Result<(), String> {
 pub fn volume_format_of(p: &Path) -> Result<VolumeFormat, String> {
     VolumeFormat::from_path(p).ok_or_else(|| {
         format!(
-            "{}: unknown volume format; use the extension .vxl, .binvox or .npy",
-            p.display()
+            "{}: unknown volume format; use one of the extensions {}",
+            p.display(),
+            voxd::codec::FORMATS
+                .iter()
+                .map(|f| format!(".{}", f.extension))
+                .collect::<Vec<_>>()
+                .join(", ")
         )
     })
 }

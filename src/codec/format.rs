@@ -20,14 +20,21 @@ pub enum VolumeFormat {
     /// OpenVDB: a sparse distance volume as a level-set FloatGrid, a bit volume as a BoolGrid.
     /// Written, never read back.
     Vdb,
+    /// MagicaVoxel `.vox`: a bit volume cut into models of at most 256³ placed by the scene
+    /// graph. Written, never read back.
+    Vox,
+    /// The set voxels of a bit volume as an (N, 3) `uint32` `.npy`. Written, never read back.
+    Indices,
 }
 
 /// One format's row.
 #[derive(Debug)]
 pub struct FormatSpec {
     pub format: VolumeFormat,
-    /// Its name in `?format=`, and its file extension.
+    /// Its name in `?format=`.
     pub name: &'static str,
+    /// Its file extension (without the first dot): the name, but for `indices.npy`.
+    pub extension: &'static str,
     pub media_type: &'static str,
     /// The kinds it can hold.
     pub holds: &'static [VolumeKind],
@@ -57,6 +64,7 @@ pub const FORMATS: &[FormatSpec] = &[
     FormatSpec {
         format: VolumeFormat::Vxl,
         name: "vxl",
+        extension: "vxl",
         media_type: "application/vnd.voxd.vxl",
         holds: <VolumeKind as Named>::ALL,
         streams: false,
@@ -66,6 +74,7 @@ pub const FORMATS: &[FormatSpec] = &[
     FormatSpec {
         format: VolumeFormat::Binvox,
         name: "binvox",
+        extension: "binvox",
         media_type: "application/x-binvox",
         holds: crate::volume::BITS_ONLY,
         streams: true,
@@ -75,6 +84,7 @@ pub const FORMATS: &[FormatSpec] = &[
     FormatSpec {
         format: VolumeFormat::Npy,
         name: "npy",
+        extension: "npy",
         media_type: "application/x-npy",
         holds: ARRAY_KINDS,
         streams: true,
@@ -84,6 +94,7 @@ pub const FORMATS: &[FormatSpec] = &[
     FormatSpec {
         format: VolumeFormat::Raw,
         name: "raw",
+        extension: "raw",
         media_type: "application/octet-stream",
         holds: ARRAY_KINDS,
         streams: true,
@@ -93,11 +104,33 @@ pub const FORMATS: &[FormatSpec] = &[
     FormatSpec {
         format: VolumeFormat::Vdb,
         name: "vdb",
+        extension: "vdb",
         media_type: "application/x-vdb",
         holds: VDB_KINDS,
         streams: false,
         reads: false,
         magic: Some(super::vdb::MAGIC),
+    },
+    FormatSpec {
+        format: VolumeFormat::Vox,
+        name: "vox",
+        extension: "vox",
+        media_type: "application/x-vox",
+        holds: crate::volume::BITS_ONLY,
+        streams: true,
+        reads: false,
+        magic: Some(super::vox::MAGIC),
+    },
+    FormatSpec {
+        format: VolumeFormat::Indices,
+        name: "indices",
+        extension: "indices.npy",
+        media_type: "application/x-npy",
+        holds: crate::volume::BITS_ONLY,
+        streams: true,
+        reads: false,
+        // A `.npy` like any other: recognised by its extension, not its bytes.
+        magic: None,
     },
 ];
 
@@ -120,6 +153,8 @@ impl Named for VolumeFormat {
         VolumeFormat::Npy,
         VolumeFormat::Raw,
         VolumeFormat::Vdb,
+        VolumeFormat::Vox,
+        VolumeFormat::Indices,
     ];
     fn name(self) -> &'static str {
         self.spec().name
@@ -136,9 +171,9 @@ impl VolumeFormat {
     pub const fn name(self) -> &'static str {
         self.spec().name
     }
-    /// The file extension (without the dot): the name.
+    /// The file extension (without the first dot).
     pub const fn extension(self) -> &'static str {
-        self.spec().name
+        self.spec().extension
     }
     pub const fn media_type(self) -> &'static str {
         self.spec().media_type
@@ -154,11 +189,17 @@ impl VolumeFormat {
             .find(|f| f.name.eq_ignore_ascii_case(s))
             .map(|f| f.format)
     }
-    /// By file extension.
+    /// By file extension, the longest that matches (`a.indices.npy` is `indices`, `a.npy`
+    /// is `npy`), in any case.
     pub fn from_path(p: &std::path::Path) -> Option<VolumeFormat> {
-        VolumeFormat::from_name(p.extension()?.to_str()?)
+        let name = p.file_name()?.to_str()?.to_ascii_lowercase();
+        FORMATS
+            .iter()
+            .filter(|f| name.ends_with(&format!(".{}", f.extension)))
+            .max_by_key(|f| f.extension.len())
+            .map(|f| f.format)
     }
-    /// The names, comma-separated ("vxl, binvox, npy, raw, vdb"), for messages.
+    /// The names, comma-separated ("vxl, binvox, npy, raw, vdb, vox, indices"), for messages.
     pub fn names() -> String {
         FORMATS
             .iter()
@@ -187,7 +228,16 @@ mod tests {
 
     #[test]
     fn rows_name_their_formats() {
-        assert_eq!(VolumeFormat::names(), "vxl, binvox, npy, raw, vdb");
+        assert_eq!(
+            VolumeFormat::names(),
+            "vxl, binvox, npy, raw, vdb, vox, indices"
+        );
+        let p = |s: &str| VolumeFormat::from_path(std::path::Path::new(s));
+        assert_eq!(p("a/b.INDICES.npy"), Some(VolumeFormat::Indices));
+        assert_eq!(p("b.npy"), Some(VolumeFormat::Npy));
+        assert_eq!(p("b.vox"), Some(VolumeFormat::Vox));
+        assert_eq!(p("indices.npy"), Some(VolumeFormat::Npy));
+        assert_eq!(p("b.obj"), None);
         assert_eq!(VolumeFormat::readable_extensions(), ".vxl, .binvox or .npy");
         for &f in <VolumeFormat as Named>::ALL {
             assert_eq!(VolumeFormat::from_name(&f.name().to_uppercase()), Some(f));

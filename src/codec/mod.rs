@@ -5,10 +5,12 @@
 
 pub mod binvox;
 pub mod format;
+pub mod indices;
 pub mod npy;
 pub mod npz;
 pub mod png;
 pub mod vdb;
+pub mod vox;
 pub mod vxl;
 
 pub use format::{FORMATS, FormatSpec, VolumeFormat};
@@ -95,11 +97,13 @@ impl VolumeFormat {
             VolumeFormat::Binvox => binvox::write(v, out),
             VolumeFormat::Npy => npy::write(v, out),
             VolumeFormat::Raw => npy::write_data(v, out),
+            VolumeFormat::Vox => vox::write(v, out),
+            VolumeFormat::Indices => indices::write(v, out),
         }
     }
 
     /// The exact length of `v` in this format, where it is known without encoding (`.npy`,
-    /// `.raw`).
+    /// `.raw`, `.vox`, `indices`: counted first).
     pub fn encoded_len(self, v: &Volume) -> Option<u64> {
         let n = v
             .grid()
@@ -108,6 +112,8 @@ impl VolumeFormat {
         match self {
             VolumeFormat::Npy => Some(npy::header_of(v).len() as u64 + n),
             VolumeFormat::Raw => Some(n),
+            VolumeFormat::Vox => vox::Plan::new(v).ok().map(|p| p.len()),
+            VolumeFormat::Indices => indices::len(v),
             VolumeFormat::Vxl | VolumeFormat::Binvox | VolumeFormat::Vdb => None,
         }
     }
@@ -131,6 +137,14 @@ impl VolumeFormat {
             VolumeFormat::Vdb => Err(CodecError::Unsupported {
                 format: "vdb",
                 detail: "voxd writes .vdb files but does not read them; use .vxl".into(),
+            }),
+            VolumeFormat::Vox => Err(CodecError::Unsupported {
+                format: "vox",
+                detail: "voxd writes .vox files but does not read them; use .vxl".into(),
+            }),
+            VolumeFormat::Indices => Err(CodecError::Unsupported {
+                format: "indices",
+                detail: "a list of voxel indices has no grid, so it cannot be read back; use .vxl or .npy".into(),
             }),
         }
     }

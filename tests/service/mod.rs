@@ -28,6 +28,7 @@ mod jobs;
 mod mesh;
 mod ops;
 mod viewer;
+mod vox;
 
 pub(crate) struct Server {
     pub child: Child,

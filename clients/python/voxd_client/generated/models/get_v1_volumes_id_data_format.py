@@ -3,9 +3,11 @@ from enum import StrEnum
 
 class GetV1VolumesIdDataFormat(StrEnum):
     BINVOX = "binvox"
+    INDICES = "indices"
     NPY = "npy"
     RAW = "raw"
     VDB = "vdb"
+    VOX = "vox"
     VXL = "vxl"
 
     def __str__(self) -> str:

@@ -1,0 +1,85 @@
+//! `format=indices`: the set voxels of a bit volume as a NumPy `.npy` of dtype `<u4` and shape
+//! (N, 3), one row (x, y, z) per set voxel, rows in C order of the grid (x, then y, then z
+//! ascending: what `np.argwhere` gives on the dense `.npy`). Written a column at a time; its
+//! length (header + 12 bytes a voxel) is known before. The grid is not stored (keep the `.vxl`).
+
+use crate::volume::Volume;
+
+/// The header of `n` rows.
+pub fn header(n: u64) -> Vec<u8> {
+    super::npy::array_header(&[n, 3], "<u4")
+}
+
+/// The file's length for `v`, a bit volume (`None` otherwise).
+pub fn len(v: &Volume) -> Option<u64> {
+    let Volume::Bits(b) = v else { return None };
+    let n = b.count_ones();
+    Some(header(n).len() as u64 + 12 * n)
+}
+
+/// Streams the rows of `v`'s set voxels (`InvalidInput` for a volume that is not bits).
+pub fn write(v: &Volume, out: &mut impl std::io::Write) -> std::io::Result<()> {
+    let Volume::Bits(b) = v else {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            format!("indices lists the voxels of bit volumes, not {}", v.kind()),
+        ));
+    };
+    const PIECE: usize = 64 * 1024;
+    let mut buf = header(b.count_ones());
+    let d = b.dims();
+    for x in 0..d[0] {
+        for y in 0..d[1] {
+            for (w, &word) in b.column(x, y).iter().enumerate() {
+                let mut t = word;
+                while t != 0 {
+                    let z = (w * 64) as u32 + t.trailing_zeros();
+                    t &= t - 1;
+                    for c in [x, y, z] {
+                        buf.extend_from_slice(&c.to_le_bytes());
+                    }
+                }
+            }
+            if buf.len() >= PIECE {
+                out.write_all(&buf)?;
+                buf.clear();
+            }
+        }
+    }
+    out.write_all(&buf)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::Grid;
+    use crate::volume::BitVolume;
+
+    #[test]
+    fn rows_are_the_set_voxels_in_c_order() {
+        let mut b = BitVolume::new(Grid {
+            origin: [0.0; 3],
+            voxel_size: 1.0,
+            dims: [3, 2, 130],
+        });
+        let set = [[0, 0, 129], [0, 1, 0], [2, 0, 64], [2, 0, 65], [2, 1, 3]];
+        for p in set {
+            b.set(p[0], p[1], p[2], true);
+        }
+        let v = Volume::Bits(b);
+        let mut out = Vec::new();
+        write(&v, &mut out).unwrap();
+        assert_eq!(Some(out.len() as u64), len(&v));
+        let h = header(5);
+        assert_eq!(&out[..h.len()], &h[..]);
+        let header_text = String::from_utf8_lossy(&h);
+        assert!(header_text.contains("'descr': '<u4'") && header_text.contains("(5, 3)"));
+        let rows: Vec<[u32; 3]> = out[h.len()..]
+            .chunks(12)
+            .map(|r| {
+                std::array::from_fn(|k| u32::from_le_bytes(r[4 * k..4 * k + 4].try_into().unwrap()))
+            })
+            .collect();
+        assert_eq!(rows, set.to_vec());
+    }
+}
