@@ -5,6 +5,7 @@
 
 mod common;
 
+mod attributes;
 mod auth;
 mod cli;
 mod codecs;

@@ -84,6 +84,12 @@ pub fn info(p: &Path) -> Result<(), String> {
             "{}",
             describe_mesh(&p.display().to_string(), &m.diagnostics())
         );
+        outln!(
+            out,
+            "{}: attributes: {}",
+            p.display(),
+            m.attributes().describe()
+        );
         return emit(out);
     }
     let v = read_volume(p)?;

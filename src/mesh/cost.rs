@@ -36,6 +36,13 @@ pub const PER_VERTEX: u64 = 80;
 /// edges in the diagnosis.
 pub const PER_TRIANGLE: u64 = 64;
 
+/// Bytes per vertex of a format that can carry vertex colours (glTF, PLY): its RGBA (16)
+/// twice over while its `Vec` grows. glTF's material id per triangle (2, twice over) is in
+/// [`PER_MATERIAL_ID`].
+pub const PER_COLOUR: u64 = 32;
+/// Bytes per triangle of glTF's material ids.
+pub const PER_MATERIAL_ID: u64 = 4;
+
 /// A parse's estimate.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Estimate {
@@ -112,14 +119,22 @@ pub fn estimate(upload: &[u8], format: Option<Format>, opts: &LoadOptions) -> Es
             }
         }
         Format::Ply => match super::ply::header_counts(head) {
-            Some((v, f)) if v <= max_v && f <= max_t => mesh_cost(v, f),
+            Some((v, f)) if v <= max_v && f <= max_t => {
+                mesh_cost(v, f).saturating_add(v.saturating_mul(PER_COLOUR))
+            }
             Some(_) => 0,
             None => at_most(decoded / 8, decoded / 8),
         },
         // Vertex and face lines share the bytes: 8 bytes a line at least.
         Format::Obj => mesh_cost(decoded / 8, 0).min(mesh_cost(max_v, max_t)),
         // Read whole, then its accessors.
-        Format::Gltf | Format::Glb => decoded.saturating_add(at_most(decoded / 12, decoded / 6)),
+        Format::Gltf | Format::Glb => {
+            let (v, t) = ((decoded / 12).min(max_v), (decoded / 6).min(max_t));
+            decoded
+                .saturating_add(mesh_cost(v, t))
+                .saturating_add(v.saturating_mul(PER_COLOUR))
+                .saturating_add(t.saturating_mul(PER_MATERIAL_ID))
+        }
     };
     fixed(bytes)
 }
@@ -161,7 +176,7 @@ mod tests {
         let e = estimate(ply, None, &opts);
         assert_eq!(
             e.bytes,
-            fixed_part(ply.len() as u64) + 7 * PER_VERTEX + 5 * PER_TRIANGLE
+            fixed_part(ply.len() as u64) + 7 * (PER_VERTEX + PER_COLOUR) + 5 * PER_TRIANGLE
         );
     }
 

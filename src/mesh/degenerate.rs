@@ -53,14 +53,26 @@ impl Repeats {
     }
 
     /// Drops from `triangles` (indices into `positions`, all in range) every degenerate one that
-    /// [`Repeats::keep`] would, keeping the order of the rest.
-    pub(super) fn filter(&mut self, positions: &[[f64; 3]], triangles: &mut Vec<[u32; 3]>) {
+    /// [`Repeats::keep`] would, keeping the order of the rest; the same from `material` (one
+    /// id per triangle) when there is one.
+    pub(super) fn filter(
+        &mut self,
+        positions: &[[f64; 3]],
+        triangles: &mut Vec<[u32; 3]>,
+        material: Option<&mut Vec<u16>>,
+    ) {
         let corners = |t: &[u32; 3]| t.map(|i| positions[i as usize]);
         // Most meshes have no triangle that repeats a point: nothing to copy then.
         if !triangles.iter().any(|t| repeats_a_point(&corners(t))) {
             return;
         }
-        triangles.retain(|t| self.keep(&corners(t)));
+        let keep: Vec<bool> = triangles.iter().map(|t| self.keep(&corners(t))).collect();
+        let mut k = keep.iter();
+        triangles.retain(|_| *k.next().expect("one a triangle"));
+        if let Some(m) = material {
+            let mut k = keep.iter();
+            m.retain(|_| *k.next().expect("one a triangle"));
+        }
     }
 }
 
@@ -108,9 +120,15 @@ mod tests {
             [2, 2, 2],
             [2, 2, 2],
         ];
+        let mut t2 = t.clone();
         let mut r = Repeats::default();
-        r.filter(&p, &mut t);
+        r.filter(&p, &mut t, None);
         assert_eq!(t, vec![[0, 1, 2], [0, 0, 1], [2, 2, 2]]);
+        // The materials of the dropped triangles go with them.
+        let mut material = vec![10, 11, 12, 13, 14, 15];
+        Repeats::default().filter(&p, &mut t2, Some(&mut material));
+        assert_eq!(t2, t);
+        assert_eq!(material, vec![10, 11, 14]);
         assert_eq!(r.dropped, 3);
     }
 }

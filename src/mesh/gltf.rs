@@ -10,7 +10,9 @@ use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::Mode;
 
 use super::stream::Stream;
-use super::{ExternalResources, HEAD, LoadOptions, Mesh, MeshError, malformed};
+use super::{
+    Attributes, ExternalResources, HEAD, LoadOptions, Material, Mesh, MeshError, malformed,
+};
 
 type Mat4 = [[f64; 4]; 4];
 const IDENTITY: Mat4 = [
@@ -320,7 +322,21 @@ fn parse_document(doc: &gltf::Gltf, opts: &LoadOptions) -> Result<Mesh, MeshErro
         positions: vec![],
         triangles: vec![],
         skipped_modes: vec![],
+        colors: vec![],
+        any_color: false,
+        material: vec![],
+        any_material: false,
     };
+    if doc.materials().len() >= usize::from(u16::MAX) {
+        return Err(malformed(
+            "glTF",
+            format!(
+                "{} materials, more than the {} a mesh may have",
+                doc.materials().len(),
+                u16::MAX - 1
+            ),
+        ));
+    }
     for (m, world) in instances(doc)? {
         out.mesh(&m, &world, &buffers)?;
     }
@@ -338,8 +354,42 @@ fn parse_document(doc: &gltf::Gltf, opts: &LoadOptions) -> Result<Mesh, MeshErro
     if !out.skipped_modes.is_empty() {
         tracing::warn!(modes = ?out.skipped_modes, "glTF primitives that are not triangles were skipped");
     }
-    Mesh::new(out.positions, out.triangles)
+    let mut attributes = Attributes::default();
+    if out.any_color {
+        attributes.colors = Some(out.colors);
+    }
+    if out.any_material {
+        // The document's materials in order; glTF's default material after them when a
+        // primitive has none (its id: the table's length).
+        attributes.materials = doc
+            .materials()
+            .map(|m| Material {
+                name: m.name().map_or_else(
+                    || format!("material {}", m.index().unwrap_or(0)),
+                    str::to_string,
+                ),
+                base_color: m.pbr_metallic_roughness().base_color_factor(),
+            })
+            .collect();
+        let default = attributes.materials.len() as u16;
+        if out.material.contains(&DEFAULT_MATERIAL) {
+            attributes.materials.push(Material {
+                name: "default".into(),
+                base_color: [1.0; 4],
+            });
+        }
+        for m in &mut out.material {
+            if *m == DEFAULT_MATERIAL {
+                *m = default;
+            }
+        }
+        attributes.material = Some(out.material);
+    }
+    Mesh::new(out.positions, out.triangles)?.with_attributes(attributes)
 }
+
+/// A primitive without a material, while the table is being gathered.
+const DEFAULT_MATERIAL: u16 = u16::MAX;
 
 fn read_uri(uri: &str, external: &ExternalResources) -> Result<Vec<u8>, MeshError> {
     if let Some(rest) = uri.strip_prefix("data:") {
@@ -394,6 +444,12 @@ struct Collector {
     positions: Vec<[f64; 3]>,
     triangles: Vec<[u32; 3]>,
     skipped_modes: Vec<String>,
+    /// `COLOR_0` per position (white for a primitive without it); `any_color`: some had it.
+    colors: Vec<[f32; 4]>,
+    any_color: bool,
+    /// Each triangle's material index ([`DEFAULT_MATERIAL`]: none); `any_material`: some had one.
+    material: Vec<u16>,
+    any_material: bool,
 }
 
 impl Collector {
@@ -449,6 +505,67 @@ impl Collector {
                     vertices: positions.len(),
                 });
             }
+            let colors: Option<Vec<[f32; 4]>> = match prim.get(&gltf::Semantic::Colors(0)) {
+                None => None,
+                Some(a) => {
+                    // glTF's COLOR_0: float, or normalized unsigned bytes or shorts; RGB or RGBA.
+                    let ty = a.data_type();
+                    if !matches!(ty, DataType::F32 | DataType::U8 | DataType::U16) {
+                        return Err(malformed(
+                            "glTF",
+                            format!(
+                                "{where_}: COLOR_0 is {ty:?}, not float, unsigned byte or unsigned short"
+                            ),
+                        ));
+                    }
+                    check_accessor(&a, ty, &[Dimensions::Vec3, Dimensions::Vec4], &where_)?;
+                    if a.count() != positions.len() {
+                        return Err(malformed(
+                            "glTF",
+                            format!(
+                                "{where_}: COLOR_0 has {} entries for {} positions",
+                                a.count(),
+                                positions.len()
+                            ),
+                        ));
+                    }
+                    Some(
+                        reader
+                            .read_colors(0)
+                            .ok_or_else(|| {
+                                malformed(
+                                    "glTF",
+                                    format!("{where_}: COLOR_0 accessor lies outside its buffer"),
+                                )
+                            })?
+                            .into_rgba_f32()
+                            // Floats outside [0, 1] (the specification's range) are clamped.
+                            .map(|c| c.map(|v| if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) }))
+                            .collect(),
+                    )
+                }
+            };
+            // Held only once a primitive has colours (the earlier ones then white).
+            match colors {
+                Some(c) => {
+                    if !self.any_color {
+                        self.colors = vec![[1.0f32; 4]; self.positions.len()];
+                        self.any_color = true;
+                    }
+                    self.colors.extend(c);
+                }
+                None if self.any_color => self
+                    .colors
+                    .extend(std::iter::repeat_n([1.0f32; 4], positions.len())),
+                None => {}
+            }
+            let material = match prim.material().index() {
+                Some(i) => {
+                    self.any_material = true;
+                    i as u16
+                }
+                None => DEFAULT_MATERIAL,
+            };
             let base = self.positions.len() as u32;
             self.positions
                 .extend(positions.iter().map(|p| transform(m, p)));
@@ -458,6 +575,8 @@ impl Collector {
                 Mode::TriangleStrip => super::unroll_strip(&indices, &mut tris),
                 _ => super::fan(&indices, &mut tris),
             }
+            self.material
+                .extend(std::iter::repeat_n(material, tris.len()));
             self.triangles
                 .extend(tris.into_iter().map(|t| t.map(|i| base + i)));
         }

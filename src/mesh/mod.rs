@@ -2,6 +2,7 @@
 //! diagnostics. A [`Mesh`] that exists is valid: at least one triangle, finite coordinates of
 //! sane size, every index in range. Nothing here knows about grids or voxels.
 
+mod attributes;
 pub mod binary;
 pub mod cost;
 mod degenerate;
@@ -20,6 +21,7 @@ use rayon::prelude::*;
 
 use stream::Stream;
 
+pub use attributes::{Attributes, Material};
 pub use diagnostics::MeshDiagnostics;
 pub(crate) use diagnostics::merged_ids;
 
@@ -34,6 +36,8 @@ pub struct Mesh {
     triangles: Vec<[u32; 3]>,
     /// Degenerate triangles the loader dropped as copies of one it kept (`degenerate`).
     dropped: u64,
+    /// Colours and materials the loader kept (`attributes`).
+    attributes: Attributes,
 }
 
 #[derive(Clone, Debug, thiserror::Error, PartialEq)]
@@ -250,7 +254,11 @@ fn load_stream(
     // STL drops its copies as it reads (a triangle soup: a dropped triangle's corners are not
     // kept either); the indexed formats here, where only the triangle goes.
     let mut repeats = degenerate::Repeats::default();
-    repeats.filter(&mesh.positions, &mut mesh.triangles);
+    repeats.filter(
+        &mesh.positions,
+        &mut mesh.triangles,
+        mesh.attributes.material.as_mut(),
+    );
     mesh.dropped += repeats.dropped;
     if mesh.triangles.len() > opts.max_triangles {
         return Err(MeshError::TooManyTriangles {
@@ -307,7 +315,20 @@ impl Mesh {
             positions,
             triangles,
             dropped: 0,
+            attributes: Attributes::default(),
         })
+    }
+
+    /// This mesh with `attributes` (checked against it: [`Attributes::check`]).
+    pub fn with_attributes(mut self, attributes: Attributes) -> Result<Mesh, MeshError> {
+        attributes.check(self.positions.len(), self.triangles.len())?;
+        self.attributes = attributes;
+        Ok(self)
+    }
+
+    /// The colours and materials its file carried.
+    pub fn attributes(&self) -> &Attributes {
+        &self.attributes
     }
 
     /// A mesh whose loader has made the checks of [`Mesh::new`] itself: at least one
@@ -319,12 +340,14 @@ impl Mesh {
                 positions: positions.clone(),
                 triangles: triangles.clone(),
                 dropped: 0,
+                attributes: Attributes::default(),
             })
         );
         Mesh {
             positions,
             triangles,
             dropped: 0,
+            attributes: Attributes::default(),
         }
     }
 
@@ -370,6 +393,7 @@ impl Mesh {
             positions: self.positions.clone(),
             triangles,
             dropped: self.dropped,
+            attributes: self.attributes.clone(),
         }
     }
 }

@@ -8,7 +8,7 @@
 //! never held whole.
 
 use super::stream::Stream;
-use super::{LoadOptions, Mesh, MeshError, malformed};
+use super::{Attributes, LoadOptions, Mesh, MeshError, malformed};
 
 /// The longest header read (a compressed file's header must end within it).
 const MAX_HEADER: usize = 1 << 20;
@@ -371,6 +371,9 @@ fn read_body<S: Source>(
 ) -> Result<Mesh, MeshError> {
     let mut positions: Vec<[f64; 3]> = Vec::new();
     let mut triangles: Vec<[u32; 3]> = Vec::new();
+    // Vertex colours: `red`, `green`, `blue` (all three) and `alpha` (else 1).
+    let mut colors: Vec<[f32; 4]> = Vec::new();
+    let mut has_color = false;
     let mut saw_vertex = false;
     let max = opts.max_triangles;
     let too_many = |n: usize| MeshError::CountOverLimit {
@@ -400,6 +403,22 @@ fn read_body<S: Source>(
         } else {
             None
         };
+        // The vertex element's colour properties: channel of each property index.
+        let channel: Vec<Option<usize>> = el
+            .props
+            .iter()
+            .map(|p| {
+                let c = ["red", "green", "blue", "alpha"]
+                    .iter()
+                    .position(|&n| n == p.name);
+                c.filter(|_| is_vertex && p.list.is_none())
+            })
+            .collect();
+        let colored = (0..3).all(|c| channel.contains(&Some(c)));
+        if colored {
+            has_color = true;
+            colors.reserve_exact(el.count);
+        }
         if el.props.is_empty() {
             // Records without properties take no bytes: nothing to read, whatever the count.
             continue;
@@ -407,6 +426,7 @@ fn read_body<S: Source>(
         let is_face = el.name == "face";
         let is_strip = el.name == "tristrips";
         let mut vals = [0.0f64; 3];
+        let mut rgba = [1.0f32; 4];
         for _ in 0..el.count {
             for (pi, p) in el.props.iter().enumerate() {
                 match p.list {
@@ -416,6 +436,9 @@ fn read_body<S: Source>(
                             && let Some(a) = xyz.iter().position(|&i| i == pi)
                         {
                             vals[a] = v;
+                        }
+                        if colored && let Some(c) = channel[pi] {
+                            rgba[c] = unit(v, p.ty);
                         }
                     }
                     Some(ct) => {
@@ -472,6 +495,9 @@ fn read_body<S: Source>(
             }
             if xyz.is_some() {
                 positions.push(vals);
+                if colored {
+                    colors.push(rgba);
+                }
             }
         }
     }
@@ -483,7 +509,32 @@ fn read_body<S: Source>(
             " (no face or tristrips element with polygons)".into(),
         ));
     }
-    Mesh::new(positions, triangles)
+    let attributes = Attributes {
+        colors: has_color.then_some(colors),
+        ..Attributes::default()
+    };
+    Mesh::new(positions, triangles)?.with_attributes(attributes)
+}
+
+/// A colour channel in [0, 1]: an unsigned integer over its type's maximum (`uchar` 255,
+/// `ushort` 65535, `uint` 2³² − 1), a float as written, clamped (a signed integer clamps its
+/// negatives to 0 over the signed maximum).
+fn unit(v: f64, ty: Scalar) -> f32 {
+    let max = match ty {
+        Scalar::U8 => 255.0,
+        Scalar::U16 => 65535.0,
+        Scalar::U32 => 4294967295.0,
+        Scalar::I8 => 127.0,
+        Scalar::I16 => 32767.0,
+        Scalar::I32 => 2147483647.0,
+        Scalar::F32 | Scalar::F64 => 1.0,
+    };
+    let u = v / max;
+    if u.is_nan() {
+        0.0
+    } else {
+        u.clamp(0.0, 1.0) as f32
+    }
 }
 
 /// A vertex index from a list; -1 is a strip restart (kept as `u32::MAX`).

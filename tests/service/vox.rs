@@ -211,3 +211,63 @@ fn vox_refuses_a_grid_beyond_magicavoxels_world_and_volumes_not_bits() {
         assert_problem(&r, 400, "invalid-parameter");
     }
 }
+
+/// `-o x.vox` and `-o x.indices.npy` pick the formats by extension; dot_vox reads the `.vox`
+/// (one model, every voxel of the `.vxl` once), and the indices are the set voxels in C order.
+#[test]
+fn voxelize_writes_vox_and_indices_by_extension() {
+    let run = |out: &Path| {
+        let o = run_voxd(&[
+            "voxelize",
+            data("spot.obj").to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--resolution",
+            "33",
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let dir = tmpdir("vox-cli");
+    let vxl = dir.join("spot-vox.vxl");
+    run(&vxl);
+    let Volume::Bits(v) = VolumeFormat::Vxl
+        .decode(&std::fs::read(&vxl).unwrap())
+        .unwrap()
+    else {
+        panic!()
+    };
+    let vox = dir.join("spot.vox");
+    let warned = run(&vox);
+    assert!(warned.contains("vox keeps only the voxels"), "{warned}");
+    let data = dot_vox::load(vox.to_str().unwrap()).unwrap();
+    assert_eq!(data.models.len(), 1);
+    let m = &data.models[0];
+    assert_eq!(m.voxels.len() as u64, v.count_ones());
+    for p in &m.voxels {
+        assert!(v.get(u32::from(p.x), u32::from(p.y), u32::from(p.z)));
+    }
+    let idx = dir.join("spot.indices.npy");
+    run(&idx);
+    let bytes = std::fs::read(&idx).unwrap();
+    let header = voxd::codec::indices::header(v.count_ones());
+    assert_eq!(&bytes[..header.len()], &header[..]);
+    let rows: Vec<[u32; 3]> = bytes[header.len()..]
+        .chunks(12)
+        .map(|r| {
+            std::array::from_fn(|k| u32::from_le_bytes(r[4 * k..4 * k + 4].try_into().unwrap()))
+        })
+        .collect();
+    let mut want = vec![];
+    let d = v.dims();
+    for x in 0..d[0] {
+        for y in 0..d[1] {
+            for z in 0..d[2] {
+                if v.get(x, y, z) {
+                    want.push([x, y, z]);
+                }
+            }
+        }
+    }
+    assert_eq!(rows, want);
+}

@@ -1,0 +1,127 @@
+//! What a loader keeps besides the geometry, for colour and material voxels (issue 34): vertex
+//! colours and each triangle's material, with the material table.
+//!
+//! * **Vertex colours**: RGBA in [0, 1] per position, as the file stores them: glTF's
+//!   `COLOR_0` (linear, by the glTF specification; RGB without alpha is alpha 1; normalized
+//!   integers divided by their maximum), PLY's `red`/`green`/`blue`[/`alpha`] (bytes / 255 or
+//!   floats as written).
+//! * **Materials**: one id per triangle into the table, an id per glTF material in the
+//!   document's order (a primitive without a material gets glTF's default material, added
+//!   at the end of the table when used); each material's name and base colour factor
+//!   (`baseColorFactor`, linear RGBA, default white).
+//!
+//! The loaders that do not read an attribute leave it out; nothing here is invented.
+
+use super::MeshError;
+
+/// A mesh's colour and material attributes (all empty for a file without them).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Attributes {
+    /// One RGBA per position.
+    pub colors: Option<Vec<[f32; 4]>>,
+    /// One id per triangle, into `materials`.
+    pub material: Option<Vec<u16>>,
+    pub materials: Vec<Material>,
+}
+
+/// A material of the table.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    /// Its name in the file (glTF `name`; `material N` when it has none).
+    pub name: String,
+    /// Linear RGBA in [0, 1].
+    pub base_color: [f32; 4],
+}
+
+impl Attributes {
+    /// Does the mesh carry any attribute?
+    pub fn is_empty(&self) -> bool {
+        self.colors.is_none() && self.material.is_none()
+    }
+
+    /// Checks the attributes against a mesh of `positions` vertices and `triangles` triangles:
+    /// one colour per vertex, one material per triangle, every id in the table, colours finite
+    /// and in [0, 1].
+    pub fn check(&self, positions: usize, triangles: usize) -> Result<(), MeshError> {
+        let bad = |detail: String| {
+            Err(MeshError::Malformed {
+                format: "mesh attributes",
+                detail,
+            })
+        };
+        if let Some(c) = &self.colors {
+            if c.len() != positions {
+                return bad(format!(
+                    "{} vertex colours for {positions} vertices",
+                    c.len()
+                ));
+            }
+            if let Some(i) = c
+                .iter()
+                .position(|c| c.iter().any(|v| !(0.0..=1.0).contains(v)))
+            {
+                return bad(format!(
+                    "vertex {i}'s colour {:?} is not within [0, 1]",
+                    c[i]
+                ));
+            }
+        }
+        if let Some(m) = &self.material {
+            if m.len() != triangles {
+                return bad(format!(
+                    "{} material ids for {triangles} triangles",
+                    m.len()
+                ));
+            }
+            if let Some(t) = m
+                .iter()
+                .position(|&id| usize::from(id) >= self.materials.len())
+            {
+                return bad(format!(
+                    "triangle {t}'s material {} is not in the table of {}",
+                    m[t],
+                    self.materials.len()
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// A one-line summary for `voxd info`: "vertex colours, 3 materials (body, eyes, ...)" or
+    /// "none".
+    pub fn describe(&self) -> String {
+        let mut parts = vec![];
+        if self.colors.is_some() {
+            parts.push("vertex colours".to_string());
+        }
+        if self.material.is_some() {
+            // The first eight (a file may have thousands).
+            let mut names: Vec<String> = self
+                .materials
+                .iter()
+                .take(8)
+                .map(|m| {
+                    let c = m.base_color;
+                    format!(
+                        "{} [{:.3} {:.3} {:.3} {:.3}]",
+                        m.name, c[0], c[1], c[2], c[3]
+                    )
+                })
+                .collect();
+            if self.materials.len() > 8 {
+                names.push("…".into());
+            }
+            parts.push(format!(
+                "{} material{}: {}",
+                self.materials.len(),
+                if self.materials.len() == 1 { "" } else { "s" },
+                names.join(", ")
+            ));
+        }
+        if parts.is_empty() {
+            "none".into()
+        } else {
+            parts.join("; ")
+        }
+    }
+}
