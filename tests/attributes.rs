@@ -145,3 +145,91 @@ fn info_names_the_attributes() {
     let o = run_voxd(&["info", data("spot.obj").to_str().unwrap()]);
     assert!(String::from_utf8_lossy(&o.stdout).contains("attributes: none"));
 }
+
+/// OBJ: `v x y z r g b` (six numbers; four is `w`, not a colour) and `usemtl` names, checked
+/// against a plain line-by-line reading written here, on a file large enough to be read in
+/// several parallel chunks (and, gzip'd, in several blocks), so that a material in force
+/// across a chunk's start is inherited.
+#[test]
+fn obj_keeps_vertex_colours_and_usemtl_across_chunks_and_blocks() {
+    let small = b"v 0 0 0 1 0 0\nv 1 0 0 0 0.5 0\nv 0 1 0 1\nv 1 1 0\nf 1 2 3\nusemtl b\nf 2 4 3\nusemtl a x\nf 1 2 4\nusemtl b\nf 1 4 3\n";
+    let m = load(small, Some(Format::Obj));
+    let a = m.attributes();
+    assert_eq!(
+        a.colors.as_deref(),
+        Some(
+            &[
+                [1.0, 0.0, 0.0, 1.0],
+                [0.0, 0.5, 0.0, 1.0],
+                [1.0; 4],
+                [1.0; 4]
+            ][..]
+        )
+    );
+    assert_eq!(a.material.as_deref(), Some(&[2u16, 0, 1, 0][..]));
+    let names: Vec<&str> = a.materials.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(names, ["b", "a x", "default"]);
+    // A file without either: nothing.
+    assert!(
+        load(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", Some(Format::Obj))
+            .attributes()
+            .is_empty()
+    );
+
+    // Large: 300 × 300 vertices (every third coloured), two triangles a cell, a `usemtl`
+    // (one of five names) every 7919 faces.
+    let n = 300u32;
+    let mut text = String::new();
+    let mut want_colors = vec![];
+    for y in 0..n {
+        for x in 0..n {
+            let i = y * n + x;
+            if i.is_multiple_of(3) {
+                let c = [(i % 256) as f32 / 255.0, 0.25, 1.0];
+                text += &format!("v {x} {y} 0 {} {} {}\n", c[0], c[1], c[2]);
+                want_colors.push([c[0], c[1], c[2], 1.0]);
+            } else {
+                text += &format!("v {x} {y} 0\n");
+                want_colors.push([1.0; 4]);
+            }
+        }
+    }
+    let mut want_ids: Vec<Option<usize>> = vec![];
+    let mut current: Option<usize> = None;
+    let mut faces = 0usize;
+    for y in 0..n - 1 {
+        for x in 0..n - 1 {
+            let v = |dx: u32, dy: u32| (y + dy) * n + x + dx + 1;
+            for f in [[v(0, 0), v(1, 0), v(1, 1)], [v(0, 0), v(1, 1), v(0, 1)]] {
+                if faces > 0 && faces.is_multiple_of(7919) {
+                    let k = (faces / 7919) % 5;
+                    text += &format!("usemtl mat{k}\n");
+                    current = Some(k);
+                }
+                text += &format!("f {} {} {}\n", f[0], f[1], f[2]);
+                want_ids.push(current);
+                faces += 1;
+            }
+        }
+    }
+    assert!(text.len() > 3 << 20, "several chunks: {} bytes", text.len());
+    for bytes in [text.as_bytes().to_vec(), gz(text.as_bytes())] {
+        let m = load(&bytes, Some(Format::Obj));
+        let a = m.attributes();
+        let colors = a.colors.as_ref().unwrap();
+        assert_eq!(colors.len(), want_colors.len());
+        for (g, w) in colors.iter().zip(&want_colors) {
+            assert!((0..4).all(|k| (g[k] - w[k]).abs() < 1e-6), "{g:?} vs {w:?}");
+        }
+        // Names in the order of first use: mat1, mat2, mat3, mat4, mat0; then the default.
+        let names: Vec<&str> = a.materials.iter().map(|m| m.name.as_str()).collect();
+        assert_eq!(names, ["mat1", "mat2", "mat3", "mat4", "mat0", "default"]);
+        let id = |w: Option<usize>| match w {
+            None => 5u16,
+            Some(0) => 4,
+            Some(k) => (k - 1) as u16,
+        };
+        let want: Vec<u16> = want_ids.iter().map(|&w| id(w)).collect();
+        assert_eq!(a.material.as_deref(), Some(&want[..]));
+    }
+}

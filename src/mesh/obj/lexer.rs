@@ -129,7 +129,8 @@ impl<'a> Line<'a> {
         (i - start, m)
     }
 
-    /// Reads the first token: `b'v'` or `b'f'` when it is that one letter, else 0.
+    /// Reads the first token: `b'v'` or `b'f'` when it is that one letter, `b'u'` for
+    /// `usemtl`, else 0.
     #[inline]
     pub(super) fn keyword(&mut self) -> u8 {
         self.skip_space();
@@ -139,8 +140,23 @@ impl<'a> Line<'a> {
                 self.at += 1;
                 return k;
             }
+            if k == b'u'
+                && self.text[self.at..self.end].starts_with(b"usemtl")
+                && self.ends_token(self.at + 6)
+            {
+                self.at += 6;
+                return b'u';
+            }
         }
         0
+    }
+
+    /// The rest of the line, without the whitespace around it (a `usemtl` line's name).
+    pub(super) fn rest(&mut self) -> &'a [u8] {
+        self.skip_space();
+        let r = self.text[self.at..self.end].trim_ascii_end();
+        self.at = self.end;
+        r
     }
 
     /// The next token's start, whether it has a minus sign, and the run of digits after its

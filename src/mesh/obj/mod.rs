@@ -1,5 +1,6 @@
 //! Wavefront OBJ: every object and group, polygons fan-triangulated, points and lines ignored,
-//! material libraries never opened.
+//! material libraries never opened. Kept besides: vertex colours (`v x y z r g b`, the common
+//! extension: exactly six numbers) and each triangle's `usemtl` name.
 //!
 //! Read in parallel: the text is cut at line breaks into chunks, vertex lines are counted per chunk
 //! so relative (negative) indices resolve, then chunks parse independently. `v` and `f` (with
@@ -27,7 +28,7 @@ use rayon::prelude::*;
 use std::sync::atomic::AtomicUsize;
 
 use super::stream::{Stream, line_blocks};
-use super::{LoadOptions, Mesh, MeshError, check_position, malformed};
+use super::{Attributes, LoadOptions, Material, Mesh, MeshError, check_position, malformed};
 use parser::{Chunk, Shared, parse_chunk};
 
 /// Bytes per block of a compressed file (small, so little of the inflating and parsing is not
@@ -40,6 +41,11 @@ pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshErro
     let mut st = State {
         positions: Vec::new(),
         triangles: Vec::new(),
+        colors: Vec::new(),
+        names: Vec::new(),
+        material: Vec::new(),
+        any_material: false,
+        current: DEFAULT,
         lines: 0,
         forward: None,
         bad: None,
@@ -85,8 +91,41 @@ pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshErro
     if let Some(i) = st.bad {
         check_position(i, &st.positions[i])?;
     }
-    Ok(Mesh::checked(st.positions, st.triangles))
+    let mut attributes = Attributes::default();
+    if !st.colors.is_empty() {
+        attributes.colors = Some(st.colors);
+    }
+    if st.any_material {
+        // The `usemtl` names in the order of their first use; OBJ's default material (faces
+        // before any `usemtl`) after them when used. Base colours come from a material library
+        // (`mtl`) when one is read; white here.
+        attributes.materials = st
+            .names
+            .iter()
+            .map(|n| Material {
+                name: String::from_utf8_lossy(n).into_owned(),
+                base_color: [1.0; 4],
+            })
+            .collect();
+        let default = attributes.materials.len() as u16;
+        if st.material.contains(&DEFAULT) {
+            attributes.materials.push(Material {
+                name: "default".into(),
+                base_color: [1.0; 4],
+            });
+            for m in &mut st.material {
+                if *m == DEFAULT {
+                    *m = default;
+                }
+            }
+        }
+        attributes.material = Some(st.material);
+    }
+    Mesh::checked(st.positions, st.triangles).with_attributes(attributes)
 }
+
+/// OBJ's default material (faces before any `usemtl`) while the table is gathered.
+const DEFAULT: u16 = u16::MAX;
 
 /// The end of the last line of `b` that a backslash does not continue onto the next.
 fn end_of_joined_lines(b: &[u8]) -> Option<usize> {
@@ -170,6 +209,15 @@ struct State {
     forward: Option<(usize, i64, usize)>,
     /// The first vertex that `Mesh::new` would refuse (non-finite or huge).
     bad: Option<usize>,
+    /// Vertex colours, once a vertex had one (the others white); else empty.
+    colors: Vec<[f32; 4]>,
+    /// The `usemtl` names in the order of their first use.
+    names: Vec<Vec<u8>>,
+    /// Each triangle's material (into `names`, or [`DEFAULT`]), once a `usemtl` was read.
+    material: Vec<u16>,
+    any_material: bool,
+    /// The material in force at the end of the blocks read so far.
+    current: u16,
     max_vertices: usize,
     max_triangles: usize,
 }
@@ -216,6 +264,48 @@ impl State {
         self.triangles
             .reserve(parsed.iter().map(|c| c.triangles.len()).sum());
         for c in parsed {
+            if !c.colors.is_empty() {
+                if self.colors.is_empty() {
+                    self.colors = vec![[1.0; 4]; self.positions.len()];
+                }
+                self.colors.extend_from_slice(&c.colors);
+            } else if !self.colors.is_empty() {
+                self.colors
+                    .extend(std::iter::repeat_n([1.0; 4], c.positions.len()));
+            }
+            if !c.names.is_empty() {
+                if !self.any_material {
+                    self.material = vec![DEFAULT; self.triangles.len()];
+                    self.any_material = true;
+                }
+                let mut ids = Vec::with_capacity(c.names.len());
+                for n in &c.names {
+                    let id = match self.names.iter().position(|m| m == n) {
+                        Some(i) => i,
+                        None if self.names.len() + 1 >= usize::from(DEFAULT) => {
+                            return Err(malformed("OBJ", "more than 65534 material names"));
+                        }
+                        None => {
+                            self.names.push(n.clone());
+                            self.names.len() - 1
+                        }
+                    };
+                    ids.push(id as u16);
+                }
+                let at_start = self.current;
+                let global = |m: u16| {
+                    if m == parser::INHERITED {
+                        at_start
+                    } else {
+                        ids[usize::from(m)]
+                    }
+                };
+                self.material.extend(c.material.iter().map(|&m| global(m)));
+                self.current = global(c.last);
+            } else if self.any_material {
+                self.material
+                    .extend(std::iter::repeat_n(self.current, c.triangles.len()));
+            }
             self.positions.extend_from_slice(&c.positions);
             self.triangles.extend_from_slice(&c.triangles);
             self.bad = self.bad.or(c.bad);

@@ -40,7 +40,21 @@ pub(super) struct Chunk {
     pub(super) forward: Option<(usize, i64, usize)>,
     /// The first vertex (its index in the file) that `Mesh::new` would refuse.
     pub(super) bad: Option<usize>,
+    /// Vertex colours (`v x y z r g b`), one per position, once a vertex of the chunk had one
+    /// (the others white); empty when none had.
+    pub(super) colors: Vec<[f32; 4]>,
+    /// The `usemtl` names of the chunk, in the order of their first use.
+    pub(super) names: Vec<Vec<u8>>,
+    /// Each triangle's material: an index into `names`, or [`INHERITED`] (made before the
+    /// chunk's first `usemtl`: the material in force where the chunk starts). Empty when the
+    /// chunk has no `usemtl`.
+    pub(super) material: Vec<u16>,
+    /// The material in force at the chunk's end (an index into `names`, or [`INHERITED`]).
+    pub(super) last: u16,
 }
+
+/// A triangle made before its chunk's first `usemtl`.
+pub(super) const INHERITED: u16 = u16::MAX;
 
 /// Triangles made so far by every chunk of a block, against the limit.
 pub(super) struct Shared {
@@ -90,6 +104,10 @@ pub(super) fn parse_chunk(
     let mut forward: Option<(usize, i64, usize)> = None;
     let mut reported = 0;
     let mut bad = None;
+    let mut colors: Vec<[f32; 4]> = Vec::new();
+    let mut names: Vec<Vec<u8>> = Vec::new();
+    let mut material: Vec<u16> = Vec::new();
+    let mut current = INHERITED;
     let mut ends = memchr::memchr_iter(b'\n', text);
     let mut start = 0;
     let mut i = 0;
@@ -119,6 +137,36 @@ pub(super) fn parse_chunk(
                 if bad.is_none() && bad_position(&p) {
                     bad = Some(vbase + positions.len());
                 }
+                // The colour extension: exactly three more numbers (`v x y z r g b`); one more
+                // (`w`) or any other count is not a colour.
+                let mut rgb = [0.0f64; 3];
+                let mut more = 0;
+                while more < 4 {
+                    match line.float() {
+                        Some(Ok(v)) => {
+                            if more < 3 {
+                                rgb[more] = v;
+                            }
+                            more += 1;
+                        }
+                        _ => break,
+                    }
+                }
+                if more == 3 {
+                    if colors.is_empty() {
+                        colors = vec![[1.0; 4]; positions.len()];
+                    }
+                    let unit = |v: f64| {
+                        if v.is_nan() {
+                            0.0
+                        } else {
+                            v.clamp(0.0, 1.0) as f32
+                        }
+                    };
+                    colors.push([unit(rgb[0]), unit(rgb[1]), unit(rgb[2]), 1.0]);
+                } else if !colors.is_empty() {
+                    colors.push([1.0; 4]);
+                }
                 positions.push(p);
             }
             b'f' => {
@@ -138,12 +186,32 @@ pub(super) fn parse_chunk(
                     poly.push(abs as u32);
                 }
                 fan(&poly, &mut triangles);
+                if !names.is_empty() {
+                    material.resize(triangles.len(), current);
+                }
                 if triangles.len() - reported >= REPORT_EVERY {
                     shared.add(triangles.len() - reported)?;
                     reported = triangles.len();
                 }
             }
-            _ => {} // comments, vt, vn, o, g, s, usemtl, mtllib, l, p, ...
+            b'u' => {
+                let name = line.rest();
+                if names.is_empty() {
+                    // The triangles so far take the material in force at the chunk's start.
+                    material = vec![INHERITED; triangles.len()];
+                }
+                current = match names.iter().position(|n| n == name) {
+                    Some(i) => i as u16,
+                    None if names.len() + 1 >= usize::from(INHERITED) => {
+                        return Err(err("more than 65534 material names"));
+                    }
+                    None => {
+                        names.push(name.to_vec());
+                        (names.len() - 1) as u16
+                    }
+                };
+            }
+            _ => {} // comments, vt, vn, o, g, s, mtllib, l, p, ...
         }
         match end {
             Some(e) => (start, i) = (e + 1, i + 1),
@@ -156,5 +224,9 @@ pub(super) fn parse_chunk(
         triangles,
         forward,
         bad,
+        colors,
+        names,
+        material,
+        last: current,
     })
 }

@@ -77,11 +77,17 @@ fn parse_chunk_std(
     }
     shared.add(triangles.len() - reported)?;
     let bad = positions.iter().position(bad_position).map(|i| vbase + i);
+    // Colours and materials are not compared here (tests/attributes.rs reads them against a
+    // plain reading of its own).
     Ok(Chunk {
         positions,
         triangles,
         forward,
         bad,
+        colors: vec![],
+        names: vec![],
+        material: vec![],
+        last: INHERITED,
     })
 }
 
