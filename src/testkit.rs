@@ -87,6 +87,22 @@ impl Rng {
     }
 }
 
+/// A bit volume on `grid` with each voxel set with probability `p` (drawn x, then y, then z).
+pub(crate) fn random_bit_volume(rng: &mut Rng, grid: crate::grid::Grid, p: f64) -> crate::volume::BitVolume {
+    let mut b = crate::volume::BitVolume::new(grid);
+    let d = grid.dims;
+    for x in 0..d[0] {
+        for y in 0..d[1] {
+            for z in 0..d[2] {
+                if rng.unit() < p {
+                    b.set(x, y, z, true);
+                }
+            }
+        }
+    }
+    b
+}
+
 /// A directory of its own under the system's temporary directory, removed with everything in
 /// it when dropped. Unique per process and per call (tests run in parallel threads of one
 /// process, and the same name may be asked twice), created empty.

@@ -263,21 +263,12 @@ mod tests {
     use crate::testkit::Rng;
 
     fn bits(dims: [u32; 3], rng: &mut Rng, p: f64) -> BitVolume {
-        let mut b = BitVolume::new(Grid {
+        let grid = Grid {
             origin: [0.0; 3],
             voxel_size: 1.0,
             dims,
-        });
-        for x in 0..dims[0] {
-            for y in 0..dims[1] {
-                for z in 0..dims[2] {
-                    if rng.unit() < p {
-                        b.set(x, y, z, true);
-                    }
-                }
-            }
-        }
-        b
+        };
+        crate::testkit::random_bit_volume(rng, grid, p)
     }
 
     /// dot_vox (an independent reader) reads every model, its voxels and its place in the

@@ -108,17 +108,7 @@ pub(super) fn random_bits(
     p: f64,
 ) -> BitVolume {
     let dims = [0; 3].map(|_| 1 + rng.below(max_dim) as u32);
-    let mut b = BitVolume::new(grid(dims));
-    for x in 0..dims[0] {
-        for y in 0..dims[1] {
-            for z in 0..dims[2] {
-                if rng.unit() < p {
-                    b.set(x, y, z, true);
-                }
-            }
-        }
-    }
-    b
+    crate::testkit::random_bit_volume(rng, grid(dims), p)
 }
 
 #[test]

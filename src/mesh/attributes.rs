@@ -33,7 +33,30 @@ pub struct Material {
     pub base_color: [f32; 4],
 }
 
+/// A triangle without a material while a loader gathers the table.
+pub(super) const NO_MATERIAL: u16 = u16::MAX;
+
 impl Attributes {
+    /// Sets the material table and each triangle's id, where [`NO_MATERIAL`] is the file's
+    /// default material (glTF's, or OBJ faces before any `usemtl`): added after `table`,
+    /// named "default", white, when a triangle uses it.
+    pub(super) fn set_materials(&mut self, mut table: Vec<Material>, mut ids: Vec<u16>) {
+        if ids.contains(&NO_MATERIAL) {
+            let default = table.len() as u16;
+            table.push(Material {
+                name: "default".into(),
+                base_color: [1.0; 4],
+            });
+            for m in &mut ids {
+                if *m == NO_MATERIAL {
+                    *m = default;
+                }
+            }
+        }
+        self.materials = table;
+        self.material = Some(ids);
+    }
+
     /// Does the mesh carry any attribute?
     pub fn is_empty(&self) -> bool {
         self.colors.is_none() && self.material.is_none()

@@ -10,6 +10,7 @@ use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::Mode;
 
 use super::stream::Stream;
+use super::attributes::NO_MATERIAL;
 use super::{
     Attributes, ExternalResources, HEAD, LoadOptions, Material, Mesh, MeshError, malformed,
 };
@@ -361,7 +362,7 @@ fn parse_document(doc: &gltf::Gltf, opts: &LoadOptions) -> Result<Mesh, MeshErro
     if out.any_material {
         // The document's materials in order; glTF's default material after them when a
         // primitive has none (its id: the table's length).
-        attributes.materials = doc
+        let table = doc
             .materials()
             .map(|m| Material {
                 name: m.name().map_or_else(
@@ -371,25 +372,11 @@ fn parse_document(doc: &gltf::Gltf, opts: &LoadOptions) -> Result<Mesh, MeshErro
                 base_color: m.pbr_metallic_roughness().base_color_factor(),
             })
             .collect();
-        let default = attributes.materials.len() as u16;
-        if out.material.contains(&DEFAULT_MATERIAL) {
-            attributes.materials.push(Material {
-                name: "default".into(),
-                base_color: [1.0; 4],
-            });
-        }
-        for m in &mut out.material {
-            if *m == DEFAULT_MATERIAL {
-                *m = default;
-            }
-        }
-        attributes.material = Some(out.material);
+        attributes.set_materials(table, out.material);
     }
     Mesh::new(out.positions, out.triangles)?.with_attributes(attributes)
 }
 
-/// A primitive without a material, while the table is being gathered.
-const DEFAULT_MATERIAL: u16 = u16::MAX;
 
 fn read_uri(uri: &str, external: &ExternalResources) -> Result<Vec<u8>, MeshError> {
     if let Some(rest) = uri.strip_prefix("data:") {
@@ -447,7 +434,7 @@ struct Collector {
     /// `COLOR_0` per position (white for a primitive without it); `any_color`: some had it.
     colors: Vec<[f32; 4]>,
     any_color: bool,
-    /// Each triangle's material index ([`DEFAULT_MATERIAL`]: none); `any_material`: some had one.
+    /// Each triangle's material index ([`NO_MATERIAL`]: none); `any_material`: some had one.
     material: Vec<u16>,
     any_material: bool,
 }
@@ -564,7 +551,7 @@ impl Collector {
                     self.any_material = true;
                     i as u16
                 }
-                None => DEFAULT_MATERIAL,
+                None => NO_MATERIAL,
             };
             let base = self.positions.len() as u32;
             self.positions

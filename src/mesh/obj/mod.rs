@@ -99,7 +99,7 @@ pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshErro
         // The `usemtl` names in the order of their first use; OBJ's default material (faces
         // before any `usemtl`) after them when used. Base colours come from a material library
         // (`mtl`) when one is read; white here.
-        attributes.materials = st
+        let table = st
             .names
             .iter()
             .map(|n| Material {
@@ -107,25 +107,13 @@ pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshErro
                 base_color: [1.0; 4],
             })
             .collect();
-        let default = attributes.materials.len() as u16;
-        if st.material.contains(&DEFAULT) {
-            attributes.materials.push(Material {
-                name: "default".into(),
-                base_color: [1.0; 4],
-            });
-            for m in &mut st.material {
-                if *m == DEFAULT {
-                    *m = default;
-                }
-            }
-        }
-        attributes.material = Some(st.material);
+        attributes.set_materials(table, st.material);
     }
     Mesh::checked(st.positions, st.triangles).with_attributes(attributes)
 }
 
 /// OBJ's default material (faces before any `usemtl`) while the table is gathered.
-const DEFAULT: u16 = u16::MAX;
+const DEFAULT: u16 = super::attributes::NO_MATERIAL;
 
 /// The end of the last line of `b` that a backslash does not continue onto the next.
 fn end_of_joined_lines(b: &[u8]) -> Option<usize> {
