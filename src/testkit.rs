@@ -88,7 +88,11 @@ impl Rng {
 }
 
 /// A bit volume on `grid` with each voxel set with probability `p` (drawn x, then y, then z).
-pub(crate) fn random_bit_volume(rng: &mut Rng, grid: crate::grid::Grid, p: f64) -> crate::volume::BitVolume {
+pub(crate) fn random_bit_volume(
+    rng: &mut Rng,
+    grid: crate::grid::Grid,
+    p: f64,
+) -> crate::volume::BitVolume {
     let mut b = crate::volume::BitVolume::new(grid);
     let d = grid.dims;
     for x in 0..d[0] {

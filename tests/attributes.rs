@@ -233,3 +233,53 @@ fn obj_keeps_vertex_colours_and_usemtl_across_chunks_and_blocks() {
         assert_eq!(a.material.as_deref(), Some(&want[..]));
     }
 }
+
+/// An OBJ read from a file takes its materials' base colours from the `mtllib` beside it
+/// (`Kd`, `d`); a library that is missing leaves them white, one outside the directory is not
+/// read, and over HTTP (no files) none is read.
+#[test]
+fn obj_materials_take_kd_from_the_mtllib_beside_the_file() {
+    let top = tmpdir("attributes-mtl");
+    let dir = top.join("model");
+    std::fs::create_dir_all(&dir).unwrap();
+    let obj = b"mtllib paints.mtl missing.mtl ../outside.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nusemtl red paint\nf 1 2 3\nusemtl ghost\nf 2 4 3\n";
+    std::fs::write(dir.join("m.obj"), obj).unwrap();
+    std::fs::write(
+        dir.join("paints.mtl"),
+        b"newmtl red paint\nKd 0.8 0.1 0.2\nd 0.5\nnewmtl unused\nKd 0 1 0\n",
+    )
+    .unwrap();
+    std::fs::write(top.join("outside.mtl"), b"newmtl ghost\nKd 0 0 1\n").unwrap();
+    let m = mesh::load_file(&dir.join("m.obj"), usize::MAX).unwrap();
+    let a = m.attributes();
+    assert_eq!(
+        a.materials,
+        vec![
+            Material {
+                name: "red paint".into(),
+                base_color: [0.8, 0.1, 0.2, 0.5]
+            },
+            Material {
+                name: "ghost".into(),
+                base_color: [1.0; 4]
+            },
+        ]
+    );
+    assert_eq!(a.material.as_deref(), Some(&[0u16, 1][..]));
+    // The same bytes without a file (as over HTTP): names only.
+    let m = load(obj, Some(Format::Obj));
+    assert!(
+        m.attributes()
+            .materials
+            .iter()
+            .all(|m| m.base_color == [1.0; 4])
+    );
+    let o = run_voxd(&["info", dir.join("m.obj").to_str().unwrap()]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains(
+            "2 materials: red paint [0.800 0.100 0.200 0.500], ghost [1.000 1.000 1.000 1.000]"
+        ),
+        "{out}"
+    );
+}

@@ -9,8 +9,8 @@ use base64::Engine as _;
 use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::Mode;
 
-use super::stream::Stream;
 use super::attributes::NO_MATERIAL;
+use super::stream::Stream;
 use super::{
     Attributes, ExternalResources, HEAD, LoadOptions, Material, Mesh, MeshError, malformed,
 };
@@ -376,7 +376,6 @@ fn parse_document(doc: &gltf::Gltf, opts: &LoadOptions) -> Result<Mesh, MeshErro
     }
     Mesh::new(out.positions, out.triangles)?.with_attributes(attributes)
 }
-
 
 fn read_uri(uri: &str, external: &ExternalResources) -> Result<Vec<u8>, MeshError> {
     if let Some(rest) = uri.strip_prefix("data:") {

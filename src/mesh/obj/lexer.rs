@@ -130,7 +130,7 @@ impl<'a> Line<'a> {
     }
 
     /// Reads the first token: `b'v'` or `b'f'` when it is that one letter, `b'u'` for
-    /// `usemtl`, else 0.
+    /// `usemtl`, `b'm'` for `mtllib`, else 0.
     #[inline]
     pub(super) fn keyword(&mut self) -> u8 {
         self.skip_space();
@@ -140,12 +140,14 @@ impl<'a> Line<'a> {
                 self.at += 1;
                 return k;
             }
-            if k == b'u'
-                && self.text[self.at..self.end].starts_with(b"usemtl")
-                && self.ends_token(self.at + 6)
-            {
-                self.at += 6;
-                return b'u';
+            for (word, code) in [(&b"usemtl"[..], b'u'), (&b"mtllib"[..], b'm')] {
+                if k == word[0]
+                    && self.text[self.at..self.end].starts_with(word)
+                    && self.ends_token(self.at + 6)
+                {
+                    self.at += 6;
+                    return code;
+                }
             }
         }
         0

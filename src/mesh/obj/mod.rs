@@ -20,6 +20,7 @@
 //! streaming and gzip plumbing (`mesh/stream.rs`).
 
 mod lexer;
+mod mtl;
 mod parser;
 #[cfg(test)]
 mod tests;
@@ -46,6 +47,7 @@ pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshErro
         material: Vec::new(),
         any_material: false,
         current: DEFAULT,
+        libs: Vec::new(),
         lines: 0,
         forward: None,
         bad: None,
@@ -97,14 +99,16 @@ pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshErro
     }
     if st.any_material {
         // The `usemtl` names in the order of their first use; OBJ's default material (faces
-        // before any `usemtl`) after them when used. Base colours come from a material library
-        // (`mtl`) when one is read; white here.
+        // before any `usemtl`) after them when used. Base colours from the `mtllib` files
+        // beside the OBJ when it is read from a file (`mtl`); white otherwise.
+        let colours = mtl::base_colours(&st.libs, &opts.external);
         let table = st
             .names
             .iter()
-            .map(|n| Material {
-                name: String::from_utf8_lossy(n).into_owned(),
-                base_color: [1.0; 4],
+            .map(|n| {
+                let name = String::from_utf8_lossy(n).into_owned();
+                let base_color = colours.get(&name).copied().unwrap_or([1.0; 4]);
+                Material { name, base_color }
             })
             .collect();
         attributes.set_materials(table, st.material);
@@ -206,6 +210,8 @@ struct State {
     any_material: bool,
     /// The material in force at the end of the blocks read so far.
     current: u16,
+    /// The `mtllib` file names.
+    libs: Vec<Vec<u8>>,
     max_vertices: usize,
     max_triangles: usize,
 }
@@ -293,6 +299,11 @@ impl State {
             } else if self.any_material {
                 self.material
                     .extend(std::iter::repeat_n(self.current, c.triangles.len()));
+            }
+            for l in c.libs {
+                if self.libs.len() < 64 && !self.libs.contains(&l) {
+                    self.libs.push(l);
+                }
             }
             self.positions.extend_from_slice(&c.positions);
             self.triangles.extend_from_slice(&c.triangles);

@@ -51,6 +51,8 @@ pub(super) struct Chunk {
     pub(super) material: Vec<u16>,
     /// The material in force at the chunk's end (an index into `names`, or [`INHERITED`]).
     pub(super) last: u16,
+    /// The `mtllib` lines' file names.
+    pub(super) libs: Vec<Vec<u8>>,
 }
 
 /// A triangle made before its chunk's first `usemtl`.
@@ -108,6 +110,7 @@ pub(super) fn parse_chunk(
     let mut names: Vec<Vec<u8>> = Vec::new();
     let mut material: Vec<u16> = Vec::new();
     let mut current = INHERITED;
+    let mut libs: Vec<Vec<u8>> = Vec::new();
     let mut ends = memchr::memchr_iter(b'\n', text);
     let mut start = 0;
     let mut i = 0;
@@ -211,7 +214,14 @@ pub(super) fn parse_chunk(
                     }
                 };
             }
-            _ => {} // comments, vt, vn, o, g, s, mtllib, l, p, ...
+            b'm' => {
+                for name in line.rest().split(|b| b.is_ascii_whitespace()) {
+                    if !name.is_empty() && libs.len() < 64 {
+                        libs.push(name.to_vec());
+                    }
+                }
+            }
+            _ => {} // comments, vt, vn, o, g, s, l, p, ...
         }
         match end {
             Some(e) => (start, i) = (e + 1, i + 1),
@@ -228,5 +238,6 @@ pub(super) fn parse_chunk(
         names,
         material,
         last: current,
+        libs,
     })
 }

@@ -88,6 +88,7 @@ fn parse_chunk_std(
         names: vec![],
         material: vec![],
         last: INHERITED,
+        libs: vec![],
     })
 }
 
