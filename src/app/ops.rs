@@ -354,7 +354,9 @@ pub fn check_format(kind: VolumeKind, format: VolumeFormat) -> Result<()> {
 pub fn check_conversion(grid: &Grid, format: VolumeFormat, limits: &Limits) -> Result<()> {
     let voxels: u128 = match format {
         // Sparse: as large as the volume's set voxels, at most.
-        VolumeFormat::Vxl | VolumeFormat::Vdb | VolumeFormat::Indices => return Ok(()),
+        VolumeFormat::Vxl | VolumeFormat::Vdb | VolumeFormat::Indices | VolumeFormat::Points => {
+            return Ok(());
+        }
         VolumeFormat::Vox => {
             return crate::codec::vox::check_world(grid.dims).map_err(|e| {
                 Error::new(

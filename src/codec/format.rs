@@ -25,6 +25,8 @@ pub enum VolumeFormat {
     Vox,
     /// The set voxels of a bit volume as an (N, 3) `uint32` `.npy`. Written, never read back.
     Indices,
+    /// The set voxels' centres as a PLY point cloud. Written, never read back.
+    Points,
 }
 
 /// One format's row.
@@ -132,6 +134,17 @@ pub const FORMATS: &[FormatSpec] = &[
         // A `.npy` like any other: recognised by its extension, not its bytes.
         magic: None,
     },
+    FormatSpec {
+        format: VolumeFormat::Points,
+        name: "points",
+        // Not `.ply`: that names a mesh to read (`voxd info x.ply`).
+        extension: "points.ply",
+        media_type: "application/x-ply",
+        holds: crate::volume::BITS_ONLY,
+        streams: true,
+        reads: false,
+        magic: None,
+    },
 ];
 
 const _: () = {
@@ -155,6 +168,7 @@ impl Named for VolumeFormat {
         VolumeFormat::Vdb,
         VolumeFormat::Vox,
         VolumeFormat::Indices,
+        VolumeFormat::Points,
     ];
     fn name(self) -> &'static str {
         self.spec().name
@@ -199,7 +213,7 @@ impl VolumeFormat {
             .max_by_key(|f| f.extension.len())
             .map(|f| f.format)
     }
-    /// The names, comma-separated ("vxl, binvox, npy, raw, vdb, vox, indices"), for messages.
+    /// The names, comma-separated ("vxl, binvox, npy, raw, vdb, vox, indices, points"), for messages.
     pub fn names() -> String {
         FORMATS
             .iter()
@@ -230,7 +244,7 @@ mod tests {
     fn rows_name_their_formats() {
         assert_eq!(
             VolumeFormat::names(),
-            "vxl, binvox, npy, raw, vdb, vox, indices"
+            "vxl, binvox, npy, raw, vdb, vox, indices, points"
         );
         let p = |s: &str| VolumeFormat::from_path(std::path::Path::new(s));
         assert_eq!(p("a/b.INDICES.npy"), Some(VolumeFormat::Indices));
@@ -238,6 +252,8 @@ mod tests {
         assert_eq!(p("b.vox"), Some(VolumeFormat::Vox));
         assert_eq!(p("indices.npy"), Some(VolumeFormat::Npy));
         assert_eq!(p("b.obj"), None);
+        assert_eq!(p("b.points.ply"), Some(VolumeFormat::Points));
+        assert_eq!(p("b.ply"), None);
         assert_eq!(VolumeFormat::readable_extensions(), ".vxl, .binvox or .npy");
         for &f in <VolumeFormat as Named>::ALL {
             assert_eq!(VolumeFormat::from_name(&f.name().to_uppercase()), Some(f));

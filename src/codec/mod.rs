@@ -9,6 +9,7 @@ pub mod indices;
 pub mod npy;
 pub mod npz;
 pub mod png;
+pub mod points;
 pub mod vdb;
 pub mod vox;
 pub mod vxl;
@@ -99,6 +100,7 @@ impl VolumeFormat {
             VolumeFormat::Raw => npy::write_data(v, out),
             VolumeFormat::Vox => vox::write(v, out),
             VolumeFormat::Indices => indices::write(v, out),
+            VolumeFormat::Points => points::write(v, out),
         }
     }
 
@@ -114,6 +116,7 @@ impl VolumeFormat {
             VolumeFormat::Raw => Some(n),
             VolumeFormat::Vox => vox::Plan::new(v).ok().map(|p| p.len()),
             VolumeFormat::Indices => indices::len(v),
+            VolumeFormat::Points => points::len(v),
             VolumeFormat::Vxl | VolumeFormat::Binvox | VolumeFormat::Vdb => None,
         }
     }
@@ -145,6 +148,10 @@ impl VolumeFormat {
             VolumeFormat::Indices => Err(CodecError::Unsupported {
                 format: "indices",
                 detail: "a list of voxel indices has no grid, so it cannot be read back; use .vxl or .npy".into(),
+            }),
+            VolumeFormat::Points => Err(CodecError::Unsupported {
+                format: "points",
+                detail: "a point cloud has no grid, so it cannot be read back; use .vxl or .npy".into(),
             }),
         }
     }

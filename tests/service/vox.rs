@@ -126,6 +126,15 @@ fn a_long_grid_comes_as_vox_models_in_place_and_as_indices() {
         Some(idx.body.len())
     );
     let npy = get("npy");
+    let points = get("points");
+    assert_eq!(points.header("content-type"), Some("application/x-ply"));
+    assert!(
+        points
+            .header("content-disposition")
+            .is_some_and(|d| d.contains(".points.ply")),
+        "{:?}",
+        points.headers
+    );
     // A range of the .vox (its length is known before it is written).
     let part = srv.req(
         "GET",
@@ -166,6 +175,27 @@ fn a_long_grid_comes_as_vox_models_in_place_and_as_indices() {
     assert_eq!(f[2..], [200, 200, 200, 255], "{line}");
     // The volume's count of set voxels is the indices' rows.
     assert_eq!(Some(f[1]), v["solid_voxels"].as_u64(), "{v}");
+    // trimesh reads the point cloud: one point a set voxel, at its centre (origin 0, size 1).
+    if let Some(tpy) = crate::mesh_cli::trimesh_python() {
+        let p = dir.join("a.points.ply");
+        std::fs::write(&p, &points.body).unwrap();
+        let script = "import sys, numpy as np, trimesh\n\
+            pc = trimesh.load(sys.argv[1])\n\
+            assert isinstance(pc, trimesh.PointCloud), type(pc)\n\
+            idx = np.load(sys.argv[2]).astype(np.float64)\n\
+            assert np.array_equal(np.asarray(pc.vertices), idx + 0.5)\n\
+            print(len(pc.vertices))";
+        let o = Command::new(tpy)
+            .args(["-c", script])
+            .args([&p, &paths[2]])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert_eq!(
+            String::from_utf8(o.stdout).unwrap().trim(),
+            f[1].to_string()
+        );
+    }
 }
 
 #[test]

@@ -5,6 +5,7 @@ class GetV1VolumesIdDataFormat(StrEnum):
     BINVOX = "binvox"
     INDICES = "indices"
     NPY = "npy"
+    POINTS = "points"
     RAW = "raw"
     VDB = "vdb"
     VOX = "vox"
