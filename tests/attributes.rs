@@ -17,15 +17,8 @@ fn load(bytes: &[u8], f: Option<Format>) -> Mesh {
 /// A quad (4 positions, 6 indices) drawn twice: once with byte colours and material 1, once
 /// with neither.
 fn coloured_gltf() -> Vec<u8> {
-    let mut b = vec![];
-    for p in [[0f32, 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]] {
-        for c in p {
-            b.extend_from_slice(&c.to_le_bytes());
-        }
-    }
-    for i in [0u16, 1, 2, 0, 2, 3] {
-        b.extend_from_slice(&i.to_le_bytes());
-    }
+    // The loaders' tests' quad (48 bytes of positions, 12 of indices), then the colours.
+    let mut b = crate::loaders::quad_buffer();
     b.extend_from_slice(&[
         255, 0, 0, 255, 0, 255, 0, 128, 0, 0, 255, 0, 51, 102, 153, 255,
     ]);

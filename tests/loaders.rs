@@ -233,7 +233,8 @@ fn gltf_json(uri: &str, prims: &str, nodes: &str) -> String {
     )
 }
 
-fn quad_buffer() -> Vec<u8> {
+/// Four f32 positions of a unit quad, then six u16 indices (its two triangles).
+pub(crate) fn quad_buffer() -> Vec<u8> {
     let mut b = vec![];
     for p in [[0f32, 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]] {
         for c in p {

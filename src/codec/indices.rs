@@ -1,6 +1,6 @@
 //! `format=indices`: the set voxels of a bit volume as a NumPy `.npy` of dtype `<u4` and shape
 //! (N, 3), one row (x, y, z) per set voxel, rows in C order of the grid (x, then y, then z
-//! ascending: what `np.argwhere` gives on the dense `.npy`). Written a column at a time; its
+//! ascending: what `np.argwhere` gives on the dense `.npy`). Written in pieces; its
 //! length (header + 12 bytes a voxel) is known before. The grid is not stored (keep the `.vxl`).
 
 use crate::volume::Volume;
@@ -12,38 +12,51 @@ pub fn header(n: u64) -> Vec<u8> {
 
 /// The file's length for `v`, a bit volume (`None` otherwise).
 pub fn len(v: &Volume) -> Option<u64> {
+    rows_len(v, header)
+}
+
+/// Streams the rows of `v`'s set voxels (`InvalidInput` for a volume that is not bits).
+pub fn write(v: &Volume, out: &mut impl std::io::Write) -> std::io::Result<()> {
+    write_rows(v, "indices", header, out, |p| {
+        let mut row = [0u8; 12];
+        for (k, c) in p.into_iter().enumerate() {
+            row[4 * k..4 * k + 4].copy_from_slice(&c.to_le_bytes());
+        }
+        row
+    })
+}
+
+/// The length of a file of `header(n)` and a 12-byte row per set voxel of `v` (`None`: not
+/// a bit volume). Shared with `points`.
+pub(super) fn rows_len(v: &Volume, header: impl Fn(u64) -> Vec<u8>) -> Option<u64> {
     let Volume::Bits(b) = v else { return None };
     let n = b.count_ones();
     Some(header(n).len() as u64 + 12 * n)
 }
 
-/// Streams the rows of `v`'s set voxels (`InvalidInput` for a volume that is not bits).
-pub fn write(v: &Volume, out: &mut impl std::io::Write) -> std::io::Result<()> {
+/// Streams `header(n)` then `row(voxel)` for each of the `n` set voxels of `v` in C order
+/// (`BitVolume::iter_ones`), in pieces of about 64 KiB; `InvalidInput` naming `format` for a
+/// volume that is not bits. Shared with `points`.
+pub(super) fn write_rows(
+    v: &Volume,
+    format: &str,
+    header: impl Fn(u64) -> Vec<u8>,
+    out: &mut impl std::io::Write,
+    mut row: impl FnMut([u32; 3]) -> [u8; 12],
+) -> std::io::Result<()> {
     let Volume::Bits(b) = v else {
         return Err(std::io::Error::new(
             std::io::ErrorKind::InvalidInput,
-            format!("indices lists the voxels of bit volumes, not {}", v.kind()),
+            format!("{format} lists the voxels of bit volumes, not {}", v.kind()),
         ));
     };
     const PIECE: usize = 64 * 1024;
     let mut buf = header(b.count_ones());
-    let d = b.dims();
-    for x in 0..d[0] {
-        for y in 0..d[1] {
-            for (w, &word) in b.column(x, y).iter().enumerate() {
-                let mut t = word;
-                while t != 0 {
-                    let z = (w * 64) as u32 + t.trailing_zeros();
-                    t &= t - 1;
-                    for c in [x, y, z] {
-                        buf.extend_from_slice(&c.to_le_bytes());
-                    }
-                }
-            }
-            if buf.len() >= PIECE {
-                out.write_all(&buf)?;
-                buf.clear();
-            }
+    for p in b.iter_ones() {
+        buf.extend_from_slice(&row(p));
+        if buf.len() >= PIECE {
+            out.write_all(&buf)?;
+            buf.clear();
         }
     }
     out.write_all(&buf)

@@ -69,9 +69,7 @@ pub(super) struct Slabs<'a> {
     blocks: [Vec<Block>; 2],
     /// The first slab not numbered yet.
     next: u32,
-    /// Vertices numbered so far.
-    pub vertices: usize,
-    /// Each vertex's lattice point.
+    /// Each vertex numbered so far: its lattice point.
     pub points: Vec<[u32; 3]>,
     /// The first vertex of the last slab numbered.
     pub last_start: usize,
@@ -90,7 +88,6 @@ impl<'a> Slabs<'a> {
             stride: d[2] as usize + 1,
             blocks: [vec![Block::default(); n], vec![Block::default(); n]],
             next: from,
-            vertices: 0,
             last_start: 0,
             points: Vec::new(),
         }
@@ -127,7 +124,7 @@ impl<'a> Slabs<'a> {
         let par = (x & 1) as usize;
         // Words of lattice z: 64w..64w + 64, up to dims z.
         let nw = d[2] as usize / 64 + 1;
-        self.last_start = self.vertices;
+        self.last_start = self.points.len();
         for y in 0..=d[1] {
             // The four columns around the lattice row, k = dx + 2·dy (voxel x − 1 + dx,
             // y − 1 + dy).
@@ -177,11 +174,10 @@ impl<'a> Slabs<'a> {
                     };
                     let i = y as usize * self.stride + z as usize;
                     self.blocks[par][i] = Block {
-                        base: self.vertices as u32,
+                        base: self.points.len() as u32,
                         set,
                         flags,
                     };
-                    self.vertices += usize::from(n);
                     for _ in 0..n {
                         self.points.push([x, y, z]);
                     }

@@ -461,8 +461,8 @@ fn run(
         }
         // The face's corners are in lattice slabs x and x + 1 (faces come in order of x).
         slabs.reach(f.point(0, 0)[0] + 1);
-        if sums.len() < slabs.vertices {
-            sums.resize(slabs.vertices, [0.0; 4]);
+        if sums.len() < slabs.points.len() {
+            sums.resize(slabs.points.len(), [0.0; 4]);
         }
         // The crossing point on the segment between the face's two voxel centres.
         let mut c = [0.0; 3];
@@ -505,7 +505,7 @@ fn run(
         quads[i] = ring;
     }
     slabs.reach(upto);
-    sums.resize(slabs.vertices, [0.0; 4]);
+    sums.resize(slabs.points.len(), [0.0; 4]);
     // The last slab numbered is `upto` (the faces' slabs are below it).
     Ok(Run {
         sums,

@@ -324,7 +324,6 @@ fn parse_document(doc: &gltf::Gltf, opts: &LoadOptions) -> Result<Mesh, MeshErro
         triangles: vec![],
         skipped_modes: vec![],
         colors: vec![],
-        any_color: false,
         material: vec![],
         any_material: false,
     };
@@ -356,7 +355,7 @@ fn parse_document(doc: &gltf::Gltf, opts: &LoadOptions) -> Result<Mesh, MeshErro
         tracing::warn!(modes = ?out.skipped_modes, "glTF primitives that are not triangles were skipped");
     }
     let mut attributes = Attributes::default();
-    if out.any_color {
+    if !out.colors.is_empty() {
         attributes.colors = Some(out.colors);
     }
     if out.any_material {
@@ -430,9 +429,9 @@ struct Collector {
     positions: Vec<[f64; 3]>,
     triangles: Vec<[u32; 3]>,
     skipped_modes: Vec<String>,
-    /// `COLOR_0` per position (white for a primitive without it); `any_color`: some had it.
+    /// `COLOR_0` per position (white for a primitive without it), once a primitive had it;
+    /// empty while none has.
     colors: Vec<[f32; 4]>,
-    any_color: bool,
     /// Each triangle's material index ([`NO_MATERIAL`]: none); `any_material`: some had one.
     material: Vec<u16>,
     any_material: bool,
@@ -534,13 +533,12 @@ impl Collector {
             // Held only once a primitive has colours (the earlier ones then white).
             match colors {
                 Some(c) => {
-                    if !self.any_color {
+                    if self.colors.is_empty() {
                         self.colors = vec![[1.0f32; 4]; self.positions.len()];
-                        self.any_color = true;
                     }
                     self.colors.extend(c);
                 }
-                None if self.any_color => self
+                None if !self.colors.is_empty() => self
                     .colors
                     .extend(std::iter::repeat_n([1.0f32; 4], positions.len())),
                 None => {}
