@@ -69,15 +69,18 @@ fn gltf_keeps_vertex_colours_and_the_material_table() {
         vec![
             Material {
                 name: "red".into(),
-                base_color: [1.0, 0.0, 0.0, 1.0]
+                base_color: [1.0, 0.0, 0.0, 1.0],
+                texture: None,
             },
             Material {
                 name: "material 1".into(),
-                base_color: [0.0, 0.5, 1.0, 0.25]
+                base_color: [0.0, 0.5, 1.0, 0.25],
+                texture: None,
             },
             Material {
                 name: "default".into(),
-                base_color: [1.0; 4]
+                base_color: [1.0; 4],
+                texture: None,
             },
         ]
     );
@@ -250,11 +253,13 @@ fn obj_materials_take_kd_from_the_mtllib_beside_the_file() {
         vec![
             Material {
                 name: "red paint".into(),
-                base_color: [0.8, 0.1, 0.2, 0.5]
+                base_color: [0.8, 0.1, 0.2, 0.5],
+                texture: None,
             },
             Material {
                 name: "ghost".into(),
-                base_color: [1.0; 4]
+                base_color: [1.0; 4],
+                texture: None,
             },
         ]
     );

@@ -51,6 +51,7 @@ fn request(mesh: &[u8], resolution: u32, cubic: bool, fill: Fill) -> VoxelizeReq
         padding: 0,
         method: MethodSpec::Bits(Method::Solid),
         fill,
+        attributes: Default::default(),
         limits: voxd::app::Limits::SERVICE,
     }
 }

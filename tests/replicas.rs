@@ -117,6 +117,7 @@ fn library(mesh: &[u8], resolution: u32, fill: Fill) -> voxd::BitVolume {
         padding: 0,
         method: MethodSpec::Bits(Method::Solid),
         fill,
+        attributes: Default::default(),
         limits: voxd::app::Limits::SERVICE,
     };
     let (_, out) = voxd::app::voxelize(&req, &CpuEngine).unwrap();

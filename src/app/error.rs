@@ -103,6 +103,9 @@ error_kinds! {
     /// The volume does not keep the mesh it was made from (a derived volume, one stored before
     /// meshes were kept) or the store lost it: its Hermite data and dual contouring need it.
     SourceNotKept = "source-not-kept", 409, "The volume does not keep its mesh";
+    /// `color=true` on a mesh with no vertex colours and no materials, `material=true` on one
+    /// without materials.
+    MissingAttributes = "missing-attributes", 422, "The mesh has no colour or materials";
     Internal = "internal", 500, "Internal error";
 }
 
@@ -204,6 +207,16 @@ impl From<EngineError> for Error {
             _ => ErrorKind::EngineFailure,
         };
         Error::new(kind, e.to_string())
+    }
+}
+
+impl From<crate::engine::colour::ColourError> for Error {
+    fn from(e: crate::engine::colour::ColourError) -> Error {
+        use crate::engine::colour::ColourError;
+        match e {
+            ColourError::Canceled(c) => c.into(),
+            e => Error::new(ErrorKind::MissingAttributes, e.to_string()),
+        }
     }
 }
 

@@ -130,6 +130,7 @@ pub(crate) mod testing {
             padding: 0,
             method: MethodSpec::Bits(crate::engine::Method::Solid),
             fill: crate::engine::fill::Fill::Parity,
+            attributes: Default::default(),
             limits: crate::limits::Limits::SERVICE,
         };
         NewJob {

@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use super::error::{Error, Result};
 use crate::engine::Method;
+pub use crate::engine::colour::Want;
 use crate::engine::fill::Fill;
 pub use crate::engine::sdf::Band;
 use crate::grid::GridSpec;
@@ -117,6 +118,24 @@ impl MethodSpec {
         }
     }
 
+    /// `want` checked against this method: colour and material channels go with the bit
+    /// methods and distance only (density and sdf volumes are not bits).
+    pub fn attributes(self, want: Want) -> Result<Want> {
+        match self {
+            MethodSpec::Bits(_) | MethodSpec::Distance { .. } => Ok(want),
+            _ if !want.any() => Ok(want),
+            _ => Err(Error::invalid(format!(
+                "{} is given with method={}: color and material apply only to method=solid, surface, conservative, interior or distance",
+                if want.colour {
+                    "color=true"
+                } else {
+                    "material=true"
+                },
+                self.name()
+            ))),
+        }
+    }
+
     /// Voxels the engine classifies per voxel of the grid.
     pub fn voxels_per_voxel(self) -> u64 {
         match self {
@@ -216,6 +235,9 @@ pub struct VoxelizeRequest {
     pub padding: u32,
     pub method: MethodSpec,
     pub fill: Fill,
+    /// The attribute channels asked for (`color`, `material`), checked against the method
+    /// ([`MethodSpec::attributes`]).
+    pub attributes: Want,
     pub limits: Limits,
 }
 
@@ -239,6 +261,11 @@ pub struct JobSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub band: Option<String>,
     pub fill: Fill,
+    /// `color=true`, `material=true`.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub color: bool,
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub material: bool,
     /// The limits loading, fitting and running are held to (a request may lower the server's).
     pub max_voxels: u64,
     pub max_triangles: usize,
@@ -267,6 +294,8 @@ impl JobSpec {
                 _ => None,
             },
             fill: req.fill,
+            color: req.attributes.colour,
+            material: req.attributes.material,
             max_voxels: req.limits.max_voxels,
             max_triangles: req.limits.max_triangles,
             max_decompressed_bytes: req.limits.max_decompressed_bytes,
@@ -283,22 +312,27 @@ impl JobSpec {
                     .ok_or_else(|| Error::invalid(format!("unknown mesh format {f:?}")))?,
             ),
         };
+        let method = MethodSpec::with(
+            &self.method,
+            MethodParams {
+                density_factor: self.density_factor,
+                thickness: self.thickness,
+                band: match &self.band {
+                    Some(b) => Some(Band::parse(b).map_err(Error::invalid)?),
+                    None => None,
+                },
+            },
+        )?;
         Ok(VoxelizeRequest {
             source: MeshSource::Bytes { bytes, format },
             grid: self.grid,
             padding: self.padding,
-            method: MethodSpec::with(
-                &self.method,
-                MethodParams {
-                    density_factor: self.density_factor,
-                    thickness: self.thickness,
-                    band: match &self.band {
-                        Some(b) => Some(Band::parse(b).map_err(Error::invalid)?),
-                        None => None,
-                    },
-                },
-            )?,
+            method,
             fill: self.fill,
+            attributes: method.attributes(Want {
+                colour: self.color,
+                material: self.material,
+            })?,
             limits: Limits {
                 max_voxels: self.max_voxels.min(server.max_voxels),
                 max_triangles: self.max_triangles.min(server.max_triangles),
@@ -649,6 +683,7 @@ mod tests {
                 padding: 1,
                 method,
                 fill: Fill::Winding,
+                attributes: Default::default(),
                 limits: Limits::SERVICE,
             };
             let json = serde_json::to_string(&JobSpec::of(&req)).unwrap();
@@ -681,6 +716,7 @@ mod tests {
             padding: 2,
             method: MethodSpec::Density { factor: 4 },
             fill: Fill::Winding,
+            attributes: Default::default(),
             limits: Limits {
                 max_voxels: 1 << 30,
                 ..Limits::SERVICE

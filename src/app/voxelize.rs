@@ -7,6 +7,7 @@ use std::time::Instant;
 use super::error::{Error, Result};
 use super::request::{MeshSource, MethodSpec, VoxelizeRequest};
 use crate::cancel::Control;
+use crate::engine::colour::{self, Want};
 use crate::engine::density::{self, DensityError};
 use crate::engine::distance;
 use crate::engine::fill::{self, Fill, FillReport};
@@ -26,6 +27,8 @@ pub struct Prepared {
     pub grid: Grid,
     pub method: MethodSpec,
     pub fill: Fill,
+    /// The attribute channels asked for (checked against the mesh when prepared).
+    pub attributes: Want,
     pub limits: Limits,
     pub source: Source,
     /// sdf: the bricks the engine evaluates (those some triangle may reach within the band;
@@ -155,6 +158,7 @@ impl Loaded {
             req.padding,
             fit_limits,
         )?;
+        colour::check(self.mesh.attributes(), req.attributes)?;
         let mut candidate_bricks = 0;
         match req.method {
             MethodSpec::Density { factor } => {
@@ -189,6 +193,7 @@ impl Loaded {
             grid,
             method: req.method,
             fill: req.fill,
+            attributes: req.attributes,
             limits: req.limits,
             source: self.source,
             candidate_bricks,
@@ -209,6 +214,13 @@ pub fn prepare(req: &VoxelizeRequest) -> Result<Prepared> {
 /// `engine-failure` once it says stop; see [`crate::cancel`]) and hears the progress. Blocking.
 pub fn run(p: &Prepared, engine: &dyn Engine, ctl: &Control) -> Result<Voxelized> {
     let t = Instant::now();
+    let (bits_ctl, colour_ctl) = if p.attributes.any() {
+        (ctl.stage(0.0, 0.5), ctl.stage(0.5, 1.0))
+    } else {
+        (ctl.clone(), ctl.stage(1.0, 1.0))
+    };
+    let outer = ctl;
+    let ctl = &bits_ctl;
     let (volume, fill) = match p.method {
         MethodSpec::Bits(m) => {
             let (v, r) =
@@ -250,7 +262,13 @@ pub fn run(p: &Prepared, engine: &dyn Engine, ctl: &Control) -> Result<Voxelized
             (Volume::SparseDistance(v), r)
         }
     };
-    ctl.complete();
+    let volume = match volume {
+        Volume::Bits(b) if p.attributes.any() => {
+            Volume::Channels(colour::attribute(&p.mesh, b, p.attributes, &colour_ctl)?)
+        }
+        v => v,
+    };
+    outer.complete();
     // The warning is the result's (the CLI prints it, the service puts it in the volume's
     // metadata): logged at info for the service's job lines, not at warn, which the CLI shows
     // by default and would print it twice.

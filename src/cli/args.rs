@@ -215,6 +215,7 @@ impl MeshArgs {
             padding: self.padding,
             method,
             fill: method.fill(self.fill)?,
+            attributes: Default::default(),
             limits,
         })
     }
@@ -277,6 +278,15 @@ pub struct VoxelizeArgs {
     /// Mesh format, when the extension does not say (obj, gltf, glb, stl, ply).
     #[arg(long, value_parser = parse_format)]
     pub format: Option<Format>,
+    /// Give each set voxel the colour of the surface in it (area-weighted, textures sampled;
+    /// inner voxels the nearest surface voxel's): solid, surface, conservative, interior and
+    /// distance only. The mesh needs vertex colours or materials.
+    #[arg(long)]
+    pub color: bool,
+    /// Give each set voxel a material id (the material with the most area in it; inner voxels
+    /// the nearest surface voxel's). The mesh needs materials.
+    #[arg(long)]
+    pub material: bool,
 }
 
 impl VoxelizeArgs {
@@ -310,6 +320,10 @@ impl VoxelizeArgs {
             padding: self.padding,
             method,
             fill: method.fill(self.fill)?,
+            attributes: method.attributes(voxd::app::request::Want {
+                colour: self.color,
+                material: self.material,
+            })?,
             limits,
         })
     }

@@ -23,7 +23,7 @@ pub fn encode(v: &Volume) -> Result<Vec<u8>, CodecError> {
 /// long, thin grid is far larger than the grid). `InvalidInput` for a density volume (see
 /// [`check`]).
 pub fn write(v: &Volume, out: &mut impl std::io::Write) -> std::io::Result<()> {
-    let Volume::Bits(b) = v else {
+    let Some(b) = v.bits() else {
         return Err(std::io::Error::new(
             std::io::ErrorKind::InvalidInput,
             "binvox stores one bit per voxel",

@@ -53,13 +53,18 @@ pub struct FormatSpec {
 /// distance, dense or sparse: every voxel written).
 const ARRAY_KINDS: &[VolumeKind] = &[
     VolumeKind::Bits,
+    VolumeKind::Channels,
     VolumeKind::Density,
     VolumeKind::Distance,
     VolumeKind::SparseDistance,
 ];
 
 /// OpenVDB grids: a level set of a sparse distance volume, a BoolGrid of a bit volume.
-const VDB_KINDS: &[VolumeKind] = &[VolumeKind::SparseDistance, VolumeKind::Bits];
+const VDB_KINDS: &[VolumeKind] = &[
+    VolumeKind::SparseDistance,
+    VolumeKind::Bits,
+    VolumeKind::Channels,
+];
 
 /// The formats, in the order messages list them; row `i` is `VolumeFormat` value `i`.
 pub const FORMATS: &[FormatSpec] = &[
@@ -78,7 +83,7 @@ pub const FORMATS: &[FormatSpec] = &[
         name: "binvox",
         extension: "binvox",
         media_type: "application/x-binvox",
-        holds: crate::volume::BITS_ONLY,
+        holds: crate::volume::BITS_AND_CHANNELS,
         streams: true,
         reads: true,
         magic: Some(b"#binvox"),
@@ -118,7 +123,7 @@ pub const FORMATS: &[FormatSpec] = &[
         name: "vox",
         extension: "vox",
         media_type: "application/x-vox",
-        holds: crate::volume::BITS_ONLY,
+        holds: crate::volume::BITS_AND_CHANNELS,
         streams: true,
         reads: false,
         magic: Some(super::vox::MAGIC),
@@ -128,7 +133,7 @@ pub const FORMATS: &[FormatSpec] = &[
         name: "indices",
         extension: "indices.npy",
         media_type: "application/x-npy",
-        holds: crate::volume::BITS_ONLY,
+        holds: crate::volume::BITS_AND_CHANNELS,
         streams: true,
         reads: false,
         // A `.npy` like any other: recognised by its extension, not its bytes.
@@ -140,7 +145,7 @@ pub const FORMATS: &[FormatSpec] = &[
         // Not `.ply`: that names a mesh to read (`voxd info x.ply`).
         extension: "points.ply",
         media_type: "application/x-ply",
-        holds: crate::volume::BITS_ONLY,
+        holds: crate::volume::BITS_AND_CHANNELS,
         streams: true,
         reads: false,
         magic: None,

@@ -12,29 +12,26 @@ pub fn header(n: u64) -> Vec<u8> {
 
 /// The file's length for `v`, a bit volume (`None` otherwise).
 pub fn len(v: &Volume) -> Option<u64> {
-    rows_len(v, header)
+    rows_len(v, header, 12)
 }
 
 /// Streams the rows of `v`'s set voxels (`InvalidInput` for a volume that is not bits).
 pub fn write(v: &Volume, out: &mut impl std::io::Write) -> std::io::Result<()> {
-    write_rows(v, "indices", header, out, |p| {
-        let mut row = [0u8; 12];
-        for (k, c) in p.into_iter().enumerate() {
-            row[4 * k..4 * k + 4].copy_from_slice(&c.to_le_bytes());
+    write_rows(v, "indices", header, out, |p, _, buf| {
+        for c in p {
+            buf.extend_from_slice(&c.to_le_bytes());
         }
-        row
     })
 }
 
-/// The length of a file of `header(n)` and a 12-byte row per set voxel of `v` (`None`: not
-/// a bit volume). Shared with `points`.
-pub(super) fn rows_len(v: &Volume, header: impl Fn(u64) -> Vec<u8>) -> Option<u64> {
-    let Volume::Bits(b) = v else { return None };
-    let n = b.count_ones();
-    Some(header(n).len() as u64 + 12 * n)
+/// The length of a file of `header(n)` and a `width`-byte row per set voxel of `v` (`None`:
+/// not a bit volume). Shared with `points`.
+pub(super) fn rows_len(v: &Volume, header: impl Fn(u64) -> Vec<u8>, width: u64) -> Option<u64> {
+    let n = v.bits()?.count_ones();
+    Some(header(n).len() as u64 + width * n)
 }
 
-/// Streams `header(n)` then `row(voxel)` for each of the `n` set voxels of `v` in C order
+/// Streams `header(n)` then `row(voxel, rank, buffer)` (appending the row) for each of the `n` set voxels of `v` in C order
 /// (`BitVolume::iter_ones`), in pieces of about 64 KiB; `InvalidInput` naming `format` for a
 /// volume that is not bits. Shared with `points`.
 pub(super) fn write_rows(
@@ -42,9 +39,9 @@ pub(super) fn write_rows(
     format: &str,
     header: impl Fn(u64) -> Vec<u8>,
     out: &mut impl std::io::Write,
-    mut row: impl FnMut([u32; 3]) -> [u8; 12],
+    mut row: impl FnMut([u32; 3], usize, &mut Vec<u8>),
 ) -> std::io::Result<()> {
-    let Volume::Bits(b) = v else {
+    let Some(b) = v.bits() else {
         return Err(std::io::Error::new(
             std::io::ErrorKind::InvalidInput,
             format!("{format} lists the voxels of bit volumes, not {}", v.kind()),
@@ -52,8 +49,8 @@ pub(super) fn write_rows(
     };
     const PIECE: usize = 64 * 1024;
     let mut buf = header(b.count_ones());
-    for p in b.iter_ones() {
-        buf.extend_from_slice(&row(p));
+    for (i, p) in b.iter_ones().enumerate() {
+        row(p, i, &mut buf);
         if buf.len() >= PIECE {
             out.write_all(&buf)?;
             buf.clear();

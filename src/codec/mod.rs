@@ -8,6 +8,7 @@ pub mod format;
 pub mod indices;
 pub mod npy;
 pub mod npz;
+pub mod palette;
 pub mod png;
 pub mod points;
 pub mod vdb;
@@ -110,7 +111,7 @@ impl VolumeFormat {
         let n = v
             .grid()
             .voxel_count()
-            .saturating_mul(npy::value_bytes(v.kind()));
+            .saturating_mul(npy::value_bytes_of(v));
         match self {
             VolumeFormat::Npy => Some(npy::header_of(v).len() as u64 + n),
             VolumeFormat::Raw => Some(n),

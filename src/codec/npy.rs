@@ -8,7 +8,9 @@
 use super::{CodecError, malformed};
 use crate::grid::Grid;
 use crate::volume::sparse::{BRICK, BRICK_VOXELS, Sparse};
-use crate::volume::{BitVolume, Dense, DensityVolume, Volume, VolumeKind};
+use crate::volume::{
+    Attributed, BitVolume, ChannelValues, Dense, DensityVolume, Volume, VolumeKind,
+};
 
 pub const MAGIC: &[u8; 6] = b"\x93NUMPY";
 
@@ -31,8 +33,31 @@ pub fn header(dims: [u32; 3]) -> Vec<u8> {
     typed_header(dims, "|u1")
 }
 
+/// Bytes per voxel of `v` in `.npy` and `.raw`: [`value_bytes`] of its kind, but for a bit
+/// volume with one attribute channel (a download with `attributes=`), that channel's value.
+pub fn value_bytes_of(v: &Volume) -> u64 {
+    match v {
+        Volume::Channels(a) => a
+            .channels()
+            .first()
+            .map_or(1, |c| c.values.value_type().bytes() as u64),
+        _ => value_bytes(v.kind()),
+    }
+}
+
 /// The `.npy` header `v` is written with.
 pub fn header_of(v: &Volume) -> Vec<u8> {
+    if let Volume::Channels(a) = v
+        && let Some(c) = a.channels().first()
+    {
+        let [x, y, z] = v.grid().dims.map(u64::from);
+        return match &c.values {
+            ChannelValues::Rgba8(_) => array_header(&[x, y, z, 4], "|u1"),
+            ChannelValues::U16(_) => array_header(&[x, y, z], "<u2"),
+            ChannelValues::U8(_) => array_header(&[x, y, z], "|u1"),
+            ChannelValues::F32(_) => array_header(&[x, y, z], "<f4"),
+        };
+    }
     let descr = if value_bytes(v.kind()) == 4 {
         "<f4"
     } else {
@@ -72,6 +97,37 @@ pub fn write(v: &Volume, out: &mut impl std::io::Write) -> std::io::Result<()> {
     write_data(v, out)
 }
 
+/// The first channel of `a` dense: each voxel's value (zero where it is not set), little
+/// endian, in C order, a column at a time.
+fn write_channel(a: &Attributed, out: &mut impl std::io::Write) -> std::io::Result<()> {
+    let b = a.bits();
+    let c = &a.channels()[0].values;
+    let size = c.value_type().bytes();
+    let z = b.dims()[2] as usize;
+    let mut buf = vec![0u8; z * size];
+    let mut next = 0usize;
+    for col in b.words().chunks_exact(b.words_per_column()) {
+        buf.fill(0);
+        for (w, &word) in col.iter().enumerate() {
+            let mut bits = word;
+            while bits != 0 {
+                let k = w * 64 + bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let at = &mut buf[k * size..(k + 1) * size];
+                match c {
+                    ChannelValues::U8(v) => at[0] = v[next],
+                    ChannelValues::U16(v) => at.copy_from_slice(&v[next].to_le_bytes()),
+                    ChannelValues::F32(v) => at.copy_from_slice(&v[next].to_le_bytes()),
+                    ChannelValues::Rgba8(v) => at.copy_from_slice(&v[next]),
+                }
+                next += 1;
+            }
+        }
+        out.write_all(&buf)?;
+    }
+    Ok(())
+}
+
 /// The array's bytes alone, one byte (distances: a little-endian `f32`) per voxel in C order
 /// (the `.raw` format), a column at a time.
 pub fn write_data(v: &Volume, out: &mut impl std::io::Write) -> std::io::Result<()> {
@@ -90,7 +146,9 @@ pub fn write_data(v: &Volume, out: &mut impl std::io::Write) -> std::io::Result<
             Ok(())
         }
         Volume::SparseDistance(s) => write_sparse(s, out),
-        Volume::Bits(b) => {
+        Volume::Channels(a) if !a.channels().is_empty() => write_channel(a, out),
+        Volume::Bits(_) | Volume::Channels(_) => {
+            let b = v.bits().expect("a bit volume");
             let z = v.grid().dims[2] as usize;
             let mut buf = vec![0u8; z];
             for col in b.words().chunks_exact(b.words_per_column()) {

@@ -508,8 +508,7 @@ pub fn encode_bits(b: &BitVolume) -> Vec<u8> {
 pub fn encode(v: &Volume) -> Option<Vec<u8>> {
     match v {
         Volume::SparseDistance(s) => Some(encode_sparse(s)),
-        Volume::Bits(b) => Some(encode_bits(b)),
-        _ => None,
+        other => other.bits().map(encode_bits),
     }
 }
 

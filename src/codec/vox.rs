@@ -14,13 +14,17 @@
 //! * **World.** MagicaVoxel's world is ±1000 voxels about the ground's centre, rendered above
 //!   the ground: a grid beyond 2000 × 2000 × 1000 voxels is refused with its numbers
 //!   ([`check_world`]).
-//! * **Colour.** Without colour channels every voxel is palette index 1, light grey
-//!   ([`GREY`]); the `RGBA` chunk holds the 256 entries.
+//! * **Colour.** A volume with a colour channel gets a palette of at most 255 entries
+//!   (`palette.rs`: exact when there are at most 255 colours, else median cut seeded k-means
+//!   in CIELAB) and each voxel its nearest entry; without one every voxel is palette index 1,
+//!   light grey ([`GREY`]). The `RGBA` chunk holds the 256 entries (entry k is index k + 1).
 //!
 //! The file's length is known before it is written ([`Plan::len`]): the voxels of each model
 //! are counted first (a model's `XYZI` chunk starts with its count).
 
-use crate::volume::{BitVolume, Volume};
+use super::palette::{self, Quantized};
+use crate::engine::colour::RGBA;
+use crate::volume::{BitVolume, ChannelValues, Volume};
 
 pub const MAGIC: &[u8; 4] = b"VOX ";
 /// The version written.
@@ -52,6 +56,10 @@ pub struct Plan<'a> {
     counts: Vec<u64>,
     /// Each model's `_t` (its centre in the world), as written.
     centres: Vec<String>,
+    /// The palette and each set voxel's entry (by rank), for a volume with colours.
+    colours: Option<Quantized>,
+    /// The rank of each column's first set voxel (with colours only).
+    starts: Vec<u64>,
 }
 
 /// Model `i`'s block: its lower corner and size (before rounding up to even).
@@ -80,11 +88,18 @@ fn string_len(s: &str) -> u64 {
 impl<'a> Plan<'a> {
     /// The plan for `v` (a bit volume within [`WORLD`]); counts the voxels of each model.
     pub fn new(v: &'a Volume) -> std::io::Result<Plan<'a>> {
-        let Volume::Bits(bits) = v else {
+        let Some(bits) = v.bits() else {
             return Err(std::io::Error::new(
                 std::io::ErrorKind::InvalidInput,
                 format!("vox holds bit volumes, not {}", v.kind()),
             ));
+        };
+        let rgba = match v {
+            Volume::Channels(a) => match a.channel(RGBA).map(|c| &c.values) {
+                Some(ChannelValues::Rgba8(c)) => Some(c),
+                _ => None,
+            },
+            _ => None,
         };
         let dims = bits.dims();
         check_world(dims).map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidInput, e))?;
@@ -111,11 +126,30 @@ impl<'a> Plan<'a> {
                 format!("{} {} {}", c[0], c[1], c[2])
             })
             .collect();
+        let colours = rgba.map(|c| palette::quantize(c));
+        let mut starts = vec![];
+        if colours.is_some() {
+            let mut n = 0u64;
+            for col in bits.words().chunks_exact(bits.words_per_column()) {
+                starts.push(n);
+                n += col.iter().map(|w| u64::from(w.count_ones())).sum::<u64>();
+            }
+        }
+        if let Some(q) = &colours {
+            tracing::info!(
+                colours = q.palette.len(),
+                mean_delta_e = q.mean_de,
+                p99_delta_e = q.p99_de,
+                "vox palette"
+            );
+        }
         Ok(Plan {
             bits,
             blocks,
             counts,
             centres,
+            colours,
+            starts,
         })
     }
 
@@ -166,16 +200,32 @@ impl<'a> Plan<'a> {
                 for y in lo[1]..lo[1] + size[1] {
                     let col = self.bits.column(x, y);
                     let words = col.get(bz * per..).unwrap_or(&[]);
+                    // The rank of the block's first voxel in this column.
+                    let mut rank = match &self.colours {
+                        Some(_) => {
+                            self.starts[x as usize * dims[1] as usize + y as usize]
+                                + col[..(bz * per).min(col.len())]
+                                    .iter()
+                                    .map(|w| u64::from(w.count_ones()))
+                                    .sum::<u64>()
+                        }
+                        None => 0,
+                    };
                     for (w, &word) in words.iter().take(per).enumerate() {
                         let mut t = word;
                         while t != 0 {
                             let z = (w * 64) as u32 + t.trailing_zeros();
                             t &= t - 1;
+                            let entry = match &self.colours {
+                                Some(q) => q.index[rank as usize] + 1,
+                                None => 1,
+                            };
+                            rank += 1;
                             buf.extend_from_slice(&[
                                 (x - lo[0]) as u8,
                                 (y - lo[1]) as u8,
                                 z as u8,
-                                1,
+                                entry,
                             ]);
                         }
                     }
@@ -233,9 +283,12 @@ impl<'a> Plan<'a> {
             }
         }
         chunk(&mut buf, b"RGBA", 1024, 0);
-        buf.extend_from_slice(&GREY);
-        for _ in 1..256 {
-            buf.extend_from_slice(&[0, 0, 0, 255]);
+        let entries: &[[u8; 4]] = match &self.colours {
+            Some(q) => &q.palette,
+            None => &[GREY],
+        };
+        for k in 0..256 {
+            buf.extend_from_slice(entries.get(k).unwrap_or(&[0, 0, 0, 255]));
         }
         out.write_all(&buf)
     }

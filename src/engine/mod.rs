@@ -4,6 +4,7 @@
 //! GPU engine is tested against. Engines know nothing of files or HTTP. The GPU engine is built
 //! only with the `gpu` Cargo feature (see [`gpu`]).
 
+pub mod colour;
 pub mod cpu;
 pub mod density;
 pub mod distance;

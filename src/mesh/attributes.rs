@@ -10,9 +10,15 @@
 //!   at the end of the table when used); each material's name and base colour factor
 //!   (`baseColorFactor`, linear RGBA, default white).
 //!
+//! * **Textures**: a material's base colour texture ([`TextureRef`]: image and sampler), the
+//!   decoded images (`texture.rs`), and each triangle's texture coordinates at its three
+//!   corners, in the UV set its material's texture reads, with the texture's
+//!   `KHR_texture_transform` applied (zeros for a triangle whose material has no texture).
+//!
 //! The loaders that do not read an attribute leave it out; nothing here is invented.
 
 use super::MeshError;
+pub use super::texture::{Image, TextureRef};
 
 /// A mesh's colour and material attributes (all empty for a file without them).
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -22,6 +28,11 @@ pub struct Attributes {
     /// One id per triangle, into `materials`.
     pub material: Option<Vec<u16>>,
     pub materials: Vec<Material>,
+    /// Each triangle's texture coordinates at its corners (see the module docs), when some
+    /// material has a texture.
+    pub uv: Option<Vec<[[f32; 2]; 3]>>,
+    /// The images the materials' textures read.
+    pub images: Vec<Image>,
 }
 
 /// A material of the table.
@@ -31,6 +42,8 @@ pub struct Material {
     pub name: String,
     /// Linear RGBA in [0, 1].
     pub base_color: [f32; 4],
+    /// The base colour texture (multiplied by `base_color`, as glTF does).
+    pub texture: Option<TextureRef>,
 }
 
 /// A triangle without a material while a loader gathers the table.
@@ -46,6 +59,7 @@ impl Attributes {
             table.push(Material {
                 name: "default".into(),
                 base_color: [1.0; 4],
+                texture: None,
             });
             for m in &mut ids {
                 if *m == NO_MATERIAL {
@@ -107,6 +121,29 @@ impl Attributes {
                 ));
             }
         }
+        if let Some(uv) = &self.uv
+            && uv.len() != triangles
+        {
+            return bad(format!(
+                "{} texture coordinate triples for {triangles} triangles",
+                uv.len()
+            ));
+        }
+        if let Some((i, _)) = self
+            .materials
+            .iter()
+            .enumerate()
+            .find(|(_, m)| m.texture.is_some_and(|t| t.image >= self.images.len()))
+        {
+            return bad(format!(
+                "material {i}'s texture reads image {}, not among the {} images",
+                self.materials[i].texture.unwrap().image,
+                self.images.len()
+            ));
+        }
+        if self.materials.iter().any(|m| m.texture.is_some()) && self.uv.is_none() {
+            return bad("a material has a texture but the mesh has no texture coordinates".into());
+        }
         Ok(())
     }
 
@@ -125,8 +162,15 @@ impl Attributes {
                 .take(8)
                 .map(|m| {
                     let c = m.base_color;
+                    let tex = match m.texture {
+                        Some(t) => {
+                            let i = &self.images[t.image];
+                            format!(" texture {}x{}", i.width, i.height)
+                        }
+                        None => String::new(),
+                    };
                     format!(
-                        "{} [{:.3} {:.3} {:.3} {:.3}]",
+                        "{} [{:.3} {:.3} {:.3} {:.3}]{tex}",
                         m.name, c[0], c[1], c[2], c[3]
                     )
                 })

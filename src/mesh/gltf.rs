@@ -10,10 +10,9 @@ use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::Mode;
 
 use super::attributes::NO_MATERIAL;
+use super::gltf_materials::{self, UvSpec};
 use super::stream::Stream;
-use super::{
-    Attributes, ExternalResources, HEAD, LoadOptions, Material, Mesh, MeshError, malformed,
-};
+use super::{Attributes, ExternalResources, HEAD, LoadOptions, Mesh, MeshError, malformed};
 
 type Mat4 = [[f64; 4]; 4];
 const IDENTITY: Mat4 = [
@@ -326,6 +325,8 @@ fn parse_document(doc: &gltf::Gltf, opts: &LoadOptions) -> Result<Mesh, MeshErro
         colors: vec![],
         material: vec![],
         any_material: false,
+        specs: vec![],
+        uv: vec![],
     };
     if doc.materials().len() >= usize::from(u16::MAX) {
         return Err(malformed(
@@ -337,6 +338,13 @@ fn parse_document(doc: &gltf::Gltf, opts: &LoadOptions) -> Result<Mesh, MeshErro
             ),
         ));
     }
+    let held: u64 = buffers.iter().map(|b| b.len() as u64).sum();
+    let (table, images, specs) = gltf_materials::materials(
+        doc,
+        &buffers,
+        opts.max_decompressed_bytes.saturating_sub(held),
+    )?;
+    out.specs = specs;
     for (m, world) in instances(doc)? {
         out.mesh(&m, &world, &buffers)?;
     }
@@ -361,17 +369,11 @@ fn parse_document(doc: &gltf::Gltf, opts: &LoadOptions) -> Result<Mesh, MeshErro
     if out.any_material {
         // The document's materials in order; glTF's default material after them when a
         // primitive has none (its id: the table's length).
-        let table = doc
-            .materials()
-            .map(|m| Material {
-                name: m.name().map_or_else(
-                    || format!("material {}", m.index().unwrap_or(0)),
-                    str::to_string,
-                ),
-                base_color: m.pbr_metallic_roughness().base_color_factor(),
-            })
-            .collect();
         attributes.set_materials(table, out.material);
+        if !out.uv.is_empty() {
+            attributes.uv = Some(out.uv);
+            attributes.images = images;
+        }
     }
     Mesh::new(out.positions, out.triangles)?.with_attributes(attributes)
 }
@@ -435,6 +437,11 @@ struct Collector {
     /// Each triangle's material index ([`NO_MATERIAL`]: none); `any_material`: some had one.
     material: Vec<u16>,
     any_material: bool,
+    /// Each material's texture coordinates ([`gltf_materials::materials`]).
+    specs: Vec<Option<UvSpec>>,
+    /// Each triangle's corner texture coordinates (zeros without a texture), once a
+    /// triangle's material had a texture; empty while none has.
+    uv: Vec<[[f32; 2]; 3]>,
 }
 
 impl Collector {
@@ -558,6 +565,35 @@ impl Collector {
                 Mode::Triangles => tris.extend(indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]])),
                 Mode::TriangleStrip => super::unroll_strip(&indices, &mut tris),
                 _ => super::fan(&indices, &mut tris),
+            }
+            let spec = self.specs.get(usize::from(material)).copied().flatten();
+            match spec {
+                Some(spec) => {
+                    let uvs: Vec<[f32; 2]> = match reader
+                        .read_tex_coords(spec.set)
+                        .map(|t| t.into_f32().collect::<Vec<_>>())
+                    {
+                        Some(t) if t.len() == positions.len() => t,
+                        _ => {
+                            return Err(malformed(
+                                "glTF",
+                                format!(
+                                    "{where_}: its material's texture reads TEXCOORD_{}, which the primitive lacks (or has not one per position)",
+                                    spec.set
+                                ),
+                            ));
+                        }
+                    };
+                    if self.uv.is_empty() {
+                        self.uv = vec![[[0.0; 2]; 3]; self.triangles.len()];
+                    }
+                    self.uv
+                        .extend(gltf_materials::corner_uvs(&tris, &uvs, &spec));
+                }
+                None if !self.uv.is_empty() => self
+                    .uv
+                    .extend(std::iter::repeat_n([[0.0f32; 2]; 3], tris.len())),
+                None => {}
             }
             self.material
                 .extend(std::iter::repeat_n(material, tris.len()));

@@ -8,12 +8,14 @@ pub mod cost;
 mod degenerate;
 mod diagnostics;
 mod gltf;
+mod gltf_materials;
 mod obj;
 mod ply;
 mod stl;
 mod stream;
 #[cfg(test)]
 mod streaming_tests;
+pub mod texture;
 
 use std::path::{Path, PathBuf};
 

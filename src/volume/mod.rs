@@ -280,6 +280,9 @@ macro_rules! each {
 
 /// The kinds bit-volume operations take.
 pub const BITS_ONLY: &[VolumeKind] = &[VolumeKind::Bits];
+/// Bit volumes with or without attribute channels: what the formats that list or draw set
+/// voxels hold.
+pub const BITS_AND_CHANNELS: &[VolumeKind] = &[VolumeKind::Bits, VolumeKind::Channels];
 
 impl Volume {
     pub fn grid(&self) -> &Grid {
@@ -331,6 +334,15 @@ impl Volume {
     pub fn count_occupied(&self) -> u64 {
         each!(self, v => v.count_occupied(),
             Bits(b) => b.count_ones(), Density(d) => d.count_nonzero(), Channels(c) => c.len())
+    }
+
+    /// The bits of a bit volume or of a bit volume with channels.
+    pub fn bits(&self) -> Option<&BitVolume> {
+        match self {
+            Volume::Bits(b) => Some(b),
+            Volume::Channels(a) => Some(a.bits()),
+            _ => None,
+        }
     }
 
     /// The bit volume, or the refusal of `what` (an operation that takes [`BITS_ONLY`]).

@@ -151,6 +151,7 @@ mod tests {
             padding: 1,
             method: MethodSpec::Bits(Method::Solid),
             fill: Fill::Parity,
+            attributes: Default::default(),
             limits: Limits::SERVICE,
         }
     }

@@ -28,6 +28,8 @@ pub struct Submission {
     pub padding: u32,
     pub method: MethodSpec,
     pub fill: Fill,
+    /// The attribute channels asked for (checked against the method).
+    pub attributes: crate::engine::colour::Want,
     pub limits: Limits,
     pub name: Option<String>,
     /// The API key that submits it, and its limit of jobs at once.
@@ -50,6 +52,7 @@ impl Submission {
             padding: self.padding,
             method: self.method,
             fill: self.fill,
+            attributes: self.attributes,
             limits: self.limits,
         }
     }

@@ -108,7 +108,11 @@ pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshErro
             .map(|n| {
                 let name = String::from_utf8_lossy(n).into_owned();
                 let base_color = colours.get(&name).copied().unwrap_or([1.0; 4]);
-                Material { name, base_color }
+                Material {
+                    name,
+                    base_color,
+                    texture: None,
+                }
             })
             .collect();
         attributes.set_materials(table, st.material);

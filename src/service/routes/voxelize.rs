@@ -38,6 +38,12 @@ pub struct VoxelizeQuery {
     dims: Option<[u32; 3]>,
     #[serde(default, deserialize_with = "flag::deserialize")]
     cubic: bool,
+    /// Colour channel (solid, surface, conservative, interior, distance).
+    #[serde(default, deserialize_with = "flag::deserialize")]
+    color: bool,
+    /// Material-id channel (the same methods).
+    #[serde(default, deserialize_with = "flag::deserialize")]
+    material: bool,
     #[serde(default)]
     padding: u32,
     name: Option<String>,
@@ -174,6 +180,10 @@ pub async fn submit(
         padding: q.padding,
         method,
         fill: method.fill(q.fill)?,
+        attributes: method.attributes(crate::app::request::Want {
+            colour: q.color,
+            material: q.material,
+        })?,
         limits,
         name: q.name,
         owner,

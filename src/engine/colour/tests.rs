@@ -1,0 +1,271 @@
+use super::*;
+use crate::mesh::Material;
+use crate::mesh::texture::{Filter, TextureRef, Wrap};
+
+fn grid(dims: [u32; 3]) -> Grid {
+    Grid {
+        origin: [0.0; 3],
+        voxel_size: 1.0,
+        dims,
+    }
+}
+
+fn white(name: &str) -> Material {
+    Material {
+        name: name.into(),
+        base_color: [1.0; 4],
+        texture: None,
+    }
+}
+
+/// One big triangle in the plane z = 2.5 with a colour per corner: a voxel whose square lies
+/// wholly inside it has the colour interpolated at the square's centre (the mean of a linear
+/// function over a square), whatever the clipping did.
+#[test]
+fn vertex_colours_interpolate_to_the_voxels_centre() {
+    let p = vec![[0.0, 0.0, 2.5], [20.0, 0.0, 2.5], [0.0, 20.0, 2.5]];
+    let c = [
+        [1.0, 0.0, 0.0, 1.0],
+        [0.0, 1.0, 0.0, 0.5],
+        [0.0, 0.0, 1.0, 1.0],
+    ];
+    let mesh = Mesh::new(p.clone(), vec![[0, 1, 2]])
+        .unwrap()
+        .with_attributes(Attributes {
+            colors: Some(c.to_vec()),
+            ..Default::default()
+        })
+        .unwrap();
+    let g = grid([20, 20, 5]);
+    let want = Want {
+        colour: true,
+        material: false,
+    };
+    let s = surface(&mesh, &g, want, &Control::none()).unwrap();
+    for v in [[3u32, 4, 2], [10, 2, 2], [0, 0, 2], [7, 11, 2]] {
+        let i = s.keys.binary_search(&key(v, g.dims)).unwrap();
+        // Barycentric weights of the square's centre.
+        let (x, y) = (f64::from(v[0]) + 0.5, f64::from(v[1]) + 0.5);
+        let w = [1.0 - x / 20.0 - y / 20.0, x / 20.0, y / 20.0];
+        for (k, got) in s.rgba[i].iter().enumerate() {
+            let got = *got;
+            let want: f64 = (0..3).map(|j| w[j] * c[j][k] as f64).sum();
+            assert!(
+                (f64::from(got) - want).abs() < 1e-6,
+                "voxel {v:?} channel {k}: {got} vs {want}"
+            );
+        }
+    }
+    // A voxel the diagonal edge cuts: the mean over the part inside, not the centre's value.
+    let v = [10u32, 9, 2];
+    let i = s.keys.binary_search(&key(v, g.dims)).unwrap();
+    // The part x + y <= 20 of [10, 11] x [9, 10]: the triangle (10, 9), (11, 9), (10, 10)
+    // plus nothing else; its centroid (10 1/3, 9 1/3).
+    let x = 10.0 + 1.0 / 3.0;
+    let want = x / 20.0; // green weight
+    assert!((f64::from(s.rgba[i][1]) - want).abs() < 1e-6);
+    // Exactly the voxels the triangle crosses with positive area: x + y < 20 inside the grid.
+    assert_eq!(
+        s.keys.len(),
+        (0..20u32).map(|x| 20 - x).sum::<u32>() as usize
+    );
+}
+
+/// The material of a voxel is the one with the most area in it; ties go to the lower id.
+#[test]
+fn material_is_the_largest_area_with_ties_to_the_lowest_id() {
+    // Two triangles in z = 0.5 splitting the voxel [0, 1]² along x = 0.3 / 0.5.
+    let p = vec![
+        [0.0, 0.0, 0.5],
+        [0.3, 0.0, 0.5],
+        [0.3, 1.0, 0.5],
+        [0.0, 1.0, 0.5],
+        [1.0, 0.0, 0.5],
+        [1.0, 1.0, 0.5],
+    ];
+    let t = vec![[0, 1, 2], [0, 2, 3], [1, 4, 5], [1, 5, 2]];
+    let make = |ids: Vec<u16>| {
+        let mut a = Attributes {
+            materials: vec![white("a"), white("b"), white("c")],
+            material: Some(ids),
+            ..Default::default()
+        };
+        a.materials[1].base_color = [0.0, 0.0, 0.0, 1.0];
+        Mesh::new(p.clone(), t.clone())
+            .unwrap()
+            .with_attributes(a)
+            .unwrap()
+    };
+    let want = Want {
+        colour: true,
+        material: true,
+    };
+    let g = grid([1, 1, 1]);
+    // 0.3 of the area is material 2, 0.7 material 1 (black).
+    let s = surface(&make(vec![2, 2, 1, 1]), &g, want, &Control::none()).unwrap();
+    assert_eq!(s.material, vec![1]);
+    assert!((f64::from(s.rgba[0][0]) - 0.3).abs() < 1e-6);
+    assert!((f64::from(s.rgba[0][3]) - 1.0).abs() < 1e-6);
+    // Half and half (x = 0.5): the lower id wins.
+    let mut p2 = p.clone();
+    p2[1][0] = 0.5;
+    p2[2][0] = 0.5;
+    let m = Mesh::new(p2, t.clone())
+        .unwrap()
+        .with_attributes(make(vec![2, 2, 1, 1]).attributes().clone())
+        .unwrap();
+    let s = surface(&m, &g, want, &Control::none()).unwrap();
+    assert_eq!(s.material, vec![1]);
+    let m = m.with_attributes(Attributes {
+        material: Some(vec![1, 1, 2, 2]),
+        ..make(vec![0; 4]).attributes().clone()
+    });
+    assert_eq!(
+        surface(&m.unwrap(), &g, want, &Control::none())
+            .unwrap()
+            .material,
+        vec![1]
+    );
+}
+
+#[test]
+fn a_mesh_without_colour_is_refused_clearly() {
+    let mesh = Mesh::new(
+        vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+        vec![[0, 1, 2]],
+    )
+    .unwrap();
+    let colour = Want {
+        colour: true,
+        material: false,
+    };
+    let material = Want {
+        colour: false,
+        material: true,
+    };
+    let g = grid([2, 2, 2]);
+    assert_eq!(
+        surface(&mesh, &g, colour, &Control::none()),
+        Err(ColourError::NoColour)
+    );
+    assert_eq!(
+        surface(&mesh, &g, material, &Control::none()),
+        Err(ColourError::NoMaterials)
+    );
+}
+
+/// Inside a solid, each voxel takes the nearest wall's colour: a 10³ cube of voxels whose
+/// sources are its x = 0 wall (red) and x = 9 wall (blue) splits down the middle.
+#[test]
+fn interior_voxels_take_the_nearest_surface_voxel() {
+    let g = grid([10, 10, 10]);
+    let mut bits = BitVolume::new(g);
+    for x in 0..10 {
+        for y in 0..10 {
+            for z in 0..10 {
+                bits.set(x, y, z, true);
+            }
+        }
+    }
+    let mut keys = vec![];
+    for y in 0..10 {
+        for z in 0..10 {
+            keys.push(key([0, y, z], g.dims));
+            keys.push(key([9, y, z], g.dims));
+        }
+    }
+    keys.sort();
+    let src = propagate::nearest(&bits, &keys, &Control::none()).unwrap();
+    for (r, v) in bits.iter_ones().enumerate() {
+        let s = propagate_coords(keys[src[r] as usize], g.dims);
+        let d = |a: [u32; 3]| {
+            (0..3)
+                .map(|k| (a[k] as i64 - v[k] as i64).pow(2))
+                .sum::<i64>()
+        };
+        // The nearest source, by brute force.
+        let best = keys
+            .iter()
+            .map(|&k| d(propagate_coords(k, g.dims)))
+            .min()
+            .unwrap();
+        assert_eq!(d(s), best, "voxel {v:?} took {s:?}");
+        assert_eq!(s[0], if v[0] < 5 { 0 } else { 9 });
+    }
+}
+
+fn propagate_coords(k: u64, dims: [u32; 3]) -> [u32; 3] {
+    let z = (k % dims[2] as u64) as u32;
+    let c = k / dims[2] as u64;
+    [(c / dims[1] as u64) as u32, (c % dims[1] as u64) as u32, z]
+}
+
+/// A textured quad whose texture is one colour gives that colour exactly (sRGB bytes through
+/// linear light and back), in every filter and wrap mode.
+#[test]
+fn a_uniform_texture_gives_its_colour_exactly() {
+    let img = Image {
+        width: 4,
+        height: 4,
+        texels: vec![[200, 30, 90, 255]; 16],
+    };
+    for filter in [Filter::Linear, Filter::Nearest] {
+        let p = vec![
+            [0.0, 0.0, 0.5],
+            [3.0, 0.0, 0.5],
+            [3.0, 3.0, 0.5],
+            [0.0, 3.0, 0.5],
+        ];
+        let a = Attributes {
+            materials: vec![Material {
+                name: "t".into(),
+                base_color: [1.0; 4],
+                texture: Some(TextureRef {
+                    image: 0,
+                    wrap: [Wrap::Repeat; 2],
+                    filter,
+                }),
+            }],
+            material: Some(vec![0, 0]),
+            uv: Some(vec![
+                [[0.0, 0.0], [5.0, 0.0], [5.0, 5.0]],
+                [[0.0, 0.0], [5.0, 5.0], [0.0, 5.0]],
+            ]),
+            images: vec![img.clone()],
+            ..Default::default()
+        };
+        let mesh = Mesh::new(p, vec![[0, 1, 2], [0, 2, 3]])
+            .unwrap()
+            .with_attributes(a)
+            .unwrap();
+        let mut bits = BitVolume::new(grid([3, 3, 1]));
+        for x in 0..3 {
+            for y in 0..3 {
+                bits.set(x, y, 0, true);
+            }
+        }
+        let want = Want {
+            colour: true,
+            material: true,
+        };
+        let out = attribute(&mesh, bits, want, &Control::none()).unwrap();
+        let ChannelValues::Rgba8(c) = &out.channel(RGBA).unwrap().values else {
+            panic!()
+        };
+        assert_eq!(c, &vec![[200, 30, 90, 255]; 9]);
+    }
+}
+
+#[test]
+fn sub_triangles_tile_the_triangle() {
+    for n in [1u32, 2, 4, 8] {
+        let mut pts = vec![];
+        sub_centroids(n, |s, r| pts.push((s, r)));
+        assert_eq!(pts.len() as u32, n * n);
+        // The mean of the centroids of equal parts is the whole's centroid.
+        let m = pts.iter().fold((0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1));
+        let k = f64::from(n * n);
+        assert!((m.0 / k - 1.0 / 3.0).abs() < 1e-12 && (m.1 / k - 1.0 / 3.0).abs() < 1e-12);
+        assert!(pts.iter().all(|&(s, r)| s > 0.0 && r > 0.0 && s + r < 1.0));
+    }
+}

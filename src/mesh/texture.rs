@@ -1,0 +1,265 @@
+//! Base colour textures for colour voxels (issue 34): PNG and JPEG images decoded by image-rs
+//! within a byte budget, and their sampling as glTF defines it.
+//!
+//! * **Decoding**: the image's dimensions are read from its header first; one whose RGBA8 texels
+//!   would take more than the budget left (the mesh's decompressed-byte limit, shared by all its
+//!   images) is refused before any texel is decoded. Texels are kept as 8-bit sRGB RGBA (what
+//!   the files hold: 4 bytes a texel).
+//! * **Coordinates**: glTF's: (0, 0) is the image's top-left corner, u to the right, v down;
+//!   texel (i, j)'s centre is at ((i + ½)/W, (j + ½)/H).
+//! * **Wrapping** per axis (glTF sampler `wrapS`/`wrapT`): repeat (the default), mirrored repeat,
+//!   clamp to edge, applied to texel indices.
+//! * **Filtering** (the sampler's `magFilter`): linear (the default, bilinear between the four
+//!   nearest texel centres) or nearest (the texel the point lies in).
+//! * **Colour space**: texels are sRGB-encoded, so they are decoded to linear light (the sRGB
+//!   transfer function of IEC 61966-2-1) before they are filtered; alpha is linear.
+
+use super::MeshError;
+
+/// A decoded image: `width × height` sRGB RGBA8 texels, row by row from the top.
+#[derive(Clone, PartialEq)]
+pub struct Image {
+    pub width: u32,
+    pub height: u32,
+    pub texels: Vec<[u8; 4]>,
+}
+
+impl std::fmt::Debug for Image {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Image({}x{})", self.width, self.height)
+    }
+}
+
+/// How texel indices outside the image are brought back in (glTF's sampler wrap modes).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Wrap {
+    #[default]
+    Repeat,
+    MirroredRepeat,
+    ClampToEdge,
+}
+
+/// The filter between texels (glTF's `magFilter`; voxels average over areas larger than a
+/// texel only through the sampling of `engine::colour`, so there is no minification filter).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Filter {
+    #[default]
+    Linear,
+    Nearest,
+}
+
+/// A material's base colour texture: the image, its sampler. The texture coordinates (with a
+/// `KHR_texture_transform` applied) are the mesh's, per triangle corner.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TextureRef {
+    pub image: usize,
+    pub wrap: [Wrap; 2],
+    pub filter: Filter,
+}
+
+/// sRGB-encoded byte to linear light, for each of the 256 values.
+pub fn srgb_to_linear_table() -> &'static [f32; 256] {
+    static TABLE: std::sync::OnceLock<[f32; 256]> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| std::array::from_fn(|i| srgb_to_linear(i as f64 / 255.0) as f32))
+}
+
+/// The sRGB transfer function's inverse (IEC 61966-2-1), on [0, 1].
+pub fn srgb_to_linear(c: f64) -> f64 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// The sRGB transfer function (IEC 61966-2-1), on [0, 1].
+pub fn linear_to_srgb(c: f64) -> f64 {
+    if c <= 0.0031308 {
+        c * 12.92
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// Decodes a PNG or JPEG image (recognised by its bytes) whose texels fit in `budget` bytes (4 a
+/// texel), refusing a larger one before decoding it. `what` names it in errors ("image 2").
+pub fn decode(bytes: &[u8], budget: u64, what: &str) -> Result<Image, MeshError> {
+    let bad = |detail: String| MeshError::Malformed {
+        format: "texture",
+        detail: format!("{what}: {detail}"),
+    };
+    let format = image::guess_format(bytes).map_err(|_| bad("not a PNG or JPEG image".into()))?;
+    if !matches!(format, image::ImageFormat::Png | image::ImageFormat::Jpeg) {
+        return Err(bad(format!(
+            "{format:?} images are not read; use PNG or JPEG"
+        )));
+    }
+    let reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), format);
+    let (w, h) = reader
+        .into_dimensions()
+        .map_err(|e| bad(format!("unreadable header: {e}")))?;
+    let need = u64::from(w) * u64::from(h) * 4;
+    if need > budget {
+        return Err(MeshError::Malformed {
+            format: "texture",
+            detail: format!(
+                "{what} is {w}x{h}, {need} bytes decoded, over the {budget} bytes left of the mesh's decompressed-byte limit"
+            ),
+        });
+    }
+    let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), format);
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(need.saturating_mul(2).max(1 << 20));
+    reader.limits(limits);
+    let img = reader
+        .decode()
+        .map_err(|e| bad(format!("{e}")))?
+        .into_rgba8();
+    let (width, height) = img.dimensions();
+    let texels = img
+        .into_raw()
+        .chunks_exact(4)
+        .map(|c| [c[0], c[1], c[2], c[3]])
+        .collect();
+    Ok(Image {
+        width,
+        height,
+        texels,
+    })
+}
+
+fn wrap(i: i64, n: u32, mode: Wrap) -> u32 {
+    let n = i64::from(n);
+    (match mode {
+        Wrap::Repeat => i.rem_euclid(n),
+        Wrap::ClampToEdge => i.clamp(0, n - 1),
+        Wrap::MirroredRepeat => {
+            let m = i.rem_euclid(2 * n);
+            if m < n { m } else { 2 * n - 1 - m }
+        }
+    }) as u32
+}
+
+impl Image {
+    fn texel(&self, i: i64, j: i64, t: &TextureRef) -> [f32; 4] {
+        let x = wrap(i, self.width, t.wrap[0]);
+        let y = wrap(j, self.height, t.wrap[1]);
+        let c = self.texels[y as usize * self.width as usize + x as usize];
+        let lin = srgb_to_linear_table();
+        [
+            lin[c[0] as usize],
+            lin[c[1] as usize],
+            lin[c[2] as usize],
+            f32::from(c[3]) / 255.0,
+        ]
+    }
+
+    /// The linear RGBA at texture coordinates (u, v) through `t`'s sampler. Coordinates that
+    /// are not finite read texel (0, 0).
+    pub fn sample(&self, u: f64, v: f64, t: &TextureRef) -> [f32; 4] {
+        let (u, v) = if u.is_finite() && v.is_finite() {
+            (u, v)
+        } else {
+            (0.0, 0.0)
+        };
+        // In texel units; far coordinates are brought near 0 first (wrapping is periodic in
+        // the image size, or clamped) so the float stays exact enough.
+        let fold = |c: f64, n: u32, m: Wrap| match m {
+            Wrap::Repeat => c.rem_euclid(1.0) * f64::from(n),
+            Wrap::MirroredRepeat => c.rem_euclid(2.0) * f64::from(n),
+            Wrap::ClampToEdge => c.clamp(-1.0, 2.0) * f64::from(n),
+        };
+        let x = fold(u, self.width, t.wrap[0]);
+        let y = fold(v, self.height, t.wrap[1]);
+        match t.filter {
+            Filter::Nearest => self.texel(x.floor() as i64, y.floor() as i64, t),
+            Filter::Linear => {
+                let (x, y) = (x - 0.5, y - 0.5);
+                let (x0, y0) = (x.floor(), y.floor());
+                let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
+                let (i, j) = (x0 as i64, y0 as i64);
+                let a = self.texel(i, j, t);
+                let b = self.texel(i + 1, j, t);
+                let c = self.texel(i, j + 1, t);
+                let d = self.texel(i + 1, j + 1, t);
+                std::array::from_fn(|k| {
+                    let top = a[k] + (b[k] - a[k]) * fx;
+                    let bottom = c[k] + (d[k] - c[k]) * fx;
+                    top + (bottom - top) * fy
+                })
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn image(w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 4]) -> Image {
+        Image {
+            width: w,
+            height: h,
+            texels: (0..h)
+                .flat_map(|y| (0..w).map(move |x| (x, y)))
+                .map(|(x, y)| f(x, y))
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn srgb_bytes_survive_the_round_trip_through_linear() {
+        for b in 0..=255u8 {
+            let lin = srgb_to_linear_table()[b as usize] as f64;
+            assert_eq!((linear_to_srgb(lin) * 255.0).round() as u8, b, "byte {b}");
+        }
+    }
+
+    #[test]
+    fn wrap_modes_and_filters() {
+        // 2x1: left texel black, right white (alpha = the red byte, linear).
+        let img = image(2, 1, |x, _| [255 * x as u8; 4]);
+        let t = |wrap, filter| TextureRef {
+            image: 0,
+            wrap: [wrap; 2],
+            filter,
+        };
+        let rep = t(Wrap::Repeat, Filter::Nearest);
+        assert_eq!(img.sample(0.25, 0.5, &rep)[0], 0.0);
+        assert_eq!(img.sample(0.75, 0.5, &rep)[0], 1.0);
+        assert_eq!(img.sample(1.25, 7.5, &rep)[0], 0.0);
+        assert_eq!(img.sample(-0.25, 0.5, &rep)[0], 1.0);
+        let mir = t(Wrap::MirroredRepeat, Filter::Nearest);
+        assert_eq!(img.sample(1.25, 0.5, &mir)[0], 1.0);
+        assert_eq!(img.sample(-0.25, 0.5, &mir)[0], 0.0);
+        let clamp = t(Wrap::ClampToEdge, Filter::Nearest);
+        assert_eq!(img.sample(5.0, 0.5, &clamp)[0], 1.0);
+        assert_eq!(img.sample(-5.0, 0.5, &clamp)[0], 0.0);
+        // Bilinear: halfway between the texel centres (u = 0.5) is the mean, in linear light.
+        let lin = t(Wrap::ClampToEdge, Filter::Linear);
+        assert!((img.sample(0.5, 0.5, &lin)[3] - 0.5).abs() < 1e-6);
+        assert!((img.sample(0.375, 0.5, &lin)[3] - 0.25).abs() < 1e-6);
+        // Repeat blends the last texel with the first across the edge.
+        let lrep = t(Wrap::Repeat, Filter::Linear);
+        assert!((img.sample(0.0, 0.5, &lrep)[3] - 0.5).abs() < 1e-6);
+        assert_eq!(
+            img.sample(f64::NAN, 0.5, &lrep),
+            img.sample(0.0, 0.0, &lrep)
+        );
+    }
+
+    #[test]
+    fn decoding_is_bounded_before_it_starts() {
+        let mut png = vec![];
+        let img = image::RgbaImage::from_pixel(64, 32, image::Rgba([10, 20, 30, 255]));
+        img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .unwrap();
+        let got = decode(&png, 64 * 32 * 4, "image 0").unwrap();
+        assert_eq!((got.width, got.height), (64, 32));
+        assert!(got.texels.iter().all(|t| *t == [10, 20, 30, 255]));
+        let err = decode(&png, 64 * 32 * 4 - 1, "image 0").unwrap_err();
+        assert!(err.to_string().contains("64x32"), "{err}");
+        assert!(decode(b"GIF89a....", 1 << 20, "image 1").is_err());
+        assert!(decode(&png[..40], 1 << 20, "image 1").is_err());
+    }
+}
