@@ -80,8 +80,9 @@ part_s3() {
 
 # mesh: trimesh, pinned, in the venv VOXD_MESH_VENV (default ~/.cache/voxd/mesh-venv): the
 # independent reader of the extracted meshes in tests/mesh_cli.rs (watertight, winding
-# consistent, volume). A failed install is a NOTICE here: those checks then skip.
-MESH_PINS="trimesh==5.2.0 numpy==2.4.6"
+# consistent, volume) and of textured glTF (pillow: trimesh decodes textures with it) in
+# tests/service/colour.rs. A failed install is a NOTICE here: those checks then skip.
+MESH_PINS="trimesh==5.2.0 numpy==2.4.6 pillow==13.0.0"
 part_mesh() {
   local venv=${VOXD_MESH_VENV:-$CACHE/mesh-venv}
   if [[ ! -x $venv/bin/python || "$(cat "$venv/.pins" 2>/dev/null)" != "$MESH_PINS" ]]; then

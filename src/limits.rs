@@ -25,6 +25,8 @@ pub struct Limits {
     pub max_json_bytes: usize,
     /// Bytes a gzip'd mesh may expand to.
     pub max_decompressed_bytes: u64,
+    /// Bytes the decoded textures of one mesh may take (4 a texel: 256 MiB is one 8192²).
+    pub max_texture_bytes: u64,
     /// Points plus rays of one query, points of one normals request.
     pub max_queries: usize,
     /// Pixels of one preview picture.
@@ -73,6 +75,7 @@ impl Limits {
         max_body_bytes: usize::MAX,
         max_json_bytes: 1 << 20,
         max_decompressed_bytes: 8 << 30,
+        max_texture_bytes: 256 << 20,
         max_queries: 100_000,
         max_preview_pixels: 1 << 24,
         max_csg_depth: 32,

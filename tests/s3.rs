@@ -57,6 +57,7 @@ fn meta(id: &str, data: &[u8]) -> VolumeMeta {
         sha256: sha256_hex(data),
         provenance: None,
         distance: None,
+        attributes: None,
         owner: None,
     }
 }

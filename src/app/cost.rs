@@ -58,6 +58,13 @@ pub fn stored_decoded_bytes(meta: &VolumeMeta) -> u64 {
                 .saturating_add(positions.div_ceil(8))
                 .min(decoded_bytes(meta.kind, &meta.grid).saturating_add(positions / 8))
         }
+        // The bits, each set voxel's values, and the rank of each column's first one.
+        (VolumeKind::Channels, _) => {
+            let [nx, ny, _] = meta.grid.dims.map(u64::from);
+            decoded_bytes(meta.kind, &meta.grid)
+                .saturating_add(meta.solid_voxels.saturating_mul(CHANNEL_BYTES))
+                .saturating_add(nx.saturating_mul(ny).saturating_mul(8))
+        }
         _ => decoded_bytes(meta.kind, &meta.grid),
     }
 }
@@ -147,6 +154,42 @@ pub fn intersect(a: &VolumeMeta, b: &VolumeMeta) -> u64 {
 /// stored bytes and holds nothing.
 pub fn conversion(meta: &VolumeMeta) -> u64 {
     load(meta).saturating_add(4 * (256 << 10))
+}
+
+/// Bytes per set voxel of a channel volume's values: a colour (4) and a material id (2).
+pub const CHANNEL_BYTES: u64 = 6;
+
+/// The colour and material channels of a voxelization (`engine::colour`) on `grid`: per set
+/// voxel its values (rgba 4, material 2), its nearest-source index and proposal (8) and the
+/// copy made of them for the volume (6); per surface voxel its sums and map entry (about 96);
+/// per triangle part of a batch of 2¹⁵ triangles its record (48). Set voxels are not known
+/// before the bits are: the grid's voxels bound them. Surface voxels and parts are bounded by
+/// the voxels of the triangles' bounding boxes (within the grid's).
+pub fn colour_job(grid: &Grid, want: crate::engine::colour::Want, mesh: &crate::mesh::Mesh) -> u64 {
+    if !want.any() {
+        return 0;
+    }
+    let boxes = |tris: &[[u32; 3]]| -> u64 {
+        tris.iter()
+            .map(|t| {
+                let p = t.map(|i| grid.index_of(mesh.positions()[i as usize]));
+                (0..3)
+                    .map(|k| {
+                        let lo = p[0][k].min(p[1][k]).min(p[2][k]).floor();
+                        let hi = p[0][k].max(p[1][k]).max(p[2][k]).floor();
+                        ((hi - lo + 1.0).clamp(1.0, f64::from(grid.dims[k]))) as u64
+                    })
+                    .product::<u64>()
+            })
+            .fold(0u64, u64::saturating_add)
+    };
+    let tris = mesh.triangles();
+    let surface = boxes(tris).min(grid.voxel_count());
+    let batch = tris.chunks(1 << 15).map(boxes).max().unwrap_or(0);
+    grid.voxel_count()
+        .saturating_mul(6 + 8 + 6)
+        .saturating_add(surface.saturating_mul(96))
+        .saturating_add(batch.saturating_mul(48))
 }
 
 /// A voxelization job on `grid` (not counting the mesh, which its loading admits): the

@@ -157,6 +157,7 @@ pub async fn stored_solid(
         external: ExternalResources::Deny,
         max_triangles: limits.max_triangles,
         max_decompressed_bytes: limits.max_decompressed_bytes,
+        max_texture_bytes: limits.max_texture_bytes,
     };
     let mesh = super::sources::load(store, meta, opts).await?;
     let diagnostics = match meta.diagnostics.clone() {

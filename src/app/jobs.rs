@@ -263,7 +263,9 @@ pub fn job_bytes(work: &Prepared) -> u64 {
         // The mesh kept for the volume (`sources`), encoded beside it until it is stored.
         mesh += crate::mesh::binary::encoded_len(v, t) as u64;
     }
-    cost::voxelize_job(&work.grid, &work.method, work.candidate_bricks).saturating_add(mesh)
+    cost::voxelize_job(&work.grid, &work.method, work.candidate_bricks)
+        .saturating_add(mesh)
+        .saturating_add(cost::colour_job(&work.grid, work.attributes, &work.mesh))
 }
 
 /// Holds job `claim`'s memory before it runs ([`job_bytes`]): it waits in its worker while other

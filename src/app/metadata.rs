@@ -123,6 +123,36 @@ fn distance_meta(volume: &Volume, origin: &Origin) -> Option<DistanceMeta> {
     (d != DistanceMeta::default()).then_some(d)
 }
 
+/// The channels of a channel volume, and the mesh's material table when one is a material id.
+fn attributes_meta(v: &Volume, origin: &Origin) -> Option<super::store::AttributesMeta> {
+    let Volume::Channels(a) = v else { return None };
+    let channels: Vec<String> = a.channels().iter().map(|c| c.name.clone()).collect();
+    let materials = match origin {
+        Origin::Mesh { prepared: p, .. }
+            if channels
+                .iter()
+                .any(|c| c == crate::engine::colour::MATERIAL) =>
+        {
+            p.mesh
+                .attributes()
+                .materials
+                .iter()
+                .enumerate()
+                .map(|(i, m)| super::store::MaterialMeta {
+                    id: i as u16,
+                    name: m.name.clone(),
+                    base_color: m.base_color,
+                })
+                .collect()
+        }
+        _ => vec![],
+    };
+    Some(super::store::AttributesMeta {
+        channels,
+        materials,
+    })
+}
+
 /// Set voxels (density: non-zero voxels) and occupied voxels (density: the sum of fractions).
 pub fn counts(v: &Volume) -> (u64, f64) {
     match v {
@@ -203,6 +233,7 @@ pub fn build(
             Origin::Mesh { .. } => None,
         },
         distance: distance_meta(volume, origin),
+        attributes: attributes_meta(volume, origin),
         // The caller sets it (a job's tenant, an operation's).
         owner: None,
     };

@@ -10,6 +10,7 @@
 //! (`crate::store`, `crate::queue`), which never call back into the application. Limits are in
 //! [`crate::limits`].
 
+pub mod attributes;
 pub mod cost;
 pub mod distance;
 pub mod error;

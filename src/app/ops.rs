@@ -304,6 +304,18 @@ pub fn preview_png(v: &Volume, req: &PreviewRequest, limits: &Limits) -> Result<
             ),
         ));
     }
+    let colour = match req.view {
+        PreviewView::Slice(k) => preview::colour(v, req.axis, Some(k)),
+        PreviewView::Projection(preview::Projection::Max) => preview::colour(v, req.axis, None),
+        PreviewView::Projection(_) => None,
+    };
+    if let Some(pic) = colour {
+        return Ok(crate::codec::png::encode_rgb(
+            pic.width,
+            pic.height,
+            &pic.pixels,
+        ));
+    }
     let pic = match req.view {
         PreviewView::Slice(k) => preview::slice(v, req.axis, k).ok_or_else(|| {
             Error::new(
@@ -722,8 +734,10 @@ pub async fn download(
     store: &dyn VolumeStore,
     meta: &VolumeMeta,
     format: VolumeFormat,
+    attributes: Option<String>,
 ) -> Result<Download> {
     let id = meta.id.as_str();
+    super::attributes::check(meta, format, attributes.as_deref())?;
     if format == VolumeFormat::Vxl {
         let body = store
             .read_stream(id)
@@ -742,6 +756,7 @@ pub async fn download(
     let v = blocking(move || {
         let (v, _) = vxl::decode(&stored)
             .map_err(|e| Error::internal(format!("stored volume {name}: {e}")))?;
+        let v = super::attributes::select(v, format, attributes.as_deref())?;
         format.check(&v)?;
         Ok(v)
     })

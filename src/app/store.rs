@@ -51,10 +51,33 @@ pub struct VolumeMeta {
     /// tiles and active voxels, or the thickness.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub distance: Option<DistanceMeta>,
+    /// For bit volumes with channels (`color=true`, `material=true`): the channels and the
+    /// material table their ids index.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub attributes: Option<AttributesMeta>,
     /// The tenant that owns the volume (the API key's tenant that made it); none for volumes
     /// made without keys (or before volumes had owners): only admin keys see those.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub owner: Option<String>,
+}
+
+/// What a volume with attribute channels says of them.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct AttributesMeta {
+    /// The channels' names (`rgba`: sRGB colour, `material`: u16 material id).
+    pub channels: Vec<String>,
+    /// The material table of the mesh (id = index), for the `material` channel.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub materials: Vec<MaterialMeta>,
+}
+
+/// One material of the table.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct MaterialMeta {
+    pub id: u16,
+    pub name: String,
+    /// Linear RGBA in [0, 1] (glTF's `baseColorFactor`, OBJ's `Kd` and `d`).
+    pub base_color: [f32; 4],
 }
 
 /// What a distance volume's metadata says of it (docs/methods.md, "sdf").

@@ -25,6 +25,10 @@ pub use super::texture::{Image, TextureRef};
 pub struct Attributes {
     /// One RGBA per position.
     pub colors: Option<Vec<[f32; 4]>>,
+    /// Are `colors` sRGB-encoded (PLY's and OBJ's, by their tools' convention: MeshLab and
+    /// Blender write display values) rather than linear (glTF's, by its specification)?
+    /// Colour voxels decode them to linear light before they interpolate.
+    pub colors_srgb: bool,
     /// One id per triangle, into `materials`.
     pub material: Option<Vec<u16>>,
     pub materials: Vec<Material>,

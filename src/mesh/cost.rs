@@ -42,6 +42,8 @@ pub const PER_TRIANGLE: u64 = 64;
 pub const PER_COLOUR: u64 = 32;
 /// Bytes per triangle of glTF's material ids.
 pub const PER_MATERIAL_ID: u64 = 4;
+/// A triangle's corner texture coordinates (six f32) and their share of the growth.
+pub const PER_CORNER_UVS: u64 = 48;
 
 /// A parse's estimate.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -130,10 +132,29 @@ pub fn estimate(upload: &[u8], format: Option<Format>, opts: &LoadOptions) -> Es
         // Read whole, then its accessors.
         Format::Gltf | Format::Glb => {
             let (v, t) = ((decoded / 12).min(max_v), (decoded / 6).min(max_t));
+            // A document with images may decode textures up to their limit. Whether it has
+            // any is read from its JSON when the head holds all of it (a GLB's JSON chunk comes
+            // first and states its length); otherwise it is counted as having some.
+            let json_end = match format {
+                Format::Glb if head.len() >= 20 => {
+                    20 + u64::from(u32::from_le_bytes(
+                        head[12..16].try_into().expect("4 bytes"),
+                    ))
+                }
+                _ => decoded,
+            };
+            let whole_json = json_end <= head.len() as u64;
+            let images = memchr::memmem::find(head, b"\"images\"").is_some();
+            let textures = if images || !whole_json {
+                opts.max_texture_bytes
+            } else {
+                0
+            };
             decoded
                 .saturating_add(mesh_cost(v, t))
                 .saturating_add(v.saturating_mul(PER_COLOUR))
-                .saturating_add(t.saturating_mul(PER_MATERIAL_ID))
+                .saturating_add(t.saturating_mul(PER_MATERIAL_ID + PER_CORNER_UVS))
+                .saturating_add(textures)
         }
     };
     fixed(bytes)

@@ -338,12 +338,7 @@ fn parse_document(doc: &gltf::Gltf, opts: &LoadOptions) -> Result<Mesh, MeshErro
             ),
         ));
     }
-    let held: u64 = buffers.iter().map(|b| b.len() as u64).sum();
-    let (table, images, specs) = gltf_materials::materials(
-        doc,
-        &buffers,
-        opts.max_decompressed_bytes.saturating_sub(held),
-    )?;
+    let (table, images, specs) = gltf_materials::materials(doc, &buffers, opts.max_texture_bytes)?;
     out.specs = specs;
     for (m, world) in instances(doc)? {
         out.mesh(&m, &world, &buffers)?;

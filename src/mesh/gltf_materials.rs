@@ -2,8 +2,8 @@
 //! `baseColorTexture` (image, sampler, UV set, `KHR_texture_transform`), and the texture
 //! coordinates of a primitive's triangles. Images come from buffer views or `data:` URIs only,
 //! never from files (a texture by any other URI is dropped with a warning: the material keeps
-//! its factor). Each image is decoded once, however many textures read it, within the bytes
-//! left of the mesh's decompressed-byte limit.
+//! its factor). Each image is decoded once, however many textures read it, within the mesh's
+//! texture limit (`max_texture_bytes`, all its images together).
 
 use base64::Engine as _;
 use gltf::texture::{MagFilter, WrappingMode};

@@ -170,6 +170,8 @@ pub struct LoadOptions {
     pub max_triangles: usize,
     /// Limit on the bytes a `.gz` may expand to.
     pub max_decompressed_bytes: u64,
+    /// Limit on the bytes of a mesh's decoded textures (4 a texel), all images together.
+    pub max_texture_bytes: u64,
 }
 
 impl LoadOptions {
@@ -186,6 +188,7 @@ impl Default for LoadOptions {
             external: ExternalResources::Deny,
             max_triangles: crate::limits::Limits::LOCAL.max_triangles,
             max_decompressed_bytes: crate::limits::Limits::LOCAL.max_decompressed_bytes,
+            max_texture_bytes: crate::limits::Limits::LOCAL.max_texture_bytes,
         }
     }
 }

@@ -511,6 +511,7 @@ fn read_body<S: Source>(
     }
     let attributes = Attributes {
         colors: has_color.then_some(colors),
+        colors_srgb: true,
         ..Attributes::default()
     };
     Mesh::new(positions, triangles)?.with_attributes(attributes)

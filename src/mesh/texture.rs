@@ -2,7 +2,7 @@
 //! within a byte budget, and their sampling as glTF defines it.
 //!
 //! * **Decoding**: the image's dimensions are read from its header first; one whose RGBA8 texels
-//!   would take more than the budget left (the mesh's decompressed-byte limit, shared by all its
+//!   would take more than the budget left (`max_texture_bytes`, shared by all the mesh's
 //!   images) is refused before any texel is decoded. Texels are kept as 8-bit sRGB RGBA (what
 //!   the files hold: 4 bytes a texel).
 //! * **Coordinates**: glTF's: (0, 0) is the image's top-left corner, u to the right, v down;
@@ -103,7 +103,7 @@ pub fn decode(bytes: &[u8], budget: u64, what: &str) -> Result<Image, MeshError>
         return Err(MeshError::Malformed {
             format: "texture",
             detail: format!(
-                "{what} is {w}x{h}, {need} bytes decoded, over the {budget} bytes left of the mesh's decompressed-byte limit"
+                "{what} is {w}x{h}, {need} bytes decoded, over the {budget} bytes left of the limit on a mesh's decoded textures"
             ),
         });
     }

@@ -137,6 +137,10 @@ impl Attributed {
     pub fn bits(&self) -> &BitVolume {
         &self.bits
     }
+    /// The bits, the channels dropped.
+    pub fn into_bits(self) -> BitVolume {
+        self.bits
+    }
     pub fn channels(&self) -> &[Channel] {
         &self.channels
     }

@@ -20,7 +20,7 @@ use crate::cancel::{Canceled, Control};
 /// The kinds `threshold` (and distance statistics, queries and CSG) take.
 pub const DISTANCE_KINDS: &[VolumeKind] = &[VolumeKind::Distance, VolumeKind::SparseDistance];
 /// The kinds the distance transform takes.
-pub const SDF_ACCEPTS: &[VolumeKind] = super::BITS_ONLY;
+pub const SDF_ACCEPTS: &[VolumeKind] = super::BITS_AND_CHANNELS;
 /// The widest band the transform makes, in voxels (as `method=sdf`).
 pub const MAX_BAND: u32 = 64;
 /// The band when none is asked for, in voxels (OpenVDB's default half width).

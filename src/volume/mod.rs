@@ -345,10 +345,13 @@ impl Volume {
         }
     }
 
-    /// The bit volume, or the refusal of `what` (an operation that takes [`BITS_ONLY`]).
+    /// The bit volume (a channel volume's bits, its channels dropped: for the operations whose
+    /// `ACCEPTS` lists [`BITS_AND_CHANNELS`] and that read only occupancy), or the refusal of
+    /// `what`.
     pub fn into_bits(self, what: &str) -> Result<BitVolume, WrongKind> {
         match self {
             Volume::Bits(b) => Ok(b),
+            Volume::Channels(a) => Ok(a.into_bits()),
             other => Err(WrongKind {
                 given: other.kind(),
                 accepts: BITS_ONLY,

@@ -4,14 +4,59 @@
 
 use super::{Volume, VolumeKind};
 
-/// The kinds previews picture: occupancy levels (a density's, or a bit's 0/1).
-pub const ACCEPTS: &[VolumeKind] = &[VolumeKind::Bits, VolumeKind::Density];
+/// The kinds previews picture: occupancy levels (a density's, or a bit's 0/1), and bit volumes
+/// with channels: in colour when they have a colour channel ([`colour`]).
+pub const ACCEPTS: &[VolumeKind] = &[VolumeKind::Bits, VolumeKind::Density, VolumeKind::Channels];
 
-/// An 8-bit grayscale picture.
+/// An 8-bit picture, grayscale (one byte a pixel) or RGB (three).
 pub struct Picture {
     pub width: u32,
     pub height: u32,
     pub pixels: Vec<u8>,
+    pub rgb: bool,
+}
+
+/// A colour picture of a volume with a colour channel: slice `slice` across `axis` (each set
+/// voxel's colour, black elsewhere), or with `None` the projection along `axis` showing, for
+/// each line, the colour of its set voxel of highest index along the axis (the one seen from
+/// the axis's positive end); black where the line is empty. `None` without a colour channel
+/// or for a slice outside the grid.
+pub fn colour(v: &Volume, axis: usize, slice: Option<u32>) -> Option<Picture> {
+    let Volume::Channels(a) = v else { return None };
+    let super::ChannelValues::Rgba8(c) = &a.channel(crate::engine::colour::RGBA)?.values else {
+        return None;
+    };
+    let d = v.grid().dims;
+    if slice.is_some_and(|k| k >= d[axis]) {
+        return None;
+    }
+    let (u, w) = plane(axis);
+    let (width, height) = (d[u], d[w]);
+    let mut pixels = Vec::with_capacity(3 * width as usize * height as usize);
+    for row in (0..height).rev() {
+        for col in 0..width {
+            let mut p = [0u32; 3];
+            p[u] = col;
+            p[w] = row;
+            let hit = match slice {
+                Some(k) => {
+                    p[axis] = k;
+                    a.rank(p[0], p[1], p[2])
+                }
+                None => (0..d[axis]).rev().find_map(|k| {
+                    p[axis] = k;
+                    a.rank(p[0], p[1], p[2])
+                }),
+            };
+            pixels.extend_from_slice(&hit.map_or([0; 3], |r| [c[r][0], c[r][1], c[r][2]]));
+        }
+    }
+    Some(Picture {
+        width,
+        height,
+        pixels,
+        rgb: true,
+    })
 }
 
 crate::named_enum! {
@@ -87,6 +132,7 @@ pub fn slice(v: &Volume, axis: usize, k: u32) -> Option<Picture> {
         width,
         height,
         pixels,
+        rgb: false,
     })
 }
 
@@ -128,6 +174,7 @@ pub fn projection(v: &Volume, axis: usize, mode: Projection) -> Picture {
         width,
         height,
         pixels,
+        rgb: false,
     }
 }
 

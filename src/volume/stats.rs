@@ -12,7 +12,7 @@ use serde::Serialize;
 use super::{BitVolume, VolumeKind};
 
 /// The kinds statistics describe.
-pub const ACCEPTS: &[VolumeKind] = super::BITS_ONLY;
+pub const ACCEPTS: &[VolumeKind] = super::BITS_AND_CHANNELS;
 use crate::cancel::{Canceled, Control};
 
 #[derive(Clone, Debug, PartialEq, Serialize)]

@@ -18,6 +18,7 @@ use voxd::engine::{Engine, GridMesh, Method};
 use voxd::grid::{Grid, GridSpec};
 use voxd::volume::Volume;
 
+mod colour;
 mod contract;
 mod distance;
 mod distance_ops;

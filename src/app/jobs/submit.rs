@@ -96,6 +96,7 @@ async fn admit_parse(
         external: req.source.external(),
         max_triangles: req.limits.max_triangles,
         max_decompressed_bytes: req.limits.max_decompressed_bytes,
+        max_texture_bytes: req.limits.max_texture_bytes,
     };
     let est = mesh::cost::estimate(bytes, *format, &opts);
     req.limits.max_decompressed_bytes = req.limits.max_decompressed_bytes.min(est.decoded);

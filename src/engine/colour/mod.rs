@@ -9,8 +9,11 @@
 //!   1 where the mesh has none). Without a texture that colour is linear over a part, so its
 //!   average is the value at the part's centroid (exact). With one, each part is fanned into
 //!   triangles and each of those cut into 4^k equal sub-triangles sampled at their centroids,
-//!   the least k with 4^k ≥ the triangle's area in texels, at most [`MAX_LEVEL`] (so a
-//!   sample at least every texel up to 4^MAX_LEVEL texels a fan triangle).
+//!   the least k with 4^k ≥ 4 × the triangle's area in texels, at most [`MAX_LEVEL`] (four
+//!   samples a texel up to 4^(MAX_LEVEL−1) texels a fan triangle). On a checkerboard of
+//!   4-texel squares 2.7 texels a voxel the voxels' colours are within 0.011 (linear) of the
+//!   exact mean of the bilinear interpolant; with one sample a texel they were 0.063 off,
+//!   with sixteen 0.003 (`tests/service/colour.rs`).
 //!   Material: the id with the largest total area in the voxel; ties by the lowest id.
 //! * **Other set voxels** (the inside of a solid, a distance voxel no triangle passes through):
 //!   the value of the nearest surface voxel, found by propagation (`propagate.rs`), so the cost
@@ -27,7 +30,7 @@ use rayon::prelude::*;
 
 use crate::cancel::{Canceled, Control};
 use crate::grid::Grid;
-use crate::mesh::texture::{Image, linear_to_srgb};
+use crate::mesh::texture::{Image, linear_to_srgb, srgb_to_linear};
 use crate::mesh::{Attributes, Mesh};
 use crate::volume::{Attributed, BitVolume, ChannelValues};
 
@@ -35,6 +38,8 @@ pub use clip::{Vertex, double_area, pieces};
 
 /// Most subdivision levels of a textured fan triangle (4^4 = 256 samples).
 pub const MAX_LEVEL: u32 = 4;
+/// Texture samples a texel of a fan triangle's area, up to [`MAX_LEVEL`].
+pub const SAMPLES_PER_TEXEL: f64 = 4.0;
 /// The name of the colour channel.
 pub const RGBA: &str = "rgba";
 /// The name of the material channel.
@@ -117,6 +122,8 @@ const BATCH: usize = 1 << 15;
 struct Shader<'m> {
     mesh: &'m Mesh,
     a: &'m Attributes,
+    /// The vertex colours in linear light.
+    colors: Option<std::borrow::Cow<'m, [[f32; 4]]>>,
 }
 
 impl Shader<'_> {
@@ -128,7 +135,7 @@ impl Shader<'_> {
             let base = self.a.materials[usize::from(m[t])].base_color;
             c = base.map(f64::from);
         }
-        if let Some(vc) = &self.a.colors {
+        if let Some(vc) = &self.colors {
             let tri = self.mesh.triangles()[t];
             let w = [1.0 - b[0] - b[1], b[0], b[1]];
             for (k, ck) in c.iter_mut().enumerate() {
@@ -188,13 +195,14 @@ impl Shader<'_> {
                 continue;
             }
             let uvs = fan.map(|v| uv_at(v.b));
-            let uv_area = ((uvs[1][0] - uvs[0][0]) * (uvs[2][1] - uvs[0][1])
+            let samples = ((uvs[1][0] - uvs[0][0]) * (uvs[2][1] - uvs[0][1])
                 - (uvs[2][0] - uvs[0][0]) * (uvs[1][1] - uvs[0][1]))
                 .abs()
                 / 2.0
-                * texels;
+                * texels
+                * SAMPLES_PER_TEXEL;
             let mut level = 0;
-            while level < MAX_LEVEL && 4f64.powi(level as i32) < uv_area {
+            while level < MAX_LEVEL && 4f64.powi(level as i32) < samples {
                 level += 1;
             }
             let n = 1u32 << level;
@@ -247,7 +255,21 @@ pub fn surface(
 ) -> Result<Surface, ColourError> {
     let a = mesh.attributes();
     check(a, want)?;
-    let shader = Shader { mesh, a };
+    let colors = a.colors.as_deref().map(|c| {
+        if a.colors_srgb {
+            std::borrow::Cow::Owned(
+                c.iter()
+                    .map(|v| {
+                        let lin = |x: f32| srgb_to_linear(f64::from(x)) as f32;
+                        [lin(v[0]), lin(v[1]), lin(v[2]), v[3]]
+                    })
+                    .collect(),
+            )
+        } else {
+            std::borrow::Cow::Borrowed(c)
+        }
+    });
+    let shader = Shader { mesh, a, colors };
     let dims = grid.dims;
     let s2 = grid.voxel_size * grid.voxel_size;
     let to_grid = |p: [f64; 3]| grid.index_of(p);

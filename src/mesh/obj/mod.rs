@@ -96,6 +96,7 @@ pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshErro
     let mut attributes = Attributes::default();
     if !st.colors.is_empty() {
         attributes.colors = Some(st.colors);
+        attributes.colors_srgb = true;
     }
     if st.any_material {
         // The `usemtl` names in the order of their first use; OBJ's default material (faces

@@ -21,11 +21,17 @@ use crate::codec::VolumeFormat;
 #[serde(deny_unknown_fields)]
 pub struct DataQuery {
     format: Option<String>,
+    /// npy and raw of a channel volume: one channel (`rgba`, `material`) instead of occupancy.
+    attributes: Option<String>,
 }
 
-/// The identity representation's ETag of a volume whose content is `sha256` in `format`.
-pub fn data_etag(sha256: &str, format: VolumeFormat) -> String {
-    format!("\"{}-{}\"", etag_sha(sha256), format.name())
+/// The identity representation's ETag of a volume whose content is `sha256` in `format`
+/// (with one attribute channel: `attributes`).
+pub fn data_etag(sha256: &str, format: VolumeFormat, attributes: Option<&str>) -> String {
+    match attributes {
+        None => format!("\"{}-{}\"", etag_sha(sha256), format.name()),
+        Some(a) => format!("\"{}-{}-{a}\"", etag_sha(sha256), format.name()),
+    }
 }
 
 pub async fn data(
@@ -47,6 +53,7 @@ pub async fn data(
     let meta = meta_of(&app, &caller, &id).await?;
     ops::check_format(meta.kind, format)?;
     ops::check_download(meta.kind, &meta.grid, format, &app.limits)?;
+    crate::app::attributes::check(&meta, format, q.attributes.as_deref())?;
     // The coding is chosen before anything else, so that a 304 carries the ETag the 200 would.
     // A range asks for bytes of the identity representation (`.vxl` is compressed already):
     // clients resume a download without negotiating a coding, and the parts of one file must
@@ -56,7 +63,10 @@ pub async fn data(
     } else {
         conditional::negotiate(&headers, format != VolumeFormat::Vxl)
     };
-    let etag = conditional::coded_etag(&data_etag(&meta.sha256, format), coding);
+    let etag = conditional::coded_etag(
+        &data_etag(&meta.sha256, format, q.attributes.as_deref()),
+        coding,
+    );
     if let Some(not_modified) = conditional::preconditions(&headers, &etag, || {
         format!("volume {id} as {}", format.name())
     })? {
@@ -75,7 +85,7 @@ pub async fn data(
             .await?,
         ),
     };
-    let download = ops::download(&*app.store, &meta, format).await?;
+    let download = ops::download(&*app.store, &meta, format, q.attributes.clone()).await?;
     // Ranges need the length up front: every format but `.binvox` (run-length encoded) has it.
     let part = match (coding, download.len) {
         (Coding::Identity, Some(n)) => Some((conditional::range(&headers, n, &etag), n)),

@@ -150,11 +150,19 @@ fn meta_etag(json: &[u8]) -> String {
 /// these (strongly), `If-None-Match` (weakly).
 fn volume_etags(meta: &VolumeMeta) -> Result<Vec<String>, Error> {
     let json = serde_json::to_vec(meta).map_err(|e| Error::internal(e.to_string()))?;
-    let identity = std::iter::once(meta_etag(&json)).chain(
-        crate::codec::FORMATS
-            .iter()
-            .map(|f| super::download::data_etag(&meta.sha256, f.format)),
-    );
+    let channels: Vec<Option<&str>> = std::iter::once(None)
+        .chain(
+            meta.attributes
+                .iter()
+                .flat_map(|a| a.channels.iter().map(|c| Some(c.as_str()))),
+        )
+        .collect();
+    let identity =
+        std::iter::once(meta_etag(&json)).chain(crate::codec::FORMATS.iter().flat_map(|f| {
+            channels
+                .iter()
+                .map(|c| super::download::data_etag(&meta.sha256, f.format, *c))
+        }));
     Ok(identity
         .flat_map(|t| Coding::BY_PREFERENCE.map(|c| conditional::coded_etag(&t, c)))
         .collect())

@@ -35,6 +35,7 @@ pub(crate) fn meta(id: &str, data: &[u8]) -> VolumeMeta {
         sha256: sha256_hex(data),
         provenance: None,
         distance: None,
+        attributes: None,
         owner: None,
     }
 }
@@ -474,6 +475,7 @@ async fn kept_sources_count_once_and_go_with_their_last_volume() {
         external: crate::mesh::ExternalResources::Deny,
         max_triangles: 10,
         max_decompressed_bytes: 1 << 20,
+        ..Default::default()
     };
     assert_eq!(sources::decode(&got, &opts).unwrap(), mesh);
     // Damage is found, never decoded into another mesh.
