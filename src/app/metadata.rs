@@ -83,6 +83,17 @@ pub fn vxl_header(origin: &Origin) -> Map<String, Value> {
             if let Some(job) = job {
                 m.insert("job".into(), (*job).into());
             }
+            // The material table a material channel's ids index (id = position).
+            if p.attributes.material {
+                let table: Vec<Value> = p
+                    .mesh
+                    .attributes()
+                    .materials
+                    .iter()
+                    .map(|mat| serde_json::json!({"name": mat.name, "base_color": mat.base_color}))
+                    .collect();
+                m.insert("materials".into(), table.into());
+            }
         }
         Origin::Derived { provenance, .. } => {
             m.insert("provenance".into(), (*provenance).clone());

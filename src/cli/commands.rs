@@ -173,14 +173,27 @@ pub fn info(p: &Path) -> Result<(), String> {
             let n = s.count_occupied();
             outln!(out, "inside:     {n} voxels, volume {}", g.volume_of(n));
         }
+        Volume::Channels(a) => {
+            outln!(out, "set voxels: {}", a.len());
+            let names: Vec<String> = a
+                .channels()
+                .iter()
+                .map(|c| format!("{} ({})", c.name, c.values.value_type()))
+                .collect();
+            outln!(out, "channels:   {}", names.join(", "));
+        }
         other => outln!(out, "occupied:   {} voxels", other.count_occupied()),
     }
     emit(out)
 }
 
-/// A bit volume from a file, or why not (named after the file).
+/// A bit volume from a file for CSG or morphology (which take bit volumes only: a channel
+/// volume is refused, not stripped of its channels), or why not (named after the file).
 fn read_bits(p: &Path, what: &str) -> Result<voxd::BitVolume, String> {
-    ops::require_bits(read_volume(p)?, what).map_err(|e| format!("{}: {e}", p.display()))
+    let v = read_volume(p)?;
+    ops::require(&v, voxd::volume::BITS_ONLY, what)
+        .and_then(|()| ops::require_bits(v, what))
+        .map_err(|e| format!("{}: {e}", p.display()))
 }
 
 pub fn csg(op: CsgOp, inputs: &[std::path::PathBuf], output: &Path) -> Result<(), String> {

@@ -4,8 +4,9 @@
 //! * **Few colours**: when the voxels have at most 255 distinct RGBA colours, those are the
 //!   palette (in increasing RGBA order) and nothing is lost.
 //! * **Otherwise**, median cut seeded k-means in CIELAB (with alpha as a fourth axis, 0–100
-//!   like L*): the distinct colours are gathered in cells of 5 bits per RGB channel and 3 for
-//!   alpha (their count-weighted mean colour in Lab each); median cut splits the cells' box with
+//!   like L*) over the distinct colours weighted by their voxels (over [`EXACT_POINTS`] of them,
+//!   gathered in cells of 5 bits per RGB channel and 3 for alpha, each at the count-weighted
+//!   mean colour of its colours, in Lab): median cut splits the cells' box with
 //!   the largest weighted spread along its widest axis at the weighted median until there are
 //!   255 boxes; their weighted means seed [`LLOYD`] rounds of k-means over the cells. Each voxel
 //!   then takes the palette entry nearest to its exact colour in Lab (ΔE76, with alpha). Lab is
@@ -23,6 +24,9 @@ use crate::mesh::texture::srgb_to_linear_table;
 pub const LLOYD: usize = 8;
 /// Palette entries (MagicaVoxel's index 0 is empty; 1..=255 are colours).
 pub const ENTRIES: usize = 255;
+/// Up to this many distinct colours, median cut and k-means work on the colours themselves
+/// rather than on cells.
+pub const EXACT_POINTS: usize = 1 << 14;
 
 /// A colour in Lab with alpha on L*'s scale.
 type Lab = [f64; 4];
@@ -162,6 +166,17 @@ pub fn quantize(colours: &[[u8; 4]]) -> Quantized {
 
 /// The entries for more than [`ENTRIES`] distinct colours: median cut, then k-means.
 fn entries(distinct: &[(u32, u32)]) -> Vec<[u8; 4]> {
+    // Few enough distinct colours are the points themselves; more are gathered in cells.
+    if distinct.len() <= EXACT_POINTS {
+        let pts: Vec<Cell> = distinct
+            .iter()
+            .map(|&(c, n)| Cell {
+                lab: lab(c.to_be_bytes()),
+                w: f64::from(n),
+            })
+            .collect();
+        return refine(&pts);
+    }
     // Cells of 5 bits per colour channel and 3 for alpha.
     let mut cells: HashMap<u32, (Lab, f64), foldhash::fast::FixedState> =
         HashMap::with_hasher(foldhash::fast::FixedState::default());
@@ -190,10 +205,15 @@ fn entries(distinct: &[(u32, u32)]) -> Vec<[u8; 4]> {
             }
         })
         .collect();
-    let mut centres = median_cut(&pts, ENTRIES);
+    refine(&pts)
+}
+
+/// Median cut of `pts` into [`ENTRIES`] boxes, [`LLOYD`] rounds of k-means, the entries.
+fn refine(pts: &[Cell]) -> Vec<[u8; 4]> {
+    let mut centres = median_cut(pts, ENTRIES);
     for _ in 0..LLOYD {
         let mut sums = vec![([0.0f64; 4], 0.0f64); centres.len()];
-        for p in &pts {
+        for p in pts {
             let (mut best, mut bd) = (0, f64::INFINITY);
             for (i, c) in centres.iter().enumerate() {
                 let d = d2(&p.lab, c);

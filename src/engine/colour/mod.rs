@@ -9,8 +9,10 @@
 //!   1 where the mesh has none). Without a texture that colour is linear over a part, so its
 //!   average is the value at the part's centroid (exact). With one, each part is fanned into
 //!   triangles and each of those cut into 4^k equal sub-triangles sampled at their centroids,
-//!   the least k with 4^k ≥ 4 × the triangle's area in texels, at most [`MAX_LEVEL`] (four
-//!   samples a texel up to 4^(MAX_LEVEL−1) texels a fan triangle). On a checkerboard of
+//!   the least k with 4^k ≥ 4 × the triangle's area in texels or 16 × its area in voxel faces
+//!   (s²), whichever is less (at least 1), and k at most [`MAX_LEVEL`]: four samples a texel,
+//!   up to 16 a voxel face of surface (a voxel's colour averages the samples of all its parts;
+//!   past that a sample stands for more than a quarter texel). On a checkerboard of
 //!   4-texel squares 2.7 texels a voxel the voxels' colours are within 0.011 (linear) of the
 //!   exact mean of the bilinear interpolant; with one sample a texel they were 0.063 off,
 //!   with sixteen 0.003 (`tests/service/colour.rs`).
@@ -38,8 +40,11 @@ pub use clip::{Vertex, double_area, pieces};
 
 /// Most subdivision levels of a textured fan triangle (4^4 = 256 samples).
 pub const MAX_LEVEL: u32 = 4;
-/// Texture samples a texel of a fan triangle's area, up to [`MAX_LEVEL`].
+/// Texture samples a texel of a fan triangle's area, up to [`MAX_LEVEL`] and
+/// [`SAMPLES_PER_VOXEL_FACE`].
 pub const SAMPLES_PER_TEXEL: f64 = 4.0;
+/// Texture samples at most a voxel face's area (s²) of a fan triangle (at least one).
+pub const SAMPLES_PER_VOXEL_FACE: f64 = 16.0;
 /// The name of the colour channel.
 pub const RGBA: &str = "rgba";
 /// The name of the material channel.
@@ -201,6 +206,9 @@ impl Shader<'_> {
                 / 2.0
                 * texels
                 * SAMPLES_PER_TEXEL;
+            // No more than SAMPLES_PER_VOXEL_FACE a voxel face's area of surface: a voxel's
+            // colour averages all its parts' samples.
+            let samples = samples.min((SAMPLES_PER_VOXEL_FACE * area / s2).max(1.0));
             let mut level = 0;
             while level < MAX_LEVEL && 4f64.powi(level as i32) < samples {
                 level += 1;
@@ -372,13 +380,23 @@ pub fn attribute(
     ctl: &Control,
 ) -> Result<Attributed, ColourError> {
     let grid = *bits.grid();
+    let t0 = std::time::Instant::now();
     let s = surface(mesh, &grid, want, &ctl.stage(0.0, 0.7))?;
+    let t1 = std::time::Instant::now();
     let source = propagate::nearest(&bits, &s.keys, &ctl.stage(0.7, 1.0))?;
+    tracing::debug!(
+        surface_s = (t1 - t0).as_secs_f64(),
+        propagate_s = t1.elapsed().as_secs_f64(),
+        surface_voxels = s.keys.len(),
+        "colour"
+    );
     let mut out = Attributed::new(bits);
     // A set voxel no surface voxel reaches (none in practice: a set voxel's component holds
     // or borders a surface voxel) takes the first surface voxel's value.
     let pick = |r: usize| source[r].min(s.keys.len().saturating_sub(1) as u32) as usize;
     if want.colour {
+        // Each surface voxel's bytes once (the sRGB curve is not cheap), then by source.
+        let bytes: Vec<[u8; 4]> = s.rgba.par_iter().map(|&c| to_rgba8(c)).collect();
         let v = (0..source.len())
             .into_par_iter()
             .with_min_len(4096)
@@ -386,7 +404,7 @@ pub fn attribute(
                 if s.keys.is_empty() {
                     [0; 4]
                 } else {
-                    to_rgba8(s.rgba[pick(r)])
+                    bytes[pick(r)]
                 }
             })
             .collect();

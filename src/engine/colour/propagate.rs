@@ -1,60 +1,17 @@
-//! The nearest surface voxel of every set voxel, by propagation: a breadth-first walk from all
-//! surface voxels at once through the set voxels, 26-connected, each voxel reached in a round
-//! taking, among the sources of its neighbours reached in the round before, the one whose centre
-//! is nearest to its own (Euclidean; ties by the lower source index). This is the propagation
-//! of Danielsson's distance transform restricted to the volume: it finds the exact nearest
-//! source except in rare configurations, where it finds one a fraction of a voxel farther, and it
-//! never leaves the volume (the interior of a solid takes its colour from its own walls). The
-//! cost is linear in the set voxels.
+//! The nearest surface voxel of every set voxel: the feature transform of the exact Euclidean
+//! distance transform (Felzenszwalb and Huttenlocher's lower envelope of parabolas, one axis at
+//! a time: z, then y, then x), carrying each voxel's nearest source rather than its distance.
+//! Every voxel of the grid gets the source whose centre is nearest to its own (straight-line
+//! distance, as a distance transform measures it); among equally near sources the pass keeps the
+//! one it met first along its axis (deterministic, whatever the thread count). Three passes
+//! over the grid, each linear in its voxels and parallel over lines; one `u32` a voxel.
+
+use rayon::prelude::*;
 
 use crate::cancel::{Canceled, Control};
 use crate::volume::BitVolume;
 
 const NONE: u32 = u32::MAX;
-
-struct Ranks<'b> {
-    bits: &'b BitVolume,
-    starts: Vec<u64>,
-    dims: [u32; 3],
-}
-
-impl<'b> Ranks<'b> {
-    fn new(bits: &'b BitVolume) -> Ranks<'b> {
-        let wpc = bits.words_per_column();
-        let mut starts = Vec::with_capacity(bits.words().len() / wpc.max(1) + 1);
-        let mut n = 0u64;
-        starts.push(0);
-        for col in bits.words().chunks_exact(wpc) {
-            n += col.iter().map(|w| u64::from(w.count_ones())).sum::<u64>();
-            starts.push(n);
-        }
-        Ranks {
-            bits,
-            starts,
-            dims: bits.dims(),
-        }
-    }
-
-    fn len(&self) -> usize {
-        *self.starts.last().expect("one entry") as usize
-    }
-
-    /// The rank of set voxel v, `None` when v is not set.
-    fn rank(&self, v: [u32; 3]) -> Option<usize> {
-        let col = self.bits.column(v[0], v[1]);
-        let (w, b) = ((v[2] / 64) as usize, v[2] % 64);
-        if col[w] >> b & 1 == 0 {
-            return None;
-        }
-        let c = v[0] as usize * self.dims[1] as usize + v[1] as usize;
-        let below: u64 = col[..w]
-            .iter()
-            .map(|x| u64::from(x.count_ones()))
-            .sum::<u64>()
-            + u64::from((col[w] & ((1u64 << b) - 1)).count_ones());
-        Some((self.starts[c] + below) as usize)
-    }
-}
 
 fn coords(k: u64, dims: [u32; 3]) -> [u32; 3] {
     let z = (k % u64::from(dims[2])) as u32;
@@ -66,85 +23,153 @@ fn coords(k: u64, dims: [u32; 3]) -> [u32; 3] {
     ]
 }
 
-fn dist2(a: [u32; 3], b: [u32; 3]) -> u64 {
-    (0..3)
-        .map(|k| {
-            let d = i64::from(a[k]) - i64::from(b[k]);
-            (d * d) as u64
-        })
-        .sum()
+/// A shared view of the feature array for the passes whose lines are not contiguous.
+struct Lines(*mut u32);
+// SAFETY: the passes write each voxel from exactly one line, and lines are handed to one
+// thread each, so no two threads touch the same element.
+unsafe impl Sync for Lines {}
+unsafe impl Send for Lines {}
+
+impl Lines {
+    /// Element `i`.
+    ///
+    /// # Safety
+    /// `i` is within the array, and no other thread writes it meanwhile.
+    unsafe fn get(&self, i: usize) -> u32 {
+        // SAFETY: as the caller promises.
+        unsafe { *self.0.add(i) }
+    }
+    /// Sets element `i`.
+    ///
+    /// # Safety
+    /// `i` is within the array, and no other thread reads or writes it meanwhile.
+    unsafe fn set(&self, i: usize, v: u32) {
+        // SAFETY: as the caller promises.
+        unsafe { *self.0.add(i) = v }
+    }
+}
+
+/// One line's lower envelope: `f[q]` (`None`: no source) are the squared distances along the
+/// axes done so far; on return `feat[i]` is the feature of the q minimising f[q] + (i − q)².
+fn envelope(f: &[Option<u64>], feat: &mut [u32], v: &mut Vec<usize>, z: &mut Vec<f64>) {
+    v.clear();
+    z.clear();
+    let parab = |q: usize| f[q].expect("a source") as f64 + (q * q) as f64;
+    for (q, fq) in f.iter().enumerate() {
+        if fq.is_none() {
+            continue;
+        }
+        loop {
+            let Some(&last) = v.last() else {
+                v.push(q);
+                z.push(f64::NEG_INFINITY);
+                break;
+            };
+            let s = (parab(q) - parab(last)) / (2.0 * (q - last) as f64);
+            if s <= *z.last().expect("one per parabola") {
+                v.pop();
+                z.pop();
+                if v.is_empty() {
+                    v.push(q);
+                    z.push(f64::NEG_INFINITY);
+                    break;
+                }
+            } else {
+                v.push(q);
+                z.push(s);
+                break;
+            }
+        }
+    }
+    if v.is_empty() {
+        return;
+    }
+    let orig: Vec<u32> = v.iter().map(|&q| feat[q]).collect();
+    let mut k = 0;
+    for (i, out) in feat.iter_mut().enumerate() {
+        while k + 1 < v.len() && z[k + 1] < i as f64 {
+            k += 1;
+        }
+        *out = orig[k];
+    }
 }
 
 /// For each set voxel of `bits` (by rank: the order of [`BitVolume::iter_ones`]), the index in
-/// `sources` (sorted keys of [`super::key`]) of its nearest source as the module docs define
-/// it; 0 for a set voxel no source reaches (and for every voxel when there are no sources).
+/// `sources` (sorted keys of [`super::key`]) of its nearest source (module docs); 0 for every
+/// voxel when there are no sources.
 pub fn nearest(bits: &BitVolume, sources: &[u64], ctl: &Control) -> Result<Vec<u32>, Canceled> {
-    let r = Ranks::new(bits);
-    let dims = r.dims;
-    let n = r.len();
-    let mut src = vec![NONE; n];
-    let mut frontier: Vec<([u32; 3], u32)> = Vec::with_capacity(sources.len());
-    let source_at: Vec<[u32; 3]> = sources.iter().map(|&k| coords(k, dims)).collect();
-    for (i, &v) in source_at.iter().enumerate() {
-        if let Some(rank) = r.rank(v) {
-            src[rank] = i as u32;
-        }
-        frontier.push((v, i as u32));
+    let dims = bits.dims();
+    let [nx, ny, nz] = dims.map(|d| d as usize);
+    let n = nx * ny * nz;
+    let at: Vec<[u32; 3]> = sources.iter().map(|&k| coords(k, dims)).collect();
+    let mut feat = vec![NONE; n];
+    for (i, &k) in sources.iter().enumerate() {
+        feat[k as usize] = i as u32;
     }
-    let mut reached = frontier
-        .iter()
-        .filter(|(v, _)| r.rank(*v).is_some())
-        .count();
-    let mut proposal = vec![NONE; n];
-    let mut proposed: Vec<(usize, [u32; 3])> = vec![];
-    while !frontier.is_empty() && reached < n {
-        ctl.check()?;
-        for &(v, s) in &frontier {
-            let at = source_at[s as usize];
-            for dx in -1i64..=1 {
-                for dy in -1i64..=1 {
-                    for dz in -1i64..=1 {
-                        let q = [
-                            i64::from(v[0]) + dx,
-                            i64::from(v[1]) + dy,
-                            i64::from(v[2]) + dz,
-                        ];
-                        if (0..3).any(|k| q[k] < 0 || q[k] >= i64::from(dims[k])) {
-                            continue;
-                        }
-                        let q = q.map(|c| c as u32);
-                        let Some(rank) = r.rank(q) else { continue };
-                        if src[rank] != NONE {
-                            continue;
-                        }
-                        let cur = proposal[rank];
-                        if cur == NONE {
-                            proposal[rank] = s;
-                            proposed.push((rank, q));
-                        } else {
-                            let (d, dc) = (dist2(q, at), dist2(q, source_at[cur as usize]));
-                            if d < dc || (d == dc && s < cur) {
-                                proposal[rank] = s;
-                            }
-                        }
-                    }
+    let d = |a: u32, b: u32| (i64::from(a) - i64::from(b)).unsigned_abs().pow(2);
+    // z: contiguous columns.
+    feat.par_chunks_mut(nz).for_each_init(
+        || (vec![], vec![], vec![]),
+        |(f, v, zs), col| {
+            f.clear();
+            f.extend(col.iter().map(|&s| (s != NONE).then_some(0u64)));
+            envelope(f, col, v, zs);
+        },
+    );
+    ctl.check()?;
+    ctl.set(1.0 / 3.0);
+    // y: within each x slab, lines of stride Z.
+    feat.par_chunks_mut(ny * nz).for_each_init(
+        || (vec![], vec![], vec![], vec![]),
+        |(f, line, v, zs), slab| {
+            for z in 0..nz {
+                line.clear();
+                line.extend((0..ny).map(|y| slab[y * nz + z]));
+                f.clear();
+                f.extend(
+                    line.iter()
+                        .map(|&s| (s != NONE).then(|| d(z as u32, at[s as usize][2]))),
+                );
+                envelope(f, line, v, zs);
+                for (y, &s) in line.iter().enumerate() {
+                    slab[y * nz + z] = s;
                 }
             }
-        }
-        frontier.clear();
-        for &(rank, q) in &proposed {
-            src[rank] = proposal[rank];
-            proposal[rank] = NONE;
-            frontier.push((q, src[rank]));
-        }
-        reached += proposed.len();
-        proposed.clear();
-        ctl.set(reached as f64 / n.max(1) as f64);
-    }
-    for s in &mut src {
-        if *s == NONE {
-            *s = 0;
-        }
-    }
-    Ok(src)
+        },
+    );
+    ctl.check()?;
+    ctl.set(2.0 / 3.0);
+    // x: lines of stride Y·Z, one (y, z) each.
+    let shared = Lines(feat.as_mut_ptr());
+    let shared = &shared;
+    (0..ny * nz).into_par_iter().with_min_len(64).for_each_init(
+        || (vec![], vec![], vec![], vec![]),
+        |(f, line, v, zs), yz| {
+            let (y, z) = ((yz / nz) as u32, (yz % nz) as u32);
+            line.clear();
+            // SAFETY: line yz is read and written by this closure only (module-level note on
+            // `Lines`); every index is below X·Y·Z.
+            line.extend((0..nx).map(|x| unsafe { shared.get(x * ny * nz + yz) }));
+            f.clear();
+            f.extend(line.iter().map(|&s| {
+                (s != NONE).then(|| {
+                    let p = at[s as usize];
+                    d(y, p[1]) + d(z, p[2])
+                })
+            }));
+            envelope(f, line, v, zs);
+            for (x, &s) in line.iter().enumerate() {
+                // SAFETY: as above.
+                unsafe { shared.set(x * ny * nz + yz, s) };
+            }
+        },
+    );
+    ctl.check()?;
+    Ok(bits
+        .iter_ones()
+        .map(|v| {
+            let s = feat[super::key(v, dims) as usize];
+            if s == NONE { 0 } else { s }
+        })
+        .collect())
 }

@@ -7,6 +7,7 @@ from .distance_stats import DistanceStats
 from .get_healthz_response_200 import GetHealthzResponse200
 from .get_readyz_response_200 import GetReadyzResponse200
 from .get_v1_viewer_file_file import GetV1ViewerFileFile
+from .get_v1_volumes_id_data_attributes import GetV1VolumesIdDataAttributes
 from .get_v1_volumes_id_data_format import GetV1VolumesIdDataFormat
 from .get_v1_volumes_id_mesh_algorithm import GetV1VolumesIdMeshAlgorithm
 from .get_v1_volumes_id_mesh_format import GetV1VolumesIdMeshFormat
@@ -45,6 +46,9 @@ from .post_v1_voxelize_format import PostV1VoxelizeFormat
 from .post_v1_voxelize_method import PostV1VoxelizeMethod
 from .problem import Problem
 from .volume import Volume
+from .volume_attributes import VolumeAttributes
+from .volume_attributes_channels_item import VolumeAttributesChannelsItem
+from .volume_attributes_materials_item import VolumeAttributesMaterialsItem
 from .volume_diagnostics_type_0 import VolumeDiagnosticsType0
 from .volume_distance import VolumeDistance
 from .volume_distance_background_type_1 import VolumeDistanceBackgroundType1
@@ -65,6 +69,7 @@ __all__ = (
     "GetHealthzResponse200",
     "GetReadyzResponse200",
     "GetV1ViewerFileFile",
+    "GetV1VolumesIdDataAttributes",
     "GetV1VolumesIdDataFormat",
     "GetV1VolumesIdMeshAlgorithm",
     "GetV1VolumesIdMeshFormat",
@@ -97,6 +102,9 @@ __all__ = (
     "PostV1VoxelizeMethod",
     "Problem",
     "Volume",
+    "VolumeAttributes",
+    "VolumeAttributesChannelsItem",
+    "VolumeAttributesMaterialsItem",
     "VolumeDiagnosticsType0",
     "VolumeDistance",
     "VolumeDistanceBackgroundType1",

@@ -25,7 +25,7 @@ class Problem:
     expectation-failed (417),
     range-not-satisfiable (416),
     unauthorized (401), forbidden (403), rate-limited (429), too-many-jobs (429),
-    source-not-kept (409), internal (500).
+    source-not-kept (409), missing-attributes (422), internal (500).
 
         Attributes:
             type_ (str):

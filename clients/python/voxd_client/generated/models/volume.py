@@ -12,6 +12,7 @@ from ..types import UNSET, Unset
 
 if TYPE_CHECKING:
     from ..models.grid import Grid
+    from ..models.volume_attributes import VolumeAttributes
     from ..models.volume_diagnostics_type_0 import VolumeDiagnosticsType0
     from ..models.volume_distance import VolumeDistance
     from ..models.volume_fill import VolumeFill
@@ -26,7 +27,7 @@ class Volume:
     """
     Attributes:
         id (str):
-        kind (VolumeKind):
+        kind (VolumeKind): channels: bit volumes with attribute channels (color=true, material=true)
         method (str):
         grid (Grid):
         solid_voxels (int):
@@ -40,6 +41,7 @@ class Volume:
         diagnostics (None | Unset | VolumeDiagnosticsType0):
         fill (VolumeFill | Unset): how the solid was filled (absent for volumes derived by CSG or morphology)
         provenance (Any | Unset): how a derived volume was made: a CSG expression or {morphology: {...}}
+        attributes (VolumeAttributes | Unset): volumes of kind channels: their channels and the material table
         distance (VolumeDistance | Unset): distance volumes (kind sparse-distance) and method=distance: how the
             distances were kept
         owner (str | Unset): with API keys: the tenant that owns the volume; another tenant's volume is 404
@@ -61,6 +63,7 @@ class Volume:
     diagnostics: None | Unset | VolumeDiagnosticsType0 = UNSET
     fill: VolumeFill | Unset = UNSET
     provenance: Any | Unset = UNSET
+    attributes: VolumeAttributes | Unset = UNSET
     distance: VolumeDistance | Unset = UNSET
     owner: str | Unset = UNSET
     additional_properties: dict[str, Any] = _attrs_field(init=False, factory=dict)
@@ -110,6 +113,10 @@ class Volume:
 
         provenance = self.provenance
 
+        attributes: dict[str, Any] | Unset = UNSET
+        if not isinstance(self.attributes, Unset):
+            attributes = self.attributes.to_dict()
+
         distance: dict[str, Any] | Unset = UNSET
         if not isinstance(self.distance, Unset):
             distance = self.distance.to_dict()
@@ -141,6 +148,8 @@ class Volume:
             field_dict["fill"] = fill
         if provenance is not UNSET:
             field_dict["provenance"] = provenance
+        if attributes is not UNSET:
+            field_dict["attributes"] = attributes
         if distance is not UNSET:
             field_dict["distance"] = distance
         if owner is not UNSET:
@@ -151,6 +160,7 @@ class Volume:
     @classmethod
     def from_dict(cls, src_dict: Mapping[str, Any]) -> Self:
         from ..models.grid import Grid
+        from ..models.volume_attributes import VolumeAttributes
         from ..models.volume_diagnostics_type_0 import VolumeDiagnosticsType0
         from ..models.volume_distance import VolumeDistance
         from ..models.volume_fill import VolumeFill
@@ -214,6 +224,13 @@ class Volume:
 
         provenance = d.pop("provenance", UNSET)
 
+        _attributes = d.pop("attributes", UNSET)
+        attributes: VolumeAttributes | Unset
+        if isinstance(_attributes, Unset):
+            attributes = UNSET
+        else:
+            attributes = VolumeAttributes.from_dict(_attributes)
+
         _distance = d.pop("distance", UNSET)
         distance: VolumeDistance | Unset
         if isinstance(_distance, Unset):
@@ -239,6 +256,7 @@ class Volume:
             diagnostics=diagnostics,
             fill=fill,
             provenance=provenance,
+            attributes=attributes,
             distance=distance,
             owner=owner,
         )

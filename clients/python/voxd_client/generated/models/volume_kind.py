@@ -3,6 +3,7 @@ from enum import StrEnum
 
 class VolumeKind(StrEnum):
     BITS = "bits"
+    CHANNELS = "channels"
     DENSITY = "density"
     SPARSE_DISTANCE = "sparse-distance"
 

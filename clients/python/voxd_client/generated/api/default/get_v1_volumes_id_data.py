@@ -7,6 +7,7 @@ import httpx
 
 from ... import errors
 from ...client import AuthenticatedClient, Client
+from ...models.get_v1_volumes_id_data_attributes import GetV1VolumesIdDataAttributes
 from ...models.get_v1_volumes_id_data_format import GetV1VolumesIdDataFormat
 from ...models.problem import Problem
 from ...types import UNSET, File, Response, Unset
@@ -16,6 +17,7 @@ def _get_kwargs(
     id: str,
     *,
     format_: GetV1VolumesIdDataFormat | Unset = GetV1VolumesIdDataFormat.VXL,
+    attributes: GetV1VolumesIdDataAttributes | Unset = UNSET,
     if_none_match: str | Unset = UNSET,
     if_match: str | Unset = UNSET,
     accept_encoding: str | Unset = UNSET,
@@ -45,6 +47,12 @@ def _get_kwargs(
         json_format_ = format_.value
 
     params["format"] = json_format_
+
+    json_attributes: str | Unset = UNSET
+    if not isinstance(attributes, Unset):
+        json_attributes = attributes.value
+
+    params["attributes"] = json_attributes
 
     params = {k: v for k, v in params.items() if v is not UNSET and v is not None}
 
@@ -129,6 +137,7 @@ def sync_detailed(
     *,
     client: AuthenticatedClient | Client,
     format_: GetV1VolumesIdDataFormat | Unset = GetV1VolumesIdDataFormat.VXL,
+    attributes: GetV1VolumesIdDataAttributes | Unset = UNSET,
     if_none_match: str | Unset = UNSET,
     if_match: str | Unset = UNSET,
     accept_encoding: str | Unset = UNSET,
@@ -140,6 +149,7 @@ def sync_detailed(
     Args:
         id (str):
         format_ (GetV1VolumesIdDataFormat | Unset):  Default: GetV1VolumesIdDataFormat.VXL.
+        attributes (GetV1VolumesIdDataAttributes | Unset):
         if_none_match (str | Unset):
         if_match (str | Unset):
         accept_encoding (str | Unset):
@@ -157,6 +167,7 @@ def sync_detailed(
     kwargs = _get_kwargs(
         id=id,
         format_=format_,
+        attributes=attributes,
         if_none_match=if_none_match,
         if_match=if_match,
         accept_encoding=accept_encoding,
@@ -176,6 +187,7 @@ def sync(
     *,
     client: AuthenticatedClient | Client,
     format_: GetV1VolumesIdDataFormat | Unset = GetV1VolumesIdDataFormat.VXL,
+    attributes: GetV1VolumesIdDataAttributes | Unset = UNSET,
     if_none_match: str | Unset = UNSET,
     if_match: str | Unset = UNSET,
     accept_encoding: str | Unset = UNSET,
@@ -187,6 +199,7 @@ def sync(
     Args:
         id (str):
         format_ (GetV1VolumesIdDataFormat | Unset):  Default: GetV1VolumesIdDataFormat.VXL.
+        attributes (GetV1VolumesIdDataAttributes | Unset):
         if_none_match (str | Unset):
         if_match (str | Unset):
         accept_encoding (str | Unset):
@@ -205,6 +218,7 @@ def sync(
         id=id,
         client=client,
         format_=format_,
+        attributes=attributes,
         if_none_match=if_none_match,
         if_match=if_match,
         accept_encoding=accept_encoding,
@@ -218,6 +232,7 @@ async def asyncio_detailed(
     *,
     client: AuthenticatedClient | Client,
     format_: GetV1VolumesIdDataFormat | Unset = GetV1VolumesIdDataFormat.VXL,
+    attributes: GetV1VolumesIdDataAttributes | Unset = UNSET,
     if_none_match: str | Unset = UNSET,
     if_match: str | Unset = UNSET,
     accept_encoding: str | Unset = UNSET,
@@ -229,6 +244,7 @@ async def asyncio_detailed(
     Args:
         id (str):
         format_ (GetV1VolumesIdDataFormat | Unset):  Default: GetV1VolumesIdDataFormat.VXL.
+        attributes (GetV1VolumesIdDataAttributes | Unset):
         if_none_match (str | Unset):
         if_match (str | Unset):
         accept_encoding (str | Unset):
@@ -246,6 +262,7 @@ async def asyncio_detailed(
     kwargs = _get_kwargs(
         id=id,
         format_=format_,
+        attributes=attributes,
         if_none_match=if_none_match,
         if_match=if_match,
         accept_encoding=accept_encoding,
@@ -263,6 +280,7 @@ async def asyncio(
     *,
     client: AuthenticatedClient | Client,
     format_: GetV1VolumesIdDataFormat | Unset = GetV1VolumesIdDataFormat.VXL,
+    attributes: GetV1VolumesIdDataAttributes | Unset = UNSET,
     if_none_match: str | Unset = UNSET,
     if_match: str | Unset = UNSET,
     accept_encoding: str | Unset = UNSET,
@@ -274,6 +292,7 @@ async def asyncio(
     Args:
         id (str):
         format_ (GetV1VolumesIdDataFormat | Unset):  Default: GetV1VolumesIdDataFormat.VXL.
+        attributes (GetV1VolumesIdDataAttributes | Unset):
         if_none_match (str | Unset):
         if_match (str | Unset):
         accept_encoding (str | Unset):
@@ -293,6 +312,7 @@ async def asyncio(
             id=id,
             client=client,
             format_=format_,
+            attributes=attributes,
             if_none_match=if_none_match,
             if_match=if_match,
             accept_encoding=accept_encoding,

@@ -30,6 +30,8 @@ def _get_kwargs(
     dims: str | Unset = UNSET,
     cubic: bool | Unset = UNSET,
     padding: int | Unset = 0,
+    color: bool | Unset = UNSET,
+    material: bool | Unset = UNSET,
     fill: PostV1VoxelizeFill | Unset = UNSET,
     name: str | Unset = UNSET,
     wait: float | Unset = 0.0,
@@ -77,6 +79,10 @@ def _get_kwargs(
     params["cubic"] = cubic
 
     params["padding"] = padding
+
+    params["color"] = color
+
+    params["material"] = material
 
     json_fill: str | Unset = UNSET
     if not isinstance(fill, Unset):
@@ -205,6 +211,8 @@ def sync_detailed(
     dims: str | Unset = UNSET,
     cubic: bool | Unset = UNSET,
     padding: int | Unset = 0,
+    color: bool | Unset = UNSET,
+    material: bool | Unset = UNSET,
     fill: PostV1VoxelizeFill | Unset = UNSET,
     name: str | Unset = UNSET,
     wait: float | Unset = 0.0,
@@ -225,6 +233,8 @@ def sync_detailed(
         dims (str | Unset):  Example: 64,64,64.
         cubic (bool | Unset):
         padding (int | Unset):  Default: 0.
+        color (bool | Unset):
+        material (bool | Unset):
         fill (PostV1VoxelizeFill | Unset):
         name (str | Unset): at most 256 characters, none of them control characters
         wait (float | Unset):  Default: 0.0.
@@ -253,6 +263,8 @@ def sync_detailed(
         dims=dims,
         cubic=cubic,
         padding=padding,
+        color=color,
+        material=material,
         fill=fill,
         name=name,
         wait=wait,
@@ -282,6 +294,8 @@ def sync(
     dims: str | Unset = UNSET,
     cubic: bool | Unset = UNSET,
     padding: int | Unset = 0,
+    color: bool | Unset = UNSET,
+    material: bool | Unset = UNSET,
     fill: PostV1VoxelizeFill | Unset = UNSET,
     name: str | Unset = UNSET,
     wait: float | Unset = 0.0,
@@ -302,6 +316,8 @@ def sync(
         dims (str | Unset):  Example: 64,64,64.
         cubic (bool | Unset):
         padding (int | Unset):  Default: 0.
+        color (bool | Unset):
+        material (bool | Unset):
         fill (PostV1VoxelizeFill | Unset):
         name (str | Unset): at most 256 characters, none of them control characters
         wait (float | Unset):  Default: 0.0.
@@ -331,6 +347,8 @@ def sync(
         dims=dims,
         cubic=cubic,
         padding=padding,
+        color=color,
+        material=material,
         fill=fill,
         name=name,
         wait=wait,
@@ -354,6 +372,8 @@ async def asyncio_detailed(
     dims: str | Unset = UNSET,
     cubic: bool | Unset = UNSET,
     padding: int | Unset = 0,
+    color: bool | Unset = UNSET,
+    material: bool | Unset = UNSET,
     fill: PostV1VoxelizeFill | Unset = UNSET,
     name: str | Unset = UNSET,
     wait: float | Unset = 0.0,
@@ -374,6 +394,8 @@ async def asyncio_detailed(
         dims (str | Unset):  Example: 64,64,64.
         cubic (bool | Unset):
         padding (int | Unset):  Default: 0.
+        color (bool | Unset):
+        material (bool | Unset):
         fill (PostV1VoxelizeFill | Unset):
         name (str | Unset): at most 256 characters, none of them control characters
         wait (float | Unset):  Default: 0.0.
@@ -402,6 +424,8 @@ async def asyncio_detailed(
         dims=dims,
         cubic=cubic,
         padding=padding,
+        color=color,
+        material=material,
         fill=fill,
         name=name,
         wait=wait,
@@ -429,6 +453,8 @@ async def asyncio(
     dims: str | Unset = UNSET,
     cubic: bool | Unset = UNSET,
     padding: int | Unset = 0,
+    color: bool | Unset = UNSET,
+    material: bool | Unset = UNSET,
     fill: PostV1VoxelizeFill | Unset = UNSET,
     name: str | Unset = UNSET,
     wait: float | Unset = 0.0,
@@ -449,6 +475,8 @@ async def asyncio(
         dims (str | Unset):  Example: 64,64,64.
         cubic (bool | Unset):
         padding (int | Unset):  Default: 0.
+        color (bool | Unset):
+        material (bool | Unset):
         fill (PostV1VoxelizeFill | Unset):
         name (str | Unset): at most 256 characters, none of them control characters
         wait (float | Unset):  Default: 0.0.
@@ -479,6 +507,8 @@ async def asyncio(
             dims=dims,
             cubic=cubic,
             padding=padding,
+            color=color,
+            material=material,
             fill=fill,
             name=name,
             wait=wait,
