@@ -326,14 +326,16 @@ fn new_kinds_round_trip_through_vxl_version_2_and_other_formats_refuse_them() {
             VolumeFormat::Raw,
             VolumeFormat::Vdb,
         ] {
-            // npy and raw hold distances (as float32), vdb sparse distances.
-            let holds = match f {
-                VolumeFormat::Npy | VolumeFormat::Raw => {
-                    matches!(kind, VolumeKind::Distance | VolumeKind::SparseDistance)
-                }
-                VolumeFormat::Vdb => kind == VolumeKind::SparseDistance,
-                _ => false,
-            };
+            // npy and raw hold distances (as float32), vdb sparse distances; all four hold bit
+            // volumes with channels (their bits, or with npy and raw one channel).
+            let holds = kind == VolumeKind::Channels
+                || match f {
+                    VolumeFormat::Npy | VolumeFormat::Raw => {
+                        matches!(kind, VolumeKind::Distance | VolumeKind::SparseDistance)
+                    }
+                    VolumeFormat::Vdb => kind == VolumeKind::SparseDistance,
+                    _ => false,
+                };
             match f.check(&vol) {
                 Ok(()) => assert!(holds, "{f:?} {kind}"),
                 Err(e) => {

@@ -44,9 +44,9 @@ pub struct Prepared {
 pub struct Source {
     /// The file's name, or `upload`.
     pub name: String,
-    /// The format given or sniffed (of the mesh inside, for a gzip'd file).
+    /// The format given or sniffed (of the mesh inside, for a gzip'd file or a zip).
     pub format: String,
-    /// `gzip` for a gzip'd file or upload.
+    /// `gzip` for a gzip'd file or upload, `zip` for a zip upload (the mesh and its files).
     pub compression: Option<String>,
     /// sha256 of the uploaded bytes (uploads only: files are not hashed).
     pub sha256: Option<String>,
@@ -101,7 +101,7 @@ pub fn load(req: &VoxelizeRequest) -> Result<Loaded> {
                 .map_err(|e| MeshError::Io(format!("{}: {e}", path.display())))?;
             let format = format.or_else(|| Format::from_path(path));
             let (m, format) = mesh::load_bytes_as(&bytes, format, &opts)?;
-            (m, format, mesh::is_gzip(&bytes), None)
+            (m, format, mesh::container(&bytes), None)
         }
         MeshSource::Bytes { bytes, format } => {
             if bytes.is_empty() {
@@ -114,7 +114,7 @@ pub fn load(req: &VoxelizeRequest) -> Result<Loaded> {
             (
                 m,
                 format,
-                mesh::is_gzip(bytes),
+                mesh::container(bytes),
                 Some(super::sha256_hex(bytes)),
             )
         }
@@ -128,7 +128,7 @@ pub fn load(req: &VoxelizeRequest) -> Result<Loaded> {
         source: Source {
             name: req.source.display_name(),
             format: format.name().to_string(),
-            compression: gzip.then(|| "gzip".to_string()),
+            compression: gzip,
             sha256,
         },
         load_s,

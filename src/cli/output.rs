@@ -77,6 +77,12 @@ pub fn write_volume(
     if let Some(w) = ops::conversion_warning(v.grid(), f) {
         eprintln!("{}: {w}", path.display());
     }
+    // A channel volume as its format holds it by default (npy: occupancy; vox, points: with
+    // colours), as the service's downloads without `attributes=`.
+    if let Volume::Channels(_) = v {
+        let v = voxd::app::attributes::select(v.clone(), f, None).map_err(|e| err(&e))?;
+        return voxd::app::files::write_volume(path, f, &v, meta).map_err(|e| err(&e));
+    }
     voxd::app::files::write_volume(path, f, v, meta).map_err(|e| err(&e))
 }
 

@@ -75,6 +75,25 @@ fn mesh_cost(vertices: u64, triangles: u64) -> u64 {
 /// may take, and the decoded size it assumes. A file that will be refused before its data is
 /// read (an unknown format, a count over the limits) costs its [`fixed_part`].
 pub fn estimate(upload: &[u8], format: Option<Format>, opts: &LoadOptions) -> Estimate {
+    if super::archive::is_zip(upload) {
+        // A zip upload: its entries held inflated (as their headers declare; the load holds
+        // them to it), the mesh parsed from one of them (counted as a glTF of that size, the
+        // costliest per byte) and textures up to their limit.
+        let decoded = super::archive::declared_size(upload)
+            .unwrap_or(0)
+            .min(opts.max_decompressed_bytes);
+        let v = (decoded / 12).min(opts.max_vertices() as u64);
+        let t = (decoded / 6).min(opts.max_triangles as u64);
+        return Estimate {
+            bytes: fixed_part(decoded)
+                .saturating_add(decoded)
+                .saturating_add(mesh_cost(v, t))
+                .saturating_add(v.saturating_mul(PER_COLOUR))
+                .saturating_add(t.saturating_mul(PER_MATERIAL_ID + PER_CORNER_UVS))
+                .saturating_add(opts.max_texture_bytes),
+            decoded,
+        };
+    }
     let decoded = match gzip_size(upload) {
         // A gzip that is smaller than its trailer size is a lie or a gzip of several members;
         // either way, what is decoded past the stated size is refused by the parse.

@@ -54,12 +54,13 @@ impl Repeats {
 
     /// Drops from `triangles` (indices into `positions`, all in range) every degenerate one that
     /// [`Repeats::keep`] would, keeping the order of the rest; the same from `material` (one
-    /// id per triangle) when there is one.
+    /// id per triangle) and `uv` (corner texture coordinates per triangle) when there are.
     pub(super) fn filter(
         &mut self,
         positions: &[[f64; 3]],
         triangles: &mut Vec<[u32; 3]>,
         material: Option<&mut Vec<u16>>,
+        uv: Option<&mut Vec<[[f32; 2]; 3]>>,
     ) {
         let corners = |t: &[u32; 3]| t.map(|i| positions[i as usize]);
         // Most meshes have no triangle that repeats a point: nothing to copy then.
@@ -72,6 +73,10 @@ impl Repeats {
         if let Some(m) = material {
             let mut k = keep.iter();
             m.retain(|_| *k.next().expect("one a triangle"));
+        }
+        if let Some(uv) = uv {
+            let mut k = keep.iter();
+            uv.retain(|_| *k.next().expect("one a triangle"));
         }
     }
 }
@@ -122,11 +127,18 @@ mod tests {
         ];
         let mut t2 = t.clone();
         let mut r = Repeats::default();
-        r.filter(&p, &mut t, None);
+        r.filter(&p, &mut t, None, None);
         assert_eq!(t, vec![[0, 1, 2], [0, 0, 1], [2, 2, 2]]);
         // The materials of the dropped triangles go with them.
         let mut material = vec![10, 11, 12, 13, 14, 15];
-        Repeats::default().filter(&p, &mut t2, Some(&mut material));
+        let mut uv = vec![[[0.0f32; 2]; 3]; 6];
+        uv[4][0][0] = 4.0;
+        Repeats::default().filter(&p, &mut t2, Some(&mut material), Some(&mut uv));
+        assert_eq!(uv.len(), 3);
+        assert_eq!(
+            uv[2][0][0], 4.0,
+            "the kept triangles' coordinates stay theirs"
+        );
         assert_eq!(t2, t);
         assert_eq!(material, vec![10, 11, 14]);
         assert_eq!(r.dropped, 3);

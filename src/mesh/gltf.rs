@@ -382,6 +382,17 @@ fn read_uri(uri: &str, external: &ExternalResources) -> Result<Vec<u8>, MeshErro
             .decode(payload.trim())
             .map_err(|e| malformed("glTF", format!("bad base64 in a data URI: {e}")));
     }
+    if let ExternalResources::Archive(a) = external {
+        return a
+            .get(&percent_decode(uri))
+            .map(<[u8]>::to_vec)
+            .ok_or_else(|| {
+                malformed(
+                    "glTF",
+                    format!("buffer {uri:?} is not in the uploaded archive"),
+                )
+            });
+    }
     let ExternalResources::BesideFile(dir) = external else {
         return Err(MeshError::ExternalRefused {
             uri: uri.to_string(),

@@ -2,6 +2,7 @@
 //! diagnostics. A [`Mesh`] that exists is valid: at least one triangle, finite coordinates of
 //! sane size, every index in range. Nothing here knows about grids or voxels.
 
+pub mod archive;
 mod attributes;
 pub mod binary;
 pub mod cost;
@@ -162,6 +163,8 @@ pub enum ExternalResources {
     Deny,
     /// Relative paths that stay inside this directory (the one holding the .gltf) may be read.
     BesideFile(PathBuf),
+    /// The other files of a zip upload, by paths relative to the mesh's place in it.
+    Archive(std::sync::Arc<archive::Archive>),
 }
 
 #[derive(Clone, Debug)]
@@ -229,11 +232,41 @@ pub fn load_bytes_as(
     format: Option<Format>,
     opts: &LoadOptions,
 ) -> Result<(Mesh, Format), MeshError> {
+    if archive::is_zip(bytes) {
+        let (data, named, _, files) = archive::open(bytes, opts.max_decompressed_bytes)?;
+        if archive::is_zip(&data) {
+            return Err(MeshError::Malformed {
+                format: "zip",
+                detail: "the mesh in the archive is itself a zip".into(),
+            });
+        }
+        let inner = LoadOptions {
+            external: ExternalResources::Archive(files),
+            ..opts.clone()
+        };
+        return load_stream(
+            &mut Stream::of(&data, opts.max_decompressed_bytes),
+            named.or(format),
+            &inner,
+        );
+    }
     load_stream(
         &mut Stream::of(bytes, opts.max_decompressed_bytes),
         format,
         opts,
     )
+}
+
+/// The container mesh bytes come in, as a volume's `source.compression` names it: `gzip`,
+/// `zip`, or none.
+pub fn container(bytes: &[u8]) -> Option<String> {
+    if is_gzip(bytes) {
+        Some("gzip".into())
+    } else if archive::is_zip(bytes) {
+        Some("zip".into())
+    } else {
+        None
+    }
 }
 
 /// Whether mesh bytes are gzip'd (the loaders inflate them).
@@ -263,6 +296,7 @@ fn load_stream(
         &mesh.positions,
         &mut mesh.triangles,
         mesh.attributes.material.as_mut(),
+        mesh.attributes.uv.as_mut(),
     );
     mesh.dropped += repeats.dropped;
     if mesh.triangles.len() > opts.max_triangles {

@@ -30,6 +30,7 @@ mod mesh;
 mod ops;
 mod viewer;
 mod vox;
+mod zip_upload;
 
 pub(crate) struct Server {
     pub child: Child,

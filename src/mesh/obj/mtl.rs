@@ -1,7 +1,7 @@
 //! Wavefront material libraries (`.mtl`), for the base colour of each `usemtl` name: `newmtl`
 //! names a material, `Kd r g b` is its diffuse colour, `d a` its opacity (or `Tr t`, 1 − t).
 //! Read only for an OBJ loaded from a file (`ExternalResources::BesideFile`), from relative
-//! paths that stay beside it, at most [`MAX_BYTES`] each; a library that is missing or
+//! paths that stay beside it, or from a zip upload (`ExternalResources::Archive`, its entries), at most [`MAX_BYTES`] each; a library that is missing or
 //! unreadable is skipped with a warning (its materials stay white), as OBJ viewers do. Textures
 //! (`map_Kd`) are not read yet.
 
@@ -19,8 +19,24 @@ pub(super) fn base_colours(
     external: &ExternalResources,
 ) -> HashMap<String, [f32; 4]> {
     let mut out = HashMap::new();
-    let ExternalResources::BesideFile(dir) = external else {
-        return out;
+    let dir = match external {
+        ExternalResources::BesideFile(dir) => dir,
+        ExternalResources::Archive(a) => {
+            for lib in libs {
+                let name = String::from_utf8_lossy(lib);
+                match a.get(&name) {
+                    Some(t) if t.len() as u64 <= MAX_BYTES => parse(t, &mut out),
+                    Some(t) => {
+                        tracing::warn!(mtllib = %name, bytes = t.len(), "material library over 16 MiB skipped")
+                    }
+                    None => {
+                        tracing::warn!(mtllib = %name, "material library not in the uploaded archive")
+                    }
+                }
+            }
+            return out;
+        }
+        ExternalResources::Deny => return out,
     };
     for lib in libs {
         let name = String::from_utf8_lossy(lib);

@@ -83,6 +83,7 @@ const SNIFFED: &[&str] = &[
     "",
     "application/octet-stream",
     "application/gzip",
+    "application/zip",
     "application/x-www-form-urlencoded",
 ];
 

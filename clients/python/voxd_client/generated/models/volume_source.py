@@ -20,7 +20,8 @@ class VolumeSource:
             volume, how it was made
         sha256 (str): sha256 of the uploaded bytes (of a derived volume: of its provenance)
         triangles (int):
-        compression (VolumeSourceCompression | Unset): set when the upload was gzip'd
+        compression (VolumeSourceCompression | Unset): set when the upload was gzip'd, or a zip holding the mesh and its
+            files
         kept (bool | Unset): true when the mesh is kept in the store (under sha256, shared by the volumes made from the
             same upload, counted in the quota, removed with the last of them) for GET /v1/volumes/{id}/hermite and
             algorithm=dual-contouring; absent otherwise

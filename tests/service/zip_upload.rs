@@ -1,0 +1,140 @@
+//! Zip uploads over HTTP (issue 34): an OBJ with its `.mtl` in a folder of a `.zip`, coloured by
+//! the library's `Kd` colours; and the archives refused, each with a problem naming the entry:
+//! a path out of the archive, a symbolic link, a bomb, too many entries, no mesh, two meshes.
+
+use std::io::Write;
+
+use super::*;
+
+/// A zip of `entries` (name, bytes), deflated.
+fn zip_of(entries: &[(&str, &[u8])]) -> Vec<u8> {
+    let mut w = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
+    let opts = zip::write::SimpleFileOptions::default()
+        .compression_method(zip::CompressionMethod::Deflated);
+    for (name, bytes) in entries {
+        w.start_file(*name, opts).unwrap();
+        w.write_all(bytes).unwrap();
+    }
+    w.finish().unwrap().into_inner()
+}
+
+/// Two unit cubes side by side, `usemtl red` and `usemtl blue`, their library `m.mtl`.
+fn two_cubes() -> (String, String) {
+    let mut obj = String::from("mtllib m.mtl\n");
+    for (i, (name, x)) in [("red", 0.0), ("blue", 2.0)].iter().enumerate() {
+        for c in 0..8u32 {
+            let p = [c & 1, c >> 1 & 1, c >> 2 & 1].map(f64::from);
+            obj += &format!("v {} {} {}\n", p[0] + x, p[1], p[2]);
+        }
+        obj += &format!("usemtl {name}\n");
+        let b = 8 * i as u32 + 1;
+        for f in [
+            [0, 2, 3, 1],
+            [4, 5, 7, 6],
+            [0, 1, 5, 4],
+            [2, 6, 7, 3],
+            [0, 4, 6, 2],
+            [1, 3, 7, 5],
+        ] {
+            obj += &format!("f {} {} {} {}\n", b + f[0], b + f[1], b + f[2], b + f[3]);
+        }
+    }
+    let mtl = "newmtl red\nKd 1 0 0\nnewmtl blue\nKd 0 0 1\n".to_string();
+    (obj, mtl)
+}
+
+#[test]
+fn a_zipped_obj_brings_its_materials() {
+    let dir = tmpdir("zip-upload");
+    let srv = Server::start(&dir, &[]);
+    let (obj, mtl) = two_cubes();
+    let body = zip_of(&[
+        ("model/", b""),
+        ("model/cubes.obj", obj.as_bytes()),
+        ("model/m.mtl", mtl.as_bytes()),
+        ("readme.txt", b"two cubes"),
+    ]);
+    let v = srv.created(
+        "/v1/voxelize?origin=-0.5,-0.5,-0.5&voxel_size=0.25&dims=16,8,8&color=true&material=true&wait=60",
+        &[("Content-Type", "application/zip")],
+        &body,
+    );
+    assert_eq!(v["source"]["format"], "obj", "{v}");
+    assert_eq!(v["source"]["compression"], "zip", "{v}");
+    let names: Vec<&str> = v["attributes"]["materials"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| m["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["red", "blue"]);
+    let id = v["id"].as_str().unwrap().to_string();
+    let b = srv
+        .req(
+            "GET",
+            &format!("/v1/volumes/{id}/data?format=npy&attributes=rgba"),
+            &[],
+            &[],
+        )
+        .ok(200)
+        .body;
+    let n = u16::from_le_bytes([b[8], b[9]]) as usize;
+    let c = &b[10 + n..];
+    // Voxel x = 2..6 is the red cube ([0, 1]), x = 10..14 the blue one ([2, 3]).
+    let at = |x: usize, y: usize, z: usize| &c[4 * ((x * 8 + y) * 8 + z)..][..4];
+    assert_eq!(at(3, 3, 3), [255, 0, 0, 255]);
+    assert_eq!(at(11, 3, 3), [0, 0, 255, 255]);
+}
+
+#[test]
+fn unsafe_archives_are_refused_naming_the_entry() {
+    let dir = tmpdir("zip-refusals");
+    let srv = Server::start(&dir, &[]);
+    let (obj, _) = two_cubes();
+    let post = |body: &[u8]| {
+        srv.req(
+            "POST",
+            "/v1/voxelize?resolution=8&wait=30",
+            &[("Content-Type", "application/zip")],
+            body,
+        )
+    };
+    let detail = |body: &[u8]| {
+        let r = post(body);
+        assert_problem(&r, 422, "invalid-mesh")["detail"]
+            .as_str()
+            .unwrap()
+            .to_string()
+    };
+    let d = detail(&zip_of(&[("../evil.obj", obj.as_bytes())]));
+    assert!(d.contains("../evil.obj") && d.contains("outside"), "{d}");
+    let d = detail(&zip_of(&[("/abs.obj", obj.as_bytes())]));
+    assert!(d.contains("abs.obj"), "{d}");
+    // A symbolic link, even to a file inside.
+    let mut w = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
+    let opts = zip::write::SimpleFileOptions::default();
+    w.start_file("a.obj", opts).unwrap();
+    w.write_all(obj.as_bytes()).unwrap();
+    w.add_symlink("m.mtl", "/etc/passwd", opts).unwrap();
+    let d = detail(&w.finish().unwrap().into_inner());
+    assert!(d.contains("m.mtl") && d.contains("symbolic link"), "{d}");
+    // A bomb: 64 MiB of zeros deflate about a thousand times.
+    let zeros = vec![0u8; 64 << 20];
+    let d = detail(&zip_of(&[("a.obj", obj.as_bytes()), ("pad.bin", &zeros)]));
+    assert!(d.contains("pad.bin") && d.contains("bomb"), "{d}");
+    // Too many entries, no mesh, two meshes.
+    let many: Vec<(String, Vec<u8>)> = (0..1025).map(|i| (format!("f{i}.txt"), vec![])).collect();
+    let many: Vec<(&str, &[u8])> = many
+        .iter()
+        .map(|(n, b)| (n.as_str(), b.as_slice()))
+        .collect();
+    let d = detail(&zip_of(&many));
+    assert!(d.contains("1025 entries"), "{d}");
+    let d = detail(&zip_of(&[("a.txt", b"x")]));
+    assert!(d.contains("no mesh"), "{d}");
+    let d = detail(&zip_of(&[
+        ("a.obj", obj.as_bytes()),
+        ("b.stl", b"solid x\nendsolid x\n"),
+    ]));
+    assert!(d.contains("a.obj") && d.contains("b.stl"), "{d}");
+}
