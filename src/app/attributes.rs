@@ -1,6 +1,7 @@
-//! Which of a channel volume's attributes a download holds (`?attributes=` on the data route,
-//! `--attributes` on the command line): `.npy` and `.raw` hold occupancy (0/1) unless asked for
-//! one channel (`rgba`: `uint8 (X, Y, Z, 4)`, `material`: `uint16 (X, Y, Z)`), the other
+//! Which of a channel volume's attributes a download holds (`?attributes=` on the data route):
+//! `.npy` and `.raw` hold occupancy (0/1) unless asked for one channel (`rgba`:
+//! `uint8 (X, Y, Z, 4)`, `material`: `uint16 (X, Y, Z)`), `indices` the set voxels' indices
+//! unless asked for a channel too (then an `.npz` of both, [`is_npz`]), the other
 //! formats that list or draw voxels hold the bits with the colours they show (`.vox`'s palette,
 //! `points`' colours), and `.vxl` holds everything.
 
@@ -30,9 +31,12 @@ fn check_channels(
     format: VolumeFormat,
     name: &str,
 ) -> Result<()> {
-    if !matches!(format, VolumeFormat::Npy | VolumeFormat::Raw) {
+    if !matches!(
+        format,
+        VolumeFormat::Npy | VolumeFormat::Raw | VolumeFormat::Indices
+    ) {
         return Err(Error::invalid(format!(
-            "attributes={name} applies to format=npy and raw only (format={} holds {})",
+            "attributes={name} applies to format=npy, raw and indices only (format={} holds {})",
             format.name(),
             match format {
                 VolumeFormat::Vox | VolumeFormat::Points => "the colours by itself",
@@ -56,6 +60,11 @@ fn check_channels(
         )));
     }
     Ok(())
+}
+
+/// Does a download in `format` with `attributes` come as an `.npz` (indices with a channel)?
+pub fn is_npz(format: VolumeFormat, attributes: Option<&str>) -> bool {
+    format == VolumeFormat::Indices && attributes.is_some()
 }
 
 /// What of `v` a download in `format` holds (module docs); `attributes` checked as [`check`]

@@ -3,20 +3,73 @@
 //! ascending: what `np.argwhere` gives on the dense `.npy`). Written in pieces; its
 //! length (header + 12 bytes a voxel) is known before. The grid is not stored (keep the `.vxl`).
 
-use crate::volume::Volume;
+use crate::volume::{Attributed, ChannelValues, Volume};
 
 /// The header of `n` rows.
 pub fn header(n: u64) -> Vec<u8> {
     super::npy::array_header(&[n, 3], "<u4")
 }
 
-/// The file's length for `v`, a bit volume (`None` otherwise).
+/// The file's length for `v`, a bit volume (`None` otherwise, and for a volume with a channel:
+/// its `.npz` is compressed).
 pub fn len(v: &Volume) -> Option<u64> {
+    if let Volume::Channels(a) = v
+        && !a.channels().is_empty()
+    {
+        return None;
+    }
     rows_len(v, header, 12)
 }
 
-/// Streams the rows of `v`'s set voxels (`InvalidInput` for a volume that is not bits).
+/// A bit volume with one channel (a download with `attributes=`) as an `.npz`: `indices`
+/// (N, 3) `uint32` as above and the channel by its name, one row a voxel in the same order:
+/// `rgba` (N, 4) `uint8`, `material` (N,) `uint16` (any other type as its `.npy` dtype).
+fn write_npz(a: &Attributed, out: &mut impl std::io::Write) -> std::io::Result<()> {
+    let n = a.len();
+    let idx: Vec<u8> = a
+        .bits()
+        .iter_ones()
+        .flat_map(|p| p.into_iter().flat_map(u32::to_le_bytes))
+        .collect();
+    let c = &a.channels()[0];
+    let (descr, shape) = match &c.values {
+        ChannelValues::Rgba8(_) => ("|u1", vec![n, 4]),
+        ChannelValues::U16(_) => ("<u2", vec![n]),
+        ChannelValues::U8(_) => ("|u1", vec![n]),
+        ChannelValues::F32(_) => ("<f4", vec![n]),
+    };
+    let name: &'static str = match c.name.as_str() {
+        crate::engine::colour::RGBA => crate::engine::colour::RGBA,
+        crate::engine::colour::MATERIAL => crate::engine::colour::MATERIAL,
+        _ => "values",
+    };
+    let arrays = [
+        super::npz::Array {
+            name: "indices",
+            descr: "<u4",
+            shape: vec![n, 3],
+            data: idx,
+        },
+        super::npz::Array {
+            name,
+            descr,
+            shape,
+            data: c.values.to_le_bytes(),
+        },
+    ];
+    let mut buf = std::io::Cursor::new(Vec::new());
+    super::npz::write(&arrays, &mut buf)?;
+    out.write_all(&buf.into_inner())
+}
+
+/// Streams the rows of `v`'s set voxels (`InvalidInput` for a volume that is not bits); a bit
+/// volume with one channel as an `.npz` ([`write_npz`]).
 pub fn write(v: &Volume, out: &mut impl std::io::Write) -> std::io::Result<()> {
+    if let Volume::Channels(a) = v
+        && !a.channels().is_empty()
+    {
+        return write_npz(a, out);
+    }
     write_rows(v, "indices", header, out, |p, _, buf| {
         for c in p {
             buf.extend_from_slice(&c.to_le_bytes());

@@ -278,6 +278,36 @@ fn a_textured_cube_gives_each_face_its_atlas_colour() {
     for c in FACE_COLOURS {
         assert!(pal.chunks(4).any(|e| e == c), "{c:?} not in the palette");
     }
+    // The set voxels' indices with their colours, as an .npz: each row's colour is the dense
+    // array's at its index.
+    let z = srv
+        .req(
+            "GET",
+            &format!("/v1/volumes/{id}/data?format=indices&attributes=rgba"),
+            &[],
+            &[],
+        )
+        .ok(200);
+    assert_eq!(z.header("content-type"), Some("application/zip"));
+    let mut zip = zip::ZipArchive::new(std::io::Cursor::new(z.body)).unwrap();
+    let mut read = |name: &str| {
+        let mut b = vec![];
+        std::io::Read::read_to_end(&mut zip.by_name(name).unwrap(), &mut b).unwrap();
+        b
+    };
+    let (idx, rows) = (read("indices.npy"), read("rgba.npy"));
+    let ((ishape, idx), (cshape, rows)) = (npy(&idx), npy(&rows));
+    assert_eq!(ishape[1], 3);
+    assert_eq!(cshape, vec![ishape[0], 4]);
+    assert_eq!(ishape[0], occ.iter().filter(|&&b| b == 1).count());
+    for (r, xyz) in idx.chunks(12).enumerate() {
+        let p: Vec<usize> = xyz
+            .chunks(4)
+            .map(|c| u32::from_le_bytes(c.try_into().unwrap()) as usize)
+            .collect();
+        let i = (p[0] * 10 + p[1]) * 10 + p[2];
+        assert_eq!(rows[4 * r..4 * r + 4], data[4 * i..4 * i + 4]);
+    }
     // Coloured points: 16 bytes a point (x, y, z, r, g, b, a).
     let pts = get("format=points");
     let text = String::from_utf8_lossy(&pts[..300]);

@@ -110,7 +110,13 @@ pub async fn data(
             .insert(header::ACCEPT_RANGES, HeaderValue::from_static("bytes"));
         return Ok(r);
     }
-    let disposition = super::disposition::attachment(meta.name.as_deref(), &id, format.extension());
+    let npz = crate::app::attributes::is_npz(format, q.attributes.as_deref());
+    let extension = if npz {
+        "indices.npz"
+    } else {
+        format.extension()
+    };
+    let disposition = super::disposition::attachment(meta.name.as_deref(), &id, extension);
     // The first chunk before the status line: a volume that fits in it (most `.vxl`s) and is
     // damaged, or a conversion that fails at once, is still a problem document; past it, a
     // failure can only end the transfer early (the client sees a short body).
@@ -146,7 +152,11 @@ pub async fn data(
     }
     h.insert(
         header::CONTENT_TYPE,
-        HeaderValue::from_static(format.media_type()),
+        HeaderValue::from_static(if npz {
+            "application/zip"
+        } else {
+            format.media_type()
+        }),
     );
     if let Ok(v) = HeaderValue::from_str(&disposition) {
         h.insert(header::CONTENT_DISPOSITION, v);
