@@ -729,7 +729,7 @@ pub struct Download {
 /// the client: a client that stops reading stops the encoder, and one that goes away ends it.
 ///
 /// `meta` is the volume's catalogue entry, which the caller has already read (for its ETag and
-/// checks): it is not read again.
+/// checks, `attributes`' among them: [`super::attributes::check`]): it is not read again.
 pub async fn download(
     store: &dyn VolumeStore,
     meta: &VolumeMeta,
@@ -737,7 +737,6 @@ pub async fn download(
     attributes: Option<String>,
 ) -> Result<Download> {
     let id = meta.id.as_str();
-    super::attributes::check(meta, format, attributes.as_deref())?;
     if format == VolumeFormat::Vxl {
         let body = store
             .read_stream(id)

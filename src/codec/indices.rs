@@ -3,7 +3,7 @@
 //! ascending: what `np.argwhere` gives on the dense `.npy`). Written in pieces; its
 //! length (header + 12 bytes a voxel) is known before. The grid is not stored (keep the `.vxl`).
 
-use crate::volume::{Attributed, ChannelValues, Volume};
+use crate::volume::{Attributed, Volume};
 
 /// The header of `n` rows.
 pub fn header(n: u64) -> Vec<u8> {
@@ -32,12 +32,8 @@ fn write_npz(a: &Attributed, out: &mut impl std::io::Write) -> std::io::Result<(
         .flat_map(|p| p.into_iter().flat_map(u32::to_le_bytes))
         .collect();
     let c = &a.channels()[0];
-    let (descr, shape) = match &c.values {
-        ChannelValues::Rgba8(_) => ("|u1", vec![n, 4]),
-        ChannelValues::U16(_) => ("<u2", vec![n]),
-        ChannelValues::U8(_) => ("|u1", vec![n]),
-        ChannelValues::F32(_) => ("<f4", vec![n]),
-    };
+    let (descr, per) = super::npy::channel_dtype(&c.values);
+    let shape = std::iter::once(n).chain(per.iter().copied()).collect();
     let name: &'static str = match c.name.as_str() {
         crate::engine::colour::RGBA => crate::engine::colour::RGBA,
         crate::engine::colour::MATERIAL => crate::engine::colour::MATERIAL,

@@ -45,18 +45,31 @@ pub fn value_bytes_of(v: &Volume) -> u64 {
     }
 }
 
+/// A channel's values as `.npy` arrays hold them: the dtype, and the axes each value adds (an
+/// RGBA colour is 4 bytes along a last axis).
+pub fn channel_dtype(c: &ChannelValues) -> (&'static str, &'static [u64]) {
+    match c {
+        ChannelValues::Rgba8(_) => ("|u1", &[4]),
+        ChannelValues::U16(_) => ("<u2", &[]),
+        ChannelValues::U8(_) => ("|u1", &[]),
+        ChannelValues::F32(_) => ("<f4", &[]),
+    }
+}
+
 /// The `.npy` header `v` is written with.
 pub fn header_of(v: &Volume) -> Vec<u8> {
     if let Volume::Channels(a) = v
         && let Some(c) = a.channels().first()
     {
-        let [x, y, z] = v.grid().dims.map(u64::from);
-        return match &c.values {
-            ChannelValues::Rgba8(_) => array_header(&[x, y, z, 4], "|u1"),
-            ChannelValues::U16(_) => array_header(&[x, y, z], "<u2"),
-            ChannelValues::U8(_) => array_header(&[x, y, z], "|u1"),
-            ChannelValues::F32(_) => array_header(&[x, y, z], "<f4"),
-        };
+        let (descr, per) = channel_dtype(&c.values);
+        let shape: Vec<u64> = v
+            .grid()
+            .dims
+            .map(u64::from)
+            .into_iter()
+            .chain(per.iter().copied())
+            .collect();
+        return array_header(&shape, descr);
     }
     let descr = if value_bytes(v.kind()) == 4 {
         "<f4"

@@ -6,17 +6,7 @@
 //! row writer it shares). Streamed in pieces; the length (the header + 12 or 16 bytes a voxel)
 //! is known before. Written only.
 
-use crate::engine::colour::RGBA;
-use crate::volume::{ChannelValues, Volume};
-
-/// The colours of `v`'s set voxels, when it has a colour channel.
-fn colours(v: &Volume) -> Option<&[[u8; 4]]> {
-    let Volume::Channels(a) = v else { return None };
-    match &a.channel(RGBA)?.values {
-        ChannelValues::Rgba8(c) => Some(c),
-        _ => None,
-    }
-}
+use crate::volume::Volume;
 
 /// The header of `n` points, with colours or not.
 pub fn header(n: u64, colour: bool) -> Vec<u8> {
@@ -33,7 +23,7 @@ pub fn header(n: u64, colour: bool) -> Vec<u8> {
 
 /// The file's length for `v`, a bit volume (`None` otherwise).
 pub fn len(v: &Volume) -> Option<u64> {
-    let c = colours(v).is_some();
+    let c = v.colours().is_some();
     super::indices::rows_len(v, |n| header(n, c), if c { 16 } else { 12 })
 }
 
@@ -41,7 +31,7 @@ pub fn len(v: &Volume) -> Option<u64> {
 pub fn write(v: &Volume, out: &mut impl std::io::Write) -> std::io::Result<()> {
     let g = *v.grid();
     let centre = |a: usize, i: u32| (g.origin[a] + (f64::from(i) + 0.5) * g.voxel_size) as f32;
-    let rgba = colours(v);
+    let rgba = v.colours();
     let c = rgba.is_some();
     super::indices::write_rows(
         v,

@@ -23,8 +23,7 @@
 //! are counted first (a model's `XYZI` chunk starts with its count).
 
 use super::palette::{self, Quantized};
-use crate::engine::colour::RGBA;
-use crate::volume::{BitVolume, ChannelValues, Volume};
+use crate::volume::{Attributed, BitVolume, Volume};
 
 pub const MAGIC: &[u8; 4] = b"VOX ";
 /// The version written.
@@ -56,10 +55,9 @@ pub struct Plan<'a> {
     counts: Vec<u64>,
     /// Each model's `_t` (its centre in the world), as written.
     centres: Vec<String>,
-    /// The palette and each set voxel's entry (by rank), for a volume with colours.
-    colours: Option<Quantized>,
-    /// The rank of each column's first set voxel (with colours only).
-    starts: Vec<u64>,
+    /// For a volume with colours: the palette and each set voxel's entry (by rank), and the
+    /// volume (its columns' ranks).
+    colours: Option<(Quantized, &'a Attributed)>,
 }
 
 /// Model `i`'s block: its lower corner and size (before rounding up to even).
@@ -94,11 +92,8 @@ impl<'a> Plan<'a> {
                 format!("vox holds bit volumes, not {}", v.kind()),
             ));
         };
-        let rgba = match v {
-            Volume::Channels(a) => match a.channel(RGBA).map(|c| &c.values) {
-                Some(ChannelValues::Rgba8(c)) => Some(c),
-                _ => None,
-            },
+        let coloured = match v {
+            Volume::Channels(a) => a.colours().map(|c| (c, a)),
             _ => None,
         };
         let dims = bits.dims();
@@ -126,16 +121,8 @@ impl<'a> Plan<'a> {
                 format!("{} {} {}", c[0], c[1], c[2])
             })
             .collect();
-        let colours = rgba.map(|c| palette::quantize(c));
-        let mut starts = vec![];
-        if colours.is_some() {
-            let mut n = 0u64;
-            for col in bits.words().chunks_exact(bits.words_per_column()) {
-                starts.push(n);
-                n += col.iter().map(|w| u64::from(w.count_ones())).sum::<u64>();
-            }
-        }
-        if let Some(q) = &colours {
+        let colours = coloured.map(|(c, a)| (palette::quantize(c), a));
+        if let Some((q, _)) = &colours {
             tracing::info!(
                 colours = q.palette.len(),
                 mean_delta_e = q.mean_de,
@@ -149,7 +136,6 @@ impl<'a> Plan<'a> {
             counts,
             centres,
             colours,
-            starts,
         })
     }
 
@@ -202,8 +188,8 @@ impl<'a> Plan<'a> {
                     let words = col.get(bz * per..).unwrap_or(&[]);
                     // The rank of the block's first voxel in this column.
                     let mut rank = match &self.colours {
-                        Some(_) => {
-                            self.starts[x as usize * dims[1] as usize + y as usize]
+                        Some((_, a)) => {
+                            a.column_start(x, y)
                                 + col[..(bz * per).min(col.len())]
                                     .iter()
                                     .map(|w| u64::from(w.count_ones()))
@@ -217,7 +203,7 @@ impl<'a> Plan<'a> {
                             let z = (w * 64) as u32 + t.trailing_zeros();
                             t &= t - 1;
                             let entry = match &self.colours {
-                                Some(q) => q.index[rank as usize] + 1,
+                                Some((q, _)) => q.index[rank as usize] + 1,
                                 None => 1,
                             };
                             rank += 1;
@@ -284,7 +270,7 @@ impl<'a> Plan<'a> {
         }
         chunk(&mut buf, b"RGBA", 1024, 0);
         let entries: &[[u8; 4]] = match &self.colours {
-            Some(q) => &q.palette,
+            Some((q, _)) => &q.palette,
             None => &[GREY],
         };
         for k in 0..256 {

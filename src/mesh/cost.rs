@@ -82,15 +82,12 @@ pub fn estimate(upload: &[u8], format: Option<Format>, opts: &LoadOptions) -> Es
         let decoded = super::archive::declared_size(upload)
             .unwrap_or(0)
             .min(opts.max_decompressed_bytes);
-        let v = (decoded / 12).min(opts.max_vertices() as u64);
-        let t = (decoded / 6).min(opts.max_triangles as u64);
         return Estimate {
-            bytes: fixed_part(decoded)
-                .saturating_add(decoded)
-                .saturating_add(mesh_cost(v, t))
-                .saturating_add(v.saturating_mul(PER_COLOUR))
-                .saturating_add(t.saturating_mul(PER_MATERIAL_ID + PER_CORNER_UVS))
-                .saturating_add(opts.max_texture_bytes),
+            bytes: fixed_part(decoded).saturating_add(gltf_cost(
+                decoded,
+                opts.max_texture_bytes,
+                opts,
+            )),
             decoded,
         };
     }
@@ -150,7 +147,6 @@ pub fn estimate(upload: &[u8], format: Option<Format>, opts: &LoadOptions) -> Es
         Format::Obj => mesh_cost(decoded / 8, 0).min(mesh_cost(max_v, max_t)),
         // Read whole, then its accessors.
         Format::Gltf | Format::Glb => {
-            let (v, t) = ((decoded / 12).min(max_v), (decoded / 6).min(max_t));
             // A document with images may decode textures up to their limit. Whether it has
             // any is read from its JSON when the head holds all of it (a GLB's JSON chunk comes
             // first and states its length); otherwise it is counted as having some.
@@ -169,14 +165,22 @@ pub fn estimate(upload: &[u8], format: Option<Format>, opts: &LoadOptions) -> Es
             } else {
                 0
             };
-            decoded
-                .saturating_add(mesh_cost(v, t))
-                .saturating_add(v.saturating_mul(PER_COLOUR))
-                .saturating_add(t.saturating_mul(PER_MATERIAL_ID + PER_CORNER_UVS))
-                .saturating_add(textures)
+            gltf_cost(decoded, textures, opts)
         }
     };
     fixed(bytes)
+}
+
+/// A glTF of `decoded` bytes (the costliest format per byte): its bytes held, at most a vertex
+/// a 12 bytes and a triangle a 6 with their attributes, and `textures` bytes of images.
+fn gltf_cost(decoded: u64, textures: u64, opts: &LoadOptions) -> u64 {
+    let v = (decoded / 12).min(opts.max_vertices() as u64);
+    let t = (decoded / 6).min(opts.max_triangles as u64);
+    decoded
+        .saturating_add(mesh_cost(v, t))
+        .saturating_add(v.saturating_mul(PER_COLOUR))
+        .saturating_add(t.saturating_mul(PER_MATERIAL_ID + PER_CORNER_UVS))
+        .saturating_add(textures)
 }
 
 #[cfg(test)]

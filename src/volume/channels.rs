@@ -73,6 +73,11 @@ pub struct Channel {
     pub values: ChannelValues,
 }
 
+/// The colour channel's name: sRGB bytes, alpha linear (`engine::colour`).
+pub const RGBA: &str = "rgba";
+/// The material channel's name: u16 ids into the mesh's material table.
+pub const MATERIAL: &str = "material";
+
 /// Longest channel name.
 pub const MAX_CHANNEL_NAME: usize = 64;
 /// Most channels on one volume (bounds what a `.vxl` header can make a reader allocate).
@@ -155,18 +160,30 @@ impl Attributed {
         self.len() == 0
     }
 
+    /// The colours of the set voxels, in rank order, when there is an [`RGBA`] channel.
+    pub fn colours(&self) -> Option<&[[u8; 4]]> {
+        match &self.channel(RGBA)?.values {
+            ChannelValues::Rgba8(c) => Some(c),
+            _ => None,
+        }
+    }
+
+    /// The rank of column (x, y)'s first set voxel (its lowest z).
+    pub fn column_start(&self, x: u32, y: u32) -> u64 {
+        self.starts[x as usize * self.bits.dims()[1] as usize + y as usize]
+    }
+
     /// The rank of voxel (x, y, z) among the set voxels (its index in every channel), or `None`
     /// when it is not set.
     pub fn rank(&self, x: u32, y: u32, z: u32) -> Option<usize> {
         if !self.bits.get(x, y, z) {
             return None;
         }
-        let c = x as usize * self.bits.dims()[1] as usize + y as usize;
         let col = self.bits.column(x, y);
         let (w, b) = ((z / 64) as usize, z % 64);
         let below: u64 = col[..w].iter().map(|v| v.count_ones() as u64).sum::<u64>()
             + (col[w] & ((1u64 << b) - 1)).count_ones() as u64;
-        Some((self.starts[c] + below) as usize)
+        Some((self.column_start(x, y) + below) as usize)
     }
 
     /// Channel `name`'s value at voxel (x, y, z); `None` for an unset voxel or no such channel.

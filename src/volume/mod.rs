@@ -336,6 +336,14 @@ impl Volume {
             Bits(b) => b.count_ones(), Density(d) => d.count_nonzero(), Channels(c) => c.len())
     }
 
+    /// The set voxels' colours (rank order) of a volume with a colour channel.
+    pub fn colours(&self) -> Option<&[[u8; 4]]> {
+        match self {
+            Volume::Channels(a) => a.colours(),
+            _ => None,
+        }
+    }
+
     /// The bits of a bit volume or of a bit volume with channels.
     pub fn bits(&self) -> Option<&BitVolume> {
         match self {

@@ -23,9 +23,7 @@ pub struct Picture {
 /// or for a slice outside the grid.
 pub fn colour(v: &Volume, axis: usize, slice: Option<u32>) -> Option<Picture> {
     let Volume::Channels(a) = v else { return None };
-    let super::ChannelValues::Rgba8(c) = &a.channel(crate::engine::colour::RGBA)?.values else {
-        return None;
-    };
+    let c = a.colours()?;
     let d = v.grid().dims;
     if slice.is_some_and(|k| k >= d[axis]) {
         return None;

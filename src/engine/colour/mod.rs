@@ -45,10 +45,7 @@ pub const MAX_LEVEL: u32 = 4;
 pub const SAMPLES_PER_TEXEL: f64 = 4.0;
 /// Texture samples at most a voxel face's area (s²) of a fan triangle (at least one).
 pub const SAMPLES_PER_VOXEL_FACE: f64 = 16.0;
-/// The name of the colour channel.
-pub const RGBA: &str = "rgba";
-/// The name of the material channel.
-pub const MATERIAL: &str = "material";
+pub use crate::volume::channels::{MATERIAL, RGBA};
 
 /// Which channels to compute.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -391,9 +388,9 @@ pub fn attribute(
         "colour"
     );
     let mut out = Attributed::new(bits);
-    // A set voxel no surface voxel reaches (none in practice: a set voxel's component holds
-    // or borders a surface voxel) takes the first surface voxel's value.
-    let pick = |r: usize| source[r].min(s.keys.len().saturating_sub(1) as u32) as usize;
+    // `source` indexes the surface voxels; without any (a volume no triangle crosses with
+    // positive area) every value is zero.
+    let pick = |r: usize| source[r] as usize;
     if want.colour {
         // Each surface voxel's bytes once (the sRGB curve is not cheap), then by source.
         let bytes: Vec<[u8; 4]> = s.rgba.par_iter().map(|&c| to_rgba8(c)).collect();

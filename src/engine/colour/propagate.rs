@@ -13,7 +13,8 @@ use crate::volume::BitVolume;
 
 const NONE: u32 = u32::MAX;
 
-fn coords(k: u64, dims: [u32; 3]) -> [u32; 3] {
+/// Voxel (x, y, z) of key `k` ([`super::key`]'s inverse).
+pub(super) fn coords(k: u64, dims: [u32; 3]) -> [u32; 3] {
     let z = (k % u64::from(dims[2])) as u32;
     let c = k / u64::from(dims[2]);
     [

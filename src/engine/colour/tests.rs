@@ -177,7 +177,7 @@ fn interior_voxels_take_the_nearest_surface_voxel() {
     keys.sort();
     let src = propagate::nearest(&bits, &keys, &Control::none()).unwrap();
     for (r, v) in bits.iter_ones().enumerate() {
-        let s = propagate_coords(keys[src[r] as usize], g.dims);
+        let s = propagate::coords(keys[src[r] as usize], g.dims);
         let d = |a: [u32; 3]| {
             (0..3)
                 .map(|k| (a[k] as i64 - v[k] as i64).pow(2))
@@ -186,18 +186,12 @@ fn interior_voxels_take_the_nearest_surface_voxel() {
         // The nearest source, by brute force.
         let best = keys
             .iter()
-            .map(|&k| d(propagate_coords(k, g.dims)))
+            .map(|&k| d(propagate::coords(k, g.dims)))
             .min()
             .unwrap();
         assert_eq!(d(s), best, "voxel {v:?} took {s:?}");
         assert_eq!(s[0], if v[0] < 5 { 0 } else { 9 });
     }
-}
-
-fn propagate_coords(k: u64, dims: [u32; 3]) -> [u32; 3] {
-    let z = (k % dims[2] as u64) as u32;
-    let c = k / dims[2] as u64;
-    [(c / dims[1] as u64) as u32, (c % dims[1] as u64) as u32, z]
 }
 
 /// A textured quad whose texture is one colour gives that colour exactly (sRGB bytes through
