@@ -14,6 +14,7 @@ pub fn mesh_options() -> LoadOptions {
         external: ExternalResources::Deny,
         max_triangles: 100_000,
         max_decompressed_bytes: 16 << 20,
+        max_texture_bytes: 16 << 20,
     }
 }
 
