@@ -2,7 +2,7 @@
 //! exactly, the sign from the solid.
 
 use super::bins::{self, Bins};
-use super::local::Local;
+use super::local::{Local, Plane};
 use super::signs::Signs;
 use super::{Brick, in_band_exact};
 use crate::engine::geom::lattice;
@@ -139,7 +139,7 @@ fn lower_local(
     let zmask = (u32::MAX >> (31 - range[2].1)) & !((1u32 << range[2].0) - 1);
     // A degenerate triangle has no plane: a zero normal makes its bound −1e-3, which culls
     // nothing.
-    let u = l.unit.unwrap_or([0.0; 3]);
+    let u = l.unit;
     for x in range[0].0..=range[0].1 {
         let px = f64::from(x) * f;
         let dx = gap(0, px);
@@ -213,6 +213,7 @@ crate::engine::winding::lanes::dispatch! {
     #[allow(clippy::too_many_arguments)]
     pub(super) fn band_brick(
         tris: &[[[i32; 3]; 3]],
+        planes: &[Plane],
         list: &[u32],
         signs: &Signs,
         dims: [u32; 3],
@@ -228,6 +229,7 @@ crate::engine::winding::lanes::dispatch! {
 #[inline(always)]
 fn band_brick_body(
     tris: &[[[i32; 3]; 3]],
+    planes: &[Plane],
     list: &[u32],
     signs: &Signs,
     dims: [u32; 3],
@@ -243,7 +245,7 @@ fn band_brick_body(
     let mut best2 = [s2; BRICK_VOXELS];
     let mut rowmax = [s2; 64];
     for &t in list {
-        let l = Local::new(&tris[t as usize], at);
+        let l = Local::new(&tris[t as usize], &planes[t as usize], at);
         lower_local(&mut best2, &mut rowmax, &l, n, slack);
     }
     let mask = signs.mask(at);

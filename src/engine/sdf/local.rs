@@ -50,17 +50,54 @@ pub struct Local<'a> {
     /// The bounding box, relative.
     pub lo: [f64; 3],
     pub hi: [f64; 3],
-    /// The unit normal (one rounding per component), for the plane's lower bound.
-    pub unit: Option<[f64; 3]>,
+    /// The unit normal (one rounding per component), for the plane's lower bound; zeros for
+    /// a degenerate triangle.
+    pub unit: [f64; 3],
     /// Every difference within D: [`Local::distance2`] is exact-then-rounded like
     /// `lattice::distance2`.
     pub exact: bool,
 }
 
+/// What a triangle's distance needs that does not depend on the brick it is seen from: its
+/// integer normal (rounded once per component to f64, as `lattice::distance2` has it), the
+/// normal's squared length and the unit normal. Computed once per triangle rather than once
+/// per (brick, triangle) pair: the normal is a cross product of edges, the same integers from
+/// any origin.
+#[derive(Clone, Copy, Debug)]
+pub struct Plane {
+    n: [f64; 3],
+    nn: f64,
+    /// All zeros for a degenerate triangle (a bound that culls nothing).
+    unit: [f64; 3],
+}
+
+impl Plane {
+    pub fn new(tri: &[[i32; 3]; 3]) -> Plane {
+        let ie =
+            |i: usize, j: usize| [0, 1, 2].map(|a| i64::from(tri[j][a]) - i64::from(tri[i][a]));
+        let (e1, e2) = (ie(0, 1), ie(0, 2));
+        let ni = [
+            e1[1] as i128 * e2[2] as i128 - e1[2] as i128 * e2[1] as i128,
+            e1[2] as i128 * e2[0] as i128 - e1[0] as i128 * e2[2] as i128,
+            e1[0] as i128 * e2[1] as i128 - e1[1] as i128 * e2[0] as i128,
+        ];
+        let n = ni.map(|c| c as f64);
+        let nn = dot(n, n);
+        let len = nn.sqrt();
+        let unit = if len > 0.0 {
+            n.map(|c| c / len)
+        } else {
+            [0.0; 3]
+        };
+        Plane { n, nn, unit }
+    }
+}
+
 impl<'a> Local<'a> {
-    /// Triangle `tri` seen from brick `at` (origin: the centre of voxel `8·at`).
+    /// Triangle `tri` (whose [`Plane`] is `plane`) seen from brick `at` (origin: the centre of
+    /// voxel `8·at`).
     #[inline(always)]
-    pub fn new(tri: &'a [[i32; 3]; 3], at: [u32; 3]) -> Local<'a> {
+    pub fn new(tri: &'a [[i32; 3]; 3], plane: &Plane, at: [u32; 3]) -> Local<'a> {
         let origin = at.map(|c| i64::from(c * BRICK) * FIXED_ONE + FIXED_HALF);
         let rel = tri.map(|p| [0, 1, 2].map(|a| i64::from(p[a]) - origin[a]));
         let span = (i64::from(BRICK) - 1) * FIXED_ONE;
@@ -72,17 +109,7 @@ impl<'a> Local<'a> {
         let v = rel.map(|p| p.map(|c| c as f64));
         let lo = [0, 1, 2].map(|a| v[0][a].min(v[1][a]).min(v[2][a]));
         let hi = [0, 1, 2].map(|a| v[0][a].max(v[1][a]).max(v[2][a]));
-        // The normal from the exact integers (as lattice::distance2 has it).
-        let ie = |i: usize, j: usize| [0, 1, 2].map(|a| rel[j][a] - rel[i][a]);
-        let (e1, e2) = (ie(0, 1), ie(0, 2));
-        let ni = [
-            e1[1] as i128 * e2[2] as i128 - e1[2] as i128 * e2[1] as i128,
-            e1[2] as i128 * e2[0] as i128 - e1[0] as i128 * e2[2] as i128,
-            e1[0] as i128 * e2[1] as i128 - e1[1] as i128 * e2[0] as i128,
-        ];
-        let nf = ni.map(|c| c as f64);
-        let len = dot(nf, nf).sqrt();
-        let unit = (len > 0.0).then(|| nf.map(|c| c / len));
+        let nf = plane.n;
         let e = [0, 1, 2].map(|i| sub(v[(i + 1) % 3], v[i]));
         Local {
             tri,
@@ -92,10 +119,10 @@ impl<'a> Local<'a> {
             ee: e.map(|x| dot(x, x)),
             ne: e.map(|x| cross(nf, x)),
             n: nf,
-            nn: dot(nf, nf),
+            nn: plane.nn,
             lo,
             hi,
-            unit,
+            unit: plane.unit,
             exact,
         }
     }
@@ -164,7 +191,7 @@ mod tests {
             if case % 17 == 0 {
                 tri[2] = tri[0]; // a segment
             }
-            let l = Local::new(&tri, at);
+            let l = Local::new(&tri, &Plane::new(&tri), at);
             if l.exact {
                 exact += 1;
             } else {

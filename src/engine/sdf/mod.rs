@@ -230,6 +230,11 @@ pub fn signed_distance(
             ctl.check()?;
             let bins = bins::Bins::new(tris, bd, r);
             ctl.check()?;
+            let planes: Vec<local::Plane> = tris
+                .par_iter()
+                .with_min_len(crate::PAR_PIECE)
+                .map(local::Plane::new)
+                .collect();
             let ctl_near = ctl.stage(0.05, 0.9);
             let counter = ctl_near.counter(bins.len() as u64);
             for piece in bins.groups().chunks(PIECE_BRICKS) {
@@ -242,7 +247,7 @@ pub fn signed_distance(
                             let at = bins::unkey(key, bd);
                             let list = &bins.tris()[lo..hi];
                             out.extend(eval::band_brick(
-                                tris, list, signs, dims, at, r, scale, background,
+                                tris, &planes, list, signs, dims, at, r, scale, background,
                             ));
                         }
                         counter.add(chunk.len() as u64);
