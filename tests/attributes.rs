@@ -281,3 +281,111 @@ fn obj_materials_take_kd_from_the_mtllib_beside_the_file() {
         "{out}"
     );
 }
+
+/// An OBJ read from a file takes its `map_Kd` textures from beside it: the image decoded, each
+/// triangle's corners' coordinates in glTF's convention (v down: 1 − OBJ's v) with the
+/// library's `-s`/`-o` applied, zeros where a material has no texture or a corner none; `-clamp
+/// on` clamps. A missing image leaves the material untextured; without `vt` lines no texture is
+/// kept; over HTTP (no files) neither.
+#[test]
+fn obj_textures_come_from_map_kd_beside_the_file() {
+    use voxd::mesh::texture::Wrap;
+    let dir = tmpdir("attributes-map-kd");
+    std::fs::create_dir_all(dir.join("tex")).unwrap();
+    let mut png = vec![];
+    image::RgbaImage::from_pixel(4, 2, image::Rgba([10, 20, 30, 255]))
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    std::fs::write(dir.join("tex/wood.png"), &png).unwrap();
+    std::fs::write(
+        dir.join("m.mtl"),
+        "newmtl wood\nmap_Kd -s 2 4 -o 0.5 0.25 -clamp on tex/wood.png\nnewmtl plain\nKd 0.5 0.5 0.5\nnewmtl lost\nmap_Kd nowhere.png\n",
+    )
+    .unwrap();
+    let obj = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0 0\nvt 0.25 0.5\nvt 1 1\nusemtl wood\nf 1/1 2/2/2 3/-1\nf 2 4 3\nusemtl plain\nf 1/1 3/3 4/2\nusemtl lost\nf 1/1 2/2 4/3\n";
+    std::fs::write(dir.join("m.obj"), obj).unwrap();
+    let m = mesh::load_file(&dir.join("m.obj"), usize::MAX).unwrap();
+    let a = m.attributes();
+    assert_eq!(a.images.len(), 1);
+    assert_eq!((a.images[0].width, a.images[0].height), (4, 2));
+    assert_eq!(a.images[0].texels[0], [10, 20, 30, 255]);
+    let t = a.materials[0].texture.expect("wood has its texture");
+    assert_eq!(t.wrap, [Wrap::ClampToEdge; 2]);
+    assert_eq!(a.materials[1].texture, None);
+    assert_eq!(a.materials[1].base_color, [0.5, 0.5, 0.5, 1.0]);
+    assert_eq!(a.materials[2].texture, None, "nowhere.png is missing");
+    // (u, v) → (2u + 0.5, 1 − (4v + 0.25)).
+    let uv = a.uv.as_ref().expect("texture coordinates");
+    assert_eq!(uv[0], [[0.5, 0.75], [1.0, -1.25], [2.5, -3.25]]);
+    assert_eq!(uv[1], [[0.0; 2]; 3], "corners without vt");
+    assert_eq!(uv[2], [[0.0; 2]; 3], "plain has no texture");
+    assert_eq!(uv[3], [[0.0; 2]; 3], "lost's texture was not read");
+    // A vt index past the file's: refused with the line.
+    std::fs::write(
+        dir.join("bad.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/2 3/1\n",
+    )
+    .unwrap();
+    let e = mesh::load_file(&dir.join("bad.obj"), usize::MAX)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("line 5: texture coordinate index 2 is out of range (the file has 1 texture coordinates)"), "{e}");
+    // The same bytes over HTTP: no files, so no texture (and no vt kept).
+    let m = load(obj.as_bytes(), Some(Format::Obj));
+    assert!(m.attributes().images.is_empty() && m.attributes().uv.is_none());
+}
+
+/// Texture coordinates resolve across the reader's chunks (a file of several MB is parsed in
+/// parallel pieces): relative `vt` indices count back from the coordinates defined before
+/// their line, absolute ones from the file's first, whichever chunk holds them; and a gzip'd
+/// copy (read in blocks) gives the same.
+#[test]
+fn texture_coordinates_resolve_across_chunks_and_blocks() {
+    let dir = tmpdir("attributes-vt-chunks");
+    let mut png = vec![];
+    image::RgbaImage::from_pixel(2, 2, image::Rgba([200, 100, 50, 255]))
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    std::fs::write(dir.join("t.png"), &png).unwrap();
+    std::fs::write(dir.join("m.mtl"), "newmtl t\nmap_Kd t.png\n").unwrap();
+    let quads = 60_000;
+    let mut obj = String::from("mtllib m.mtl\nusemtl t\n");
+    for q in 0..quads {
+        let x = q as f64;
+        obj += &format!("v {x} 0 0\nv {x} 1 0\nv {x} 1 1\nv {x} 0 1\n");
+        for k in 0..4 {
+            obj += &format!("vt {} {}\n", q % 1000, k);
+        }
+        if q % 2 == 0 {
+            obj += "f -4/-4 -3/-3 -2/-2 -1/-1\n";
+        } else {
+            let b = 4 * q + 1;
+            obj += &format!(
+                "f {b}/{b} {}/{} {}/{} {}/{}\n",
+                b + 1,
+                b + 1,
+                b + 2,
+                b + 2,
+                b + 3,
+                b + 3
+            );
+        }
+    }
+    assert!(obj.len() > 4 << 20, "{} bytes: several chunks", obj.len());
+    std::fs::write(dir.join("m.obj"), &obj).unwrap();
+    std::fs::write(dir.join("m.obj.gz"), gz(obj.as_bytes())).unwrap();
+    for f in ["m.obj", "m.obj.gz"] {
+        let m = mesh::load_file(&dir.join(f), usize::MAX).unwrap();
+        let uv = m.attributes().uv.as_ref().expect("coordinates");
+        assert_eq!(uv.len(), 2 * quads);
+        for q in 0..quads {
+            let u = (q % 1000) as f32;
+            assert_eq!(uv[2 * q], [[u, 1.0], [u, 0.0], [u, -1.0]], "{f}: quad {q}");
+            assert_eq!(
+                uv[2 * q + 1],
+                [[u, 1.0], [u, -1.0], [u, -2.0]],
+                "{f}: quad {q}"
+            );
+        }
+    }
+}

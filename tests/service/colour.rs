@@ -141,7 +141,7 @@ type Cube = (Vec<[f32; 3]>, Vec<[f32; 2]>, Vec<Vec<u32>>);
 
 /// The cube's 24 corners (4 a face) and each face's two triangles (outward), with texture
 /// coordinates inside face i's 16 × 16 region of a 48 × 32 atlas, 2 texels from its edges.
-fn cube() -> Cube {
+pub(super) fn cube() -> Cube {
     let (mut p, mut uv, mut tris) = (vec![], vec![], vec![]);
     for face in 0..6 {
         let axis = face / 2;
@@ -175,7 +175,7 @@ fn cube() -> Cube {
     (p, uv, tris)
 }
 
-fn atlas() -> Vec<u8> {
+pub(super) fn atlas() -> Vec<u8> {
     png(48, 32, |x, y| FACE_COLOURS[(y / 16 * 3 + x / 16) as usize])
 }
 
@@ -195,32 +195,11 @@ fn face_areas(v: [usize; 3]) -> [f64; 6] {
     })
 }
 
-#[test]
-fn a_textured_cube_gives_each_face_its_atlas_colour() {
-    let dir = tmpdir("colour-atlas");
-    let srv = Server::start(&dir, &[]);
-    let (p, uv, tris) = cube();
-    let prims = vec![(tris.concat(), 0)];
-    let body = glb(
-        &p,
-        &uv,
-        &prims,
-        serde_json::json!([{"name": "atlas", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]),
-        Some((&atlas(), serde_json::json!({}))),
-    );
-    let grid = "origin=0,0,0&voxel_size=1&dims=10,10,10";
-    let v = srv.created(
-        &format!("/v1/voxelize?{grid}&method=surface&color=true&wait=60"),
-        &[("Content-Type", "model/gltf-binary")],
-        &body,
-    );
-    assert_eq!(v["kind"], "channels", "{v}");
-    assert_eq!(
-        v["attributes"]["channels"],
-        serde_json::json!(["rgba"]),
-        "{v}"
-    );
-    let id = v["id"].as_str().unwrap().to_string();
+/// The surface voxels of [`cube`] on the grid `origin=0,0,0&voxel_size=1&dims=10,10,10`, coloured
+/// from [`atlas`] (volume `id`): a voxel one face crosses has that face's colour exactly, one
+/// two or three cross the area-weighted mix of theirs in linear light (within one step of
+/// rounding), and the others none.
+pub(super) fn assert_atlas_colours(srv: &Server, id: &str) {
     let get = |q: &str| {
         srv.req("GET", &format!("/v1/volumes/{id}/data?{q}"), &[], &[])
             .ok(200)
@@ -272,6 +251,44 @@ fn a_textured_cube_gives_each_face_its_atlas_colour() {
         }
     }
     assert_eq!(single, 6 * 36);
+}
+
+#[test]
+fn a_textured_cube_gives_each_face_its_atlas_colour() {
+    let dir = tmpdir("colour-atlas");
+    let srv = Server::start(&dir, &[]);
+    let (p, uv, tris) = cube();
+    let prims = vec![(tris.concat(), 0)];
+    let body = glb(
+        &p,
+        &uv,
+        &prims,
+        serde_json::json!([{"name": "atlas", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]),
+        Some((&atlas(), serde_json::json!({}))),
+    );
+    let grid = "origin=0,0,0&voxel_size=1&dims=10,10,10";
+    let v = srv.created(
+        &format!("/v1/voxelize?{grid}&method=surface&color=true&wait=60"),
+        &[("Content-Type", "model/gltf-binary")],
+        &body,
+    );
+    assert_eq!(v["kind"], "channels", "{v}");
+    assert_eq!(
+        v["attributes"]["channels"],
+        serde_json::json!(["rgba"]),
+        "{v}"
+    );
+    let id = v["id"].as_str().unwrap().to_string();
+    assert_atlas_colours(&srv, &id);
+    let get = |q: &str| {
+        srv.req("GET", &format!("/v1/volumes/{id}/data?{q}"), &[], &[])
+            .ok(200)
+            .body
+    };
+    let rgba = get("format=npy&attributes=rgba");
+    let (_, data) = npy(&rgba);
+    let bits = get("format=npy");
+    let (_, occ) = npy(&bits);
     // The .vox palette holds the six colours exactly (fewer than 256 colours: no loss).
     let vox = get("format=vox");
     let pal = &vox[vox.len() - 1024..];

@@ -86,6 +86,86 @@ fn a_zipped_obj_brings_its_materials() {
     assert_eq!(at(11, 3, 3), [0, 0, 255, 255]);
 }
 
+/// The textured cube of the colour tests as an OBJ: `vt` lines (OBJ's v up: 1 − the glTF
+/// coordinate), faces `a/a/a` and, for the last face, relative indices `-k/-k`.
+fn textured_cube_obj() -> String {
+    let (p, uv, tris) = super::colour::cube();
+    let mut obj = String::from("mtllib model.mtl\n");
+    for q in &p {
+        obj += &format!("v {} {} {}\n", q[0], q[1], q[2]);
+    }
+    for t in &uv {
+        obj += &format!("vt {} {}\n", t[0], 1.0 - t[1]);
+    }
+    obj += "usemtl atlas\n";
+    let n = p.len() as i64;
+    for (face, idx) in tris.iter().enumerate() {
+        for t in idx.chunks(3) {
+            let corners: Vec<String> = t
+                .iter()
+                .map(|&i| {
+                    let i = i64::from(i) + 1;
+                    if face == 5 {
+                        // Relative to the 24 vertices and 24 coordinates defined before.
+                        format!("{}/{}", i - n - 1, i - n - 1)
+                    } else {
+                        format!("{i}/{i}/{i}")
+                    }
+                })
+                .collect();
+            obj += &format!("f {}\n", corners.join(" "));
+        }
+    }
+    obj
+}
+
+/// A zipped OBJ whose `.mtl` names a `map_Kd` texture (a PNG in a subfolder, its path relative
+/// to the library) is coloured from it: each face of the atlas cube its region's colour, exactly
+/// as the glTF form of the same cube (tests/service/colour.rs).
+#[test]
+fn a_zipped_obj_brings_its_texture() {
+    let dir = tmpdir("zip-texture");
+    let srv = Server::start(&dir, &[]);
+    let obj = textured_cube_obj();
+    let mtl = b"newmtl atlas\nKd 1 1 1\nmap_Kd textures/atlas.png\n";
+    let png = super::colour::atlas();
+    let body = zip_of(&[
+        ("cube/model.obj", obj.as_bytes()),
+        ("cube/model.mtl", mtl),
+        ("cube/textures/atlas.png", &png),
+    ]);
+    let v = srv.created(
+        "/v1/voxelize?origin=0,0,0&voxel_size=1&dims=10,10,10&method=surface&color=true&wait=60",
+        &[("Content-Type", "application/zip")],
+        &body,
+    );
+    assert_eq!(v["source"]["compression"], "zip", "{v}");
+    super::colour::assert_atlas_colours(&srv, v["id"].as_str().unwrap());
+    // Without the texture in the archive, the material's Kd (white): every set voxel white.
+    let body = zip_of(&[("cube/model.obj", obj.as_bytes()), ("cube/model.mtl", mtl)]);
+    let v = srv.created(
+        "/v1/voxelize?origin=0,0,0&voxel_size=1&dims=10,10,10&method=surface&color=true&wait=60",
+        &[("Content-Type", "application/zip")],
+        &body,
+    );
+    let id = v["id"].as_str().unwrap();
+    let b = srv
+        .req(
+            "GET",
+            &format!("/v1/volumes/{id}/data?format=npy&attributes=rgba"),
+            &[],
+            &[],
+        )
+        .ok(200)
+        .body;
+    let n = u16::from_le_bytes([b[8], b[9]]) as usize;
+    let colours: std::collections::BTreeSet<&[u8]> = b[10 + n..].chunks(4).collect();
+    assert_eq!(
+        colours.into_iter().collect::<Vec<_>>(),
+        [&[0u8, 0, 0, 0][..], &[255, 255, 255, 255][..]]
+    );
+}
+
 #[test]
 fn unsafe_archives_are_refused_naming_the_entry() {
     let dir = tmpdir("zip-refusals");

@@ -129,8 +129,8 @@ impl<'a> Line<'a> {
         (i - start, m)
     }
 
-    /// Reads the first token: `b'v'` or `b'f'` when it is that one letter, `b'u'` for
-    /// `usemtl`, `b'm'` for `mtllib`, else 0.
+    /// Reads the first token: `b'v'` or `b'f'` when it is that one letter, `b't'` for `vt`,
+    /// `b'u'` for `usemtl`, `b'm'` for `mtllib`, else 0.
     #[inline]
     pub(super) fn keyword(&mut self) -> u8 {
         self.skip_space();
@@ -140,12 +140,16 @@ impl<'a> Line<'a> {
                 self.at += 1;
                 return k;
             }
-            for (word, code) in [(&b"usemtl"[..], b'u'), (&b"mtllib"[..], b'm')] {
+            for (word, code) in [
+                (&b"usemtl"[..], b'u'),
+                (&b"mtllib"[..], b'm'),
+                (&b"vt"[..], b't'),
+            ] {
                 if k == word[0]
                     && self.text[self.at..self.end].starts_with(word)
-                    && self.ends_token(self.at + 6)
+                    && self.ends_token(self.at + word.len())
                 {
-                    self.at += 6;
+                    self.at += word.len();
                     return code;
                 }
             }
@@ -251,6 +255,60 @@ impl<'a> Line<'a> {
         let tok = self.whole_token(start, i);
         let idx = tok.split(|&c| c == b'/').next().unwrap_or(tok);
         Some(std_parse(idx).ok_or(tok))
+    }
+}
+
+impl<'a> Line<'a> {
+    /// The vertex index and texture coordinate index of the next face corner (`a`, `a/b`,
+    /// `a//c`, `a/b/c`; the second `None` when not written or not a number), or `None` at the
+    /// end of the line; `Err`: the token, when the vertex index is not a number as
+    /// `str::parse::<i64>` reads it (as [`Line::index`] refuses it). Short
+    /// indices are read as they are scanned, anything else by the standard parser.
+    #[inline]
+    pub(super) fn corner(&mut self) -> Option<Result<(i64, Option<i64>), &'a [u8]>> {
+        let first = self.signed_digits()?;
+        let value = |d: &Signed| {
+            let n = d.value as i64;
+            if d.neg { -n } else { n }
+        };
+        let short = |d: &Signed| d.count > 0 && d.count <= 18;
+        if short(&first) {
+            if self.ends_token(first.end) {
+                self.at = first.end;
+                return Some(Ok((value(&first), None)));
+            }
+            if self.text[first.end] == b'/' {
+                self.at = first.end + 1;
+                if self.ends_token(self.at) || self.text[self.at] == b'/' {
+                    self.at = self.token_end(self.at);
+                    return Some(Ok((value(&first), None)));
+                }
+                let start = self.at;
+                let neg = self.text[start] == b'-';
+                let d0 = start + (neg || self.text[start] == b'+') as usize;
+                let (count, v) = self.digits(d0);
+                let second = Signed {
+                    start,
+                    neg,
+                    end: d0 + count,
+                    count,
+                    value: v,
+                };
+                if short(&second) && (self.ends_token(second.end) || self.text[second.end] == b'/')
+                {
+                    self.at = self.token_end(second.end);
+                    return Some(Ok((value(&first), Some(value(&second)))));
+                }
+            }
+        }
+        let tok = self.whole_token(first.start, first.end);
+        let mut parts = tok.split(|&c| c == b'/');
+        // A texture coordinate index that is not a number is taken as absent (the vertex
+        // index is what a face needs; the reader without texture coordinates ignores it too).
+        Some(match parts.next().and_then(std_parse) {
+            Some(v) => Ok((v, parts.next().and_then(std_parse))),
+            None => Err(tok),
+        })
     }
 }
 

@@ -24,12 +24,15 @@ mod mtl;
 mod parser;
 #[cfg(test)]
 mod tests;
+mod textures;
 
 use rayon::prelude::*;
 use std::sync::atomic::AtomicUsize;
 
 use super::stream::{Stream, line_blocks};
-use super::{Attributes, LoadOptions, Material, Mesh, MeshError, check_position, malformed};
+use super::{
+    Attributes, ExternalResources, LoadOptions, Mesh, MeshError, check_position, malformed,
+};
 use parser::{Chunk, Shared, parse_chunk};
 
 /// Bytes per block of a compressed file (small, so little of the inflating and parsing is not
@@ -48,6 +51,10 @@ pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshErro
         any_material: false,
         current: DEFAULT,
         libs: Vec::new(),
+        uv: !matches!(opts.external, ExternalResources::Deny),
+        texcoords: Vec::new(),
+        corners: Vec::new(),
+        uv_forward: None,
         lines: 0,
         forward: None,
         bad: None,
@@ -98,24 +105,33 @@ pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshErro
         attributes.colors = Some(st.colors);
         attributes.colors_srgb = true;
     }
+    if let Some((line, n, abs)) = st.uv_forward
+        && abs >= st.texcoords.len()
+    {
+        return Err(malformed(
+            "OBJ",
+            format!(
+                "line {line}: texture coordinate index {n} is out of range (the file has {} texture coordinates)",
+                st.texcoords.len()
+            ),
+        ));
+    }
     if st.any_material {
         // The `usemtl` names in the order of their first use; OBJ's default material (faces
-        // before any `usemtl`) after them when used. Base colours from the `mtllib` files
-        // beside the OBJ when it is read from a file (`mtl`); white otherwise.
-        let colours = mtl::base_colours(&st.libs, &opts.external);
-        let table = st
-            .names
-            .iter()
-            .map(|n| {
-                let name = String::from_utf8_lossy(n).into_owned();
-                let base_color = colours.get(&name).copied().unwrap_or([1.0; 4]);
-                Material {
-                    name,
-                    base_color,
-                    texture: None,
-                }
-            })
-            .collect();
+        // before any `usemtl`) after them when used. Base colours and textures from the
+        // `mtllib` files beside the OBJ when it is read from a file or a zip (`mtl`); white
+        // otherwise.
+        let (table, maps, images) = textures::table(&st.names, &st.libs, opts, &st.texcoords)?;
+        if !images.is_empty() {
+            st.corners.resize(st.triangles.len(), [parser::NO_UV; 3]);
+            attributes.uv = Some(textures::corner_uvs(
+                &st.material,
+                &st.corners,
+                &st.texcoords,
+                &maps,
+            ));
+            attributes.images = images;
+        }
         attributes.set_materials(table, st.material);
     }
     Mesh::checked(st.positions, st.triangles).with_attributes(attributes)
@@ -183,16 +199,40 @@ fn is_vertex_line(line: &[u8]) -> bool {
     l.len() > 2 && l[0] == b'v' && (l[1] == b' ' || l[1] == b'\t')
 }
 
-/// The `v` lines (as [`is_vertex_line`] tells them) and the newlines of a chunk.
-fn count_lines(c: &[u8]) -> (usize, usize) {
-    let (mut vertices, mut newlines, mut start) = (0, 0, 0);
+fn is_texcoord_line(line: &[u8]) -> bool {
+    let l = line.trim_ascii_start();
+    l.len() > 3 && l.starts_with(b"vt") && (l[2] == b' ' || l[2] == b'\t')
+}
+
+/// What a chunk holds before it is parsed: its `v` lines (as [`is_vertex_line`] tells them),
+/// its newlines and, when `uv`, its `vt` lines (else 0).
+#[derive(Clone, Copy, Debug)]
+struct Counts {
+    vertices: usize,
+    newlines: usize,
+    texcoords: usize,
+}
+
+fn count_lines(c: &[u8], uv: bool) -> Counts {
+    let mut n = Counts {
+        vertices: 0,
+        newlines: 0,
+        texcoords: 0,
+    };
+    let mut start = 0;
+    let mut line = |l: &[u8]| {
+        n.vertices += is_vertex_line(l) as usize;
+        if uv {
+            n.texcoords += is_texcoord_line(l) as usize;
+        }
+    };
     for end in memchr::memchr_iter(b'\n', c) {
-        vertices += is_vertex_line(&c[start..end]) as usize;
-        newlines += 1;
+        line(&c[start..end]);
+        n.newlines += 1;
         start = end + 1;
     }
-    vertices += is_vertex_line(&c[start..]) as usize;
-    (vertices, newlines)
+    line(&c[start..]);
+    n
 }
 
 /// What the blocks read so far add up to.
@@ -217,6 +257,13 @@ struct State {
     current: u16,
     /// The `mtllib` file names.
     libs: Vec<Vec<u8>>,
+    /// Are texture coordinates kept ([`parser::Shared::uv`])? Then the `vt` lines read so far,
+    /// each triangle's corners' indices into them, and the largest index used before its line
+    /// (as `forward`).
+    uv: bool,
+    texcoords: Vec<[f32; 2]>,
+    corners: Vec<[u32; 3]>,
+    uv_forward: Option<(usize, i64, usize)>,
     max_vertices: usize,
     max_triangles: usize,
 }
@@ -226,13 +273,15 @@ impl State {
     /// whole file.
     fn block(&mut self, bytes: &[u8], whole: bool) -> Result<(), MeshError> {
         let parts = chunks(bytes);
-        let counts: Vec<(usize, usize)> = parts.par_iter().map(|c| count_lines(c)).collect();
+        let uv = self.uv;
+        let counts: Vec<Counts> = parts.par_iter().map(|c| count_lines(c, uv)).collect();
         let mut bases = Vec::with_capacity(parts.len());
-        let (mut v, mut l) = (self.positions.len(), self.lines);
-        for &(nv, nl) in &counts {
-            bases.push((v, l));
-            v += nv;
-            l += nl;
+        let (mut v, mut l, mut t) = (self.positions.len(), self.lines, self.texcoords.len());
+        for n in &counts {
+            bases.push((v, t, l));
+            v += n.vertices;
+            l += n.newlines;
+            t += n.texcoords;
         }
         if v > self.max_vertices {
             return Err(MeshError::CountOverLimit {
@@ -250,13 +299,22 @@ impl State {
         let limits = Shared {
             triangles: AtomicUsize::new(self.triangles.len()),
             max_triangles: self.max_triangles,
+            uv,
         };
         let parsed: Vec<Chunk> = parts
             .par_iter()
             .zip(bases.par_iter())
             .zip(counts.par_iter())
-            .map(|((c, &(vbase, lbase)), &(nv, _))| {
-                parse_chunk(c, vbase, lbase, nv, whole.then_some(known), &limits)
+            .map(|((c, &(vbase, tbase, lbase)), n)| {
+                parse_chunk(
+                    c,
+                    vbase,
+                    tbase,
+                    lbase,
+                    n.vertices,
+                    whole.then_some(known),
+                    &limits,
+                )
             })
             .collect::<Result<_, _>>()?;
         self.positions.reserve_exact(known - self.positions.len());
@@ -312,6 +370,20 @@ impl State {
             }
             self.positions.extend_from_slice(&c.positions);
             self.triangles.extend_from_slice(&c.triangles);
+            self.texcoords.extend_from_slice(&c.texcoords);
+            // Each triangle's corners once some had coordinates (those before without).
+            if !c.corners.is_empty() || !self.corners.is_empty() {
+                let before = self.triangles.len() - c.triangles.len();
+                self.corners.resize(before, [parser::NO_UV; 3]);
+                self.corners.extend_from_slice(&c.corners);
+                self.corners
+                    .resize(self.triangles.len(), [parser::NO_UV; 3]);
+            }
+            if let Some(f) = c.uv_forward
+                && self.uv_forward.is_none_or(|g| f.2 > g.2)
+            {
+                self.uv_forward = Some(f);
+            }
             self.bad = self.bad.or(c.bad);
             if let Some(f) = c.forward
                 && self.forward.is_none_or(|g| f.2 > g.2)

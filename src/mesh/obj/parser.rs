@@ -53,7 +53,18 @@ pub(super) struct Chunk {
     pub(super) last: u16,
     /// The `mtllib` lines' file names.
     pub(super) libs: Vec<Vec<u8>>,
+    /// With [`Shared::uv`]: the `vt` lines' (u, v), and each triangle's corners' indices into
+    /// the file's texture coordinates ([`NO_UV`] for a corner written without one), once a
+    /// corner of the chunk had one (else empty).
+    pub(super) texcoords: Vec<[f32; 2]>,
+    pub(super) corners: Vec<[u32; 3]>,
+    /// The largest texture coordinate index used before its `vt` line, with its line and as
+    /// written (checked once the count is known).
+    pub(super) uv_forward: Option<(usize, i64, usize)>,
 }
+
+/// A face corner written without a texture coordinate (`a` or `a//c`).
+pub(super) const NO_UV: u32 = u32::MAX;
 
 /// A triangle made before its chunk's first `usemtl`.
 pub(super) const INHERITED: u16 = u16::MAX;
@@ -62,6 +73,9 @@ pub(super) const INHERITED: u16 = u16::MAX;
 pub(super) struct Shared {
     pub(super) triangles: AtomicUsize,
     pub(super) max_triangles: usize,
+    /// Are texture coordinates kept (`vt` lines and the faces' `a/b` indices)? Only where a
+    /// material library, and so a texture, can be read: a file on the command line or a zip.
+    pub(super) uv: bool,
 }
 
 impl Shared {
@@ -92,9 +106,11 @@ pub(super) const REPORT_EVERY: usize = 1 << 12;
 /// read as they are scanned, plain decimals and short indices on the spot and anything else as
 /// a whole token by the standard parser ([`Line::float`], [`Line::index`]: what `str::parse`
 /// gives, bit for bit); the rest of a line is skipped once what matters of it is read.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn parse_chunk(
     text: &[u8],
     vbase: usize,
+    tbase: usize,
     lbase: usize,
     nv: usize,
     total: Option<usize>,
@@ -111,6 +127,10 @@ pub(super) fn parse_chunk(
     let mut material: Vec<u16> = Vec::new();
     let mut current = INHERITED;
     let mut libs: Vec<Vec<u8>> = Vec::new();
+    let mut texcoords: Vec<[f32; 2]> = Vec::new();
+    let mut corners: Vec<[u32; 3]> = Vec::new();
+    let mut poly_uv: Vec<u32> = Vec::new();
+    let mut uv_forward: Option<(usize, i64, usize)> = None;
     let mut ends = memchr::memchr_iter(b'\n', text);
     let mut start = 0;
     let mut i = 0;
@@ -171,6 +191,66 @@ pub(super) fn parse_chunk(
                     colors.push([1.0; 4]);
                 }
                 positions.push(p);
+            }
+            b't' if shared.uv => {
+                // `vt u [v [w]]`: v is 0 when missing, w is ignored.
+                let mut uv = [0.0f32; 2];
+                for (k, c) in uv.iter_mut().enumerate() {
+                    match line.float() {
+                        Some(Ok(v)) if v.is_finite() => *c = v as f32,
+                        None if k == 1 => {}
+                        _ => return Err(err("a texture coordinate needs a finite u (and v)")),
+                    }
+                }
+                texcoords.push(uv);
+            }
+            b'f' if shared.uv => {
+                let defined = (vbase + positions.len()) as i64;
+                let defined_uv = (tbase + texcoords.len()) as i64;
+                poly.clear();
+                poly_uv.clear();
+                while let Some(c) = line.corner() {
+                    let (n, t) = c.map_err(|tok| {
+                        err(&format!(
+                            "{:?} is not a vertex index",
+                            String::from_utf8_lossy(tok)
+                        ))
+                    })?;
+                    let abs = resolve_index(n, defined, total).map_err(|m| err(&m))?;
+                    if abs as i64 >= defined && forward.is_none_or(|f| abs > f.2) {
+                        forward = Some((lbase + i + 1, n, abs));
+                    }
+                    poly.push(abs as u32);
+                    let t = match t {
+                        Some(t) => {
+                            let abs = resolve_index(t, defined_uv, None).map_err(|m| {
+                                err(&m
+                                    .replace("vertex index", "texture coordinate index")
+                                    .replace("vertices", "texture coordinates"))
+                            })?;
+                            if abs as i64 >= defined_uv && uv_forward.is_none_or(|f| abs > f.2) {
+                                uv_forward = Some((lbase + i + 1, t, abs));
+                            }
+                            abs as u32
+                        }
+                        None => NO_UV,
+                    };
+                    poly_uv.push(t);
+                }
+                let before = triangles.len();
+                fan(&poly, &mut triangles);
+                // Kept once a corner had coordinates (the triangles before without).
+                if !corners.is_empty() || poly_uv.iter().any(|&t| t != NO_UV) {
+                    corners.resize(before, [NO_UV; 3]);
+                    fan(&poly_uv, &mut corners);
+                }
+                if !names.is_empty() {
+                    material.resize(triangles.len(), current);
+                }
+                if triangles.len() - reported >= REPORT_EVERY {
+                    shared.add(triangles.len() - reported)?;
+                    reported = triangles.len();
+                }
             }
             b'f' => {
                 let defined = (vbase + positions.len()) as i64;
@@ -239,5 +319,8 @@ pub(super) fn parse_chunk(
         material,
         last: current,
         libs,
+        texcoords,
+        corners,
+        uv_forward,
     })
 }

@@ -89,6 +89,9 @@ fn parse_chunk_std(
         material: vec![],
         last: INHERITED,
         libs: vec![],
+        texcoords: vec![],
+        corners: vec![],
+        uv_forward: None,
     })
 }
 
@@ -417,10 +420,23 @@ type Parsed = Result<
 /// A chunk reader: [`parse_chunk`] or [`parse_chunk_std`].
 type Reader = fn(&[u8], usize, usize, usize, Option<usize>, &Shared) -> Result<Chunk, MeshError>;
 
+/// [`parse_chunk`] without texture coordinates' base (none are kept: `Shared::uv` is off).
+fn parse_chunk_plain(
+    text: &[u8],
+    vbase: usize,
+    lbase: usize,
+    nv: usize,
+    total: Option<usize>,
+    shared: &Shared,
+) -> Result<Chunk, MeshError> {
+    parse_chunk(text, vbase, 0, lbase, nv, total, shared)
+}
+
 fn run(f: Reader, text: &[u8], vbase: usize, total: Option<usize>, max_triangles: usize) -> Parsed {
     let shared = Shared {
         triangles: AtomicUsize::new(0),
         max_triangles,
+        uv: false,
     };
     f(text, vbase, 3, 0, total, &shared).map(|c| {
         (
@@ -441,7 +457,7 @@ fn chunks_read_as_before() {
         let vbase = [0, 0, 5, 1 << 20][r.below(4)];
         let total = [None, None, Some(vbase + 10), Some(vbase + 100)][r.below(4)];
         let max = [usize::MAX, usize::MAX, 3][r.below(3)];
-        let new = run(parse_chunk, &text, vbase, total, max);
+        let new = run(parse_chunk_plain, &text, vbase, total, max);
         let old = run(parse_chunk_std, &text, vbase, total, max);
         assert_eq!(
             new,
@@ -466,8 +482,9 @@ fn line_counts_as_before() {
                 .count(),
             text.iter().filter(|&&b| b == b'\n').count(),
         );
+        let n = count_lines(&text, false);
         assert_eq!(
-            count_lines(&text),
+            (n.vertices, n.newlines),
             old,
             "{:?}",
             String::from_utf8_lossy(&text)
@@ -502,4 +519,44 @@ fn indices_resolve() {
     assert!(resolve_index(0, 5, Some(5)).is_err());
     assert!(resolve_index(1 << 33, 5, None).is_err());
     assert_eq!(resolve_index(1 << 32, 0, None), Ok(u32::MAX as usize));
+}
+
+/// A face corner's two indices read as a plain split at `/` and `str::parse` read them; the
+/// vertex index as [`Line::index`] reads it.
+#[test]
+fn corners_read_as_std_reads_them() {
+    let mut r = Rng::new(0xc0ffee);
+    let pieces = [
+        "1",
+        "23",
+        "-4",
+        "+5",
+        "",
+        "x",
+        "0",
+        "99999999999999999999",
+        "-",
+        "7e1",
+    ];
+    for _ in 0..20_000 {
+        let k = 1 + r.below(3);
+        let tok: Vec<&str> = (0..k).map(|_| pieces[r.below(pieces.len())]).collect();
+        let tok = tok.join("/");
+        let text = format!(" {tok}  ");
+        let mut parts = tok.split('/');
+        let want = match parts.next().and_then(|v| v.parse::<i64>().ok()) {
+            Some(v) => Some(Ok((v, parts.next().and_then(|t| t.parse::<i64>().ok())))),
+            None if tok.is_empty() => None,
+            None => Some(Err(tok.as_bytes())),
+        };
+        let mut l = line(text.as_bytes());
+        assert_eq!(l.corner(), want, "{tok:?}");
+        assert_eq!(l.corner(), None, "{tok:?}: one token");
+        let mut l = line(text.as_bytes());
+        assert_eq!(
+            l.index().map(|r| r.ok()),
+            want.map(|w| w.ok().map(|p| p.0)),
+            "{tok:?}"
+        );
+    }
 }
