@@ -23,6 +23,7 @@
 //! * **Stored** as channels of the bits ([`Attributed`]): `rgba` (sRGB bytes, alpha linear,
 //!   the average rounded once) and `material` (u16 ids into the mesh's material table).
 
+pub mod carry;
 mod clip;
 mod propagate;
 
