@@ -326,6 +326,7 @@ fn store_in(dir: &std::path::Path, v: &Volume) -> String {
         &Origin::Derived {
             method: "test",
             provenance: &provenance,
+            materials: &[],
         },
         Some("sparse".into()),
         "test",

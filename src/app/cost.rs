@@ -104,9 +104,21 @@ fn derived(grid: &Grid) -> u64 {
     bits_bytes(grid).saturating_mul(3)
 }
 
-/// Morphology of `meta` onto `out` (the result grid).
+/// Morphology of `meta` onto `out` (the result grid). A volume with channels also takes, per
+/// voxel of `out`, the nearest-source transform's index (4 bytes), each set voxel's source (4)
+/// and its channel values (at most 6: rgba and a material id), and the source's bits moved onto
+/// `out` (`app::carry`).
 pub fn morphology(meta: &VolumeMeta, out: &Grid) -> u64 {
-    load(meta).saturating_add(derived(out))
+    let carry = if meta.kind == VolumeKind::Channels {
+        out.voxel_count()
+            .saturating_mul(4 + 4 + CHANNEL_BYTES)
+            .saturating_add(bits_bytes(out))
+    } else {
+        0
+    };
+    load(meta)
+        .saturating_add(derived(out))
+        .saturating_add(carry)
 }
 
 /// A CSG expression over the volumes `metas` (by id): every operand loaded once, each
@@ -132,12 +144,36 @@ pub fn csg(metas: &HashMap<String, VolumeMeta>, expr: &CsgExpr) -> u64 {
         }
     }
     let loads = metas.values().map(load).fold(0, u64::saturating_add);
+    // With channels (`app::carry`): every operand again (its material ids remapped), and for
+    // each operation's result, per set voxel (at most all the operands' set voxels) its source
+    // (24 bytes) and channel values.
+    let carry = if metas.values().any(|m| m.kind == VolumeKind::Channels) {
+        fn ops(e: &CsgExpr) -> u64 {
+            match e {
+                CsgExpr::Volume(_) => 0,
+                CsgExpr::Op { operands, .. } => 1 + operands.iter().map(ops).sum::<u64>(),
+            }
+        }
+        let set: u64 = metas
+            .values()
+            .map(|m| m.solid_voxels)
+            .fold(0, u64::saturating_add);
+        loads.saturating_add(
+            set.saturating_mul(24 + CHANNEL_BYTES)
+                .saturating_mul(ops(expr)),
+        )
+    } else {
+        0
+    };
     let (top, nodes) = walk(expr, metas);
     let top = match expr {
         CsgExpr::Volume(_) => 0,
         _ => top.as_ref().map_or(0, bits_bytes).saturating_mul(2),
     };
-    loads.saturating_add(nodes).saturating_add(top)
+    loads
+        .saturating_add(nodes)
+        .saturating_add(top)
+        .saturating_add(carry)
 }
 
 /// The overlap of two stored volumes (nothing stored): both loaded (once when they are one).

@@ -22,9 +22,11 @@ pub enum Origin<'a> {
         job: Option<&'a str>,
     },
     /// Computed from other volumes: `method` is `csg` or `morphology`, `provenance` says how.
+    /// `materials`: the table a material channel's ids index (empty without one).
     Derived {
         method: &'a str,
         provenance: &'a Value,
+        materials: &'a [super::store::MaterialMeta],
     },
 }
 
@@ -95,8 +97,19 @@ pub fn vxl_header(origin: &Origin) -> Map<String, Value> {
                 m.insert("materials".into(), table.into());
             }
         }
-        Origin::Derived { provenance, .. } => {
+        Origin::Derived {
+            provenance,
+            materials,
+            ..
+        } => {
             m.insert("provenance".into(), (*provenance).clone());
+            if !materials.is_empty() {
+                let table: Vec<Value> = materials
+                    .iter()
+                    .map(|mat| serde_json::json!({"name": mat.name, "base_color": mat.base_color}))
+                    .collect();
+                m.insert("materials".into(), table.into());
+            }
         }
     }
     m
@@ -156,6 +169,7 @@ fn attributes_meta(v: &Volume, origin: &Origin) -> Option<super::store::Attribut
                 })
                 .collect()
         }
+        Origin::Derived { materials, .. } => materials.to_vec(),
         _ => vec![],
     };
     Some(super::store::AttributesMeta {
@@ -211,7 +225,9 @@ pub fn build(
             Some(p.diagnostics.clone()),
             Some((*fill).clone()),
         ),
-        Origin::Derived { method, provenance } => (
+        Origin::Derived {
+            method, provenance, ..
+        } => (
             SourceInfo {
                 format: (*method).into(),
                 compression: None,

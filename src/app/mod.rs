@@ -11,6 +11,7 @@
 //! [`crate::limits`].
 
 pub mod attributes;
+pub mod carry;
 pub mod cost;
 pub mod distance;
 pub mod error;

@@ -21,7 +21,7 @@ use crate::volume::morph::{self, MorphOp};
 use crate::volume::{BitVolume, Volume, VolumeKind, VoxelValue, csg};
 
 /// The engine name derived volumes record.
-const DERIVED_ENGINE: &str = "cpu";
+pub(crate) const DERIVED_ENGINE: &str = "cpu";
 
 /// Runs CPU work on rayon's global pool (the CPU engine's), off the async runtime. The work runs
 /// on a pool thread, so the parallel loops inside it are split among the pool's threads
@@ -530,6 +530,7 @@ pub async fn store_derived_volume(
             &Origin::Derived {
                 method,
                 provenance: &provenance,
+                materials: &[],
             },
             name,
             DERIVED_ENGINE,
@@ -618,6 +619,13 @@ pub async fn csg_stored_with(
     if super::distance::is_distance_csg(store, &expr).await? {
         return super::distance::csg_stored_with(store, expr, label, ctl).await;
     }
+    let mut metas = vec![];
+    for id in expr.volume_ids() {
+        metas.extend(store.get(&id).await?);
+    }
+    if super::carry::any_channels(&metas.iter().collect::<Vec<_>>()) {
+        return super::carry::csg_stored_with(store, expr, label, ctl).await;
+    }
     let mut vols = HashMap::new();
     for id in expr.volume_ids() {
         let v = load_bits(store, &id, csg::ACCEPTS, "CSG").await?;
@@ -651,6 +659,10 @@ pub async fn morphology_stored_with(
     ctl: &Control,
 ) -> Result<VolumeMeta> {
     req.check(&limits)?;
+    let meta = super::distance::csg_operand(store, id, morph::ACCEPTS, "morphology").await?;
+    if meta.kind == crate::volume::VolumeKind::Channels {
+        return super::carry::morphology_stored_with(store, meta, req, label, limits, ctl).await;
+    }
     let v = load_bits(store, id, morph::ACCEPTS, "morphology").await?;
     let out = blocking_with(ctl, move |ctl| morphology_with(&v, &req, &limits, ctl)).await?;
     ctl.check()?;

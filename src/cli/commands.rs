@@ -212,6 +212,7 @@ pub fn csg(op: CsgOp, inputs: &[std::path::PathBuf], output: &Path) -> Result<()
     let header = metadata::vxl_header(&Origin::Derived {
         method: "csg",
         provenance: &provenance,
+        materials: &[],
     });
     write_volume(output, f, &Volume::Bits(r), &header)?;
     println!(
@@ -253,6 +254,7 @@ pub fn morph(
     let header = metadata::vxl_header(&Origin::Derived {
         method: "morphology",
         provenance: &provenance,
+        materials: &[],
     });
     write_volume(output, f, &Volume::Bits(r), &header)?;
     println!(

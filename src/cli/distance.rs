@@ -34,6 +34,7 @@ pub fn threshold(input: &Path, level: f64, output: &Path) -> Result<(), String> 
     let header = metadata::vxl_header(&Origin::Derived {
         method: "threshold",
         provenance: &provenance,
+        materials: &[],
     });
     write_volume(output, f, &Volume::Bits(r), &header)?;
     println!(
@@ -58,6 +59,7 @@ pub fn sdf(input: &Path, band: u32, output: &Path) -> Result<(), String> {
     let header = metadata::vxl_header(&Origin::Derived {
         method: "sdf",
         provenance: &provenance,
+        materials: &[],
     });
     write_volume(output, f, &Volume::SparseDistance(r), &header)?;
     println!(
@@ -84,6 +86,7 @@ pub fn csg(op: CsgOp, inputs: &[PathBuf], output: &Path) -> Result<(), String> {
     let header = metadata::vxl_header(&Origin::Derived {
         method: "csg",
         provenance: &provenance,
+        materials: &[],
     });
     let n = Volume::SparseDistance(r.clone()).count_occupied();
     write_volume(output, f, &Volume::SparseDistance(r), &header)?;

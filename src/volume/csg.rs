@@ -16,7 +16,7 @@ use super::sparse::{BRICK, BRICK_VOXELS, Sparse};
 use super::{BitVolume, VolumeKind, tail_mask};
 
 /// The kinds CSG combines (bits with bits, [`DISTANCE_ACCEPTS`] with each other).
-pub const ACCEPTS: &[VolumeKind] = super::BITS_ONLY;
+pub const ACCEPTS: &[VolumeKind] = super::BITS_AND_CHANNELS;
 /// The distance kinds CSG combines with each other.
 pub const DISTANCE_ACCEPTS: &[VolumeKind] = super::levelset::DISTANCE_KINDS;
 use crate::cancel::{Canceled, Control};

@@ -33,7 +33,7 @@ use super::csg::regrid;
 use super::{BitVolume, VolumeKind, tail_mask};
 
 /// The kinds morphology works on.
-pub const ACCEPTS: &[VolumeKind] = super::BITS_ONLY;
+pub const ACCEPTS: &[VolumeKind] = super::BITS_AND_CHANNELS;
 use crate::cancel::{Canceled, Control};
 use crate::grid::Grid;
 

@@ -19,6 +19,7 @@ use voxd::grid::{Grid, GridSpec};
 use voxd::volume::Volume;
 
 mod colour;
+mod colour_ops;
 mod contract;
 mod distance;
 mod distance_ops;

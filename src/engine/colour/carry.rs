@@ -81,50 +81,53 @@ fn sources(
     out
 }
 
-/// Gathers one channel's values from `from` (operand, rank), `missing` where none.
+/// Gathers one channel's values for `n` voxels, voxel k's from `from(k)` (operand, rank),
+/// `missing` where none.
 fn gather(
     name: &str,
     operands: &[&Attributed],
-    from: &[Option<(usize, usize)>],
+    n: usize,
+    from: impl Fn(usize) -> Option<(usize, usize)>,
     missing: crate::volume::kind::VoxelValue,
 ) -> ChannelValues {
     use crate::volume::kind::VoxelValue as V;
-    let value = |f: &Option<(usize, usize)>| match f {
-        Some((i, r)) => operands[*i]
+    let value = |k: &usize| match from(*k) {
+        Some((i, r)) => operands[i]
             .channel(name)
             .expect("the operand has the channel")
             .values
-            .get(*r),
+            .get(r),
         None => missing,
     };
+    let from = 0..n;
     match missing {
         V::U8(_) => ChannelValues::U8(
-            from.iter()
-                .map(|f| match value(f) {
+            from.clone()
+                .map(|f| match value(&f) {
                     V::U8(v) => v,
                     _ => unreachable!("one type a channel"),
                 })
                 .collect(),
         ),
         V::U16(_) => ChannelValues::U16(
-            from.iter()
-                .map(|f| match value(f) {
+            from.clone()
+                .map(|f| match value(&f) {
                     V::U16(v) => v,
                     _ => unreachable!("one type a channel"),
                 })
                 .collect(),
         ),
         V::F32(_) => ChannelValues::F32(
-            from.iter()
-                .map(|f| match value(f) {
+            from.clone()
+                .map(|f| match value(&f) {
                     V::F32(v) => v,
                     _ => unreachable!("one type a channel"),
                 })
                 .collect(),
         ),
         V::Rgba8(_) => ChannelValues::Rgba8(
-            from.iter()
-                .map(|f| match value(f) {
+            from.clone()
+                .map(|f| match value(&f) {
                     V::Rgba8(v) => v,
                     _ => unreachable!("one type a channel"),
                 })
@@ -191,7 +194,7 @@ pub fn csg(
         ctl.set(0.5 + 0.5 * k as f64 / names.len() as f64);
         let has: Vec<bool> = operands.iter().map(|a| a.channel(name).is_some()).collect();
         let from = sources(result.bits(), operands, &has, &offsets);
-        let values = gather(name, operands, &from, *m);
+        let values = gather(name, operands, from.len(), |k| from[k], *m);
         result.add(name, values).expect("one value a set voxel");
     }
     ctl.complete();
@@ -219,18 +222,22 @@ pub fn morphology(
     if keys.is_empty() || out.is_empty() {
         // No source voxel (so no result voxel either): empty channels.
         for c in source.channels() {
-            let empty = gather(&c.name, &[source], &[], zero(&c.values));
+            let empty = gather(&c.name, &[source], 0, |_| None, zero(&c.values));
             out.add(&c.name, empty).expect("no set voxels");
         }
         return Ok(out);
     }
     // The source rank of each result voxel's nearest source (keys are in rank order).
     let nearest = propagate::nearest(out.bits(), &keys, ctl)?;
-    let from: Vec<Option<(usize, usize)>> =
-        nearest.iter().map(|&i| Some((0, i as usize))).collect();
-    drop(nearest);
+    drop(keys);
     for c in source.channels() {
-        let values = gather(&c.name, &[source], &from, zero(&c.values));
+        let values = gather(
+            &c.name,
+            &[source],
+            nearest.len(),
+            |k| Some((0, nearest[k] as usize)),
+            zero(&c.values),
+        );
         out.add(&c.name, values).expect("one value a set voxel");
     }
     Ok(out)
