@@ -389,3 +389,106 @@ fn texture_coordinates_resolve_across_chunks_and_blocks() {
         }
     }
 }
+
+/// The command line's CSG and morphology carry colour and material channels as the service does
+/// (tests/service/colour_ops.rs): the union's material table in the `.vxl` header merges the
+/// operands' tables, the first operand wins where both are set, and a dilation's added voxels
+/// are coloured.
+#[test]
+fn cli_csg_and_morph_keep_colour_and_materials() {
+    let dir = tmpdir("attributes-cli-carry");
+    let cube = |name: &str, kd: &str, x0: f64| {
+        let mut obj = format!("mtllib {name}.mtl\n");
+        for c in 0..8u32 {
+            let p = [
+                x0 + f64::from(c & 1) * 4.0,
+                f64::from(c >> 1 & 1) * 4.0,
+                f64::from(c >> 2 & 1) * 4.0,
+            ];
+            obj += &format!("v {} {} {}\n", p[0] + 1.0, p[1] + 1.0, p[2] + 1.0);
+        }
+        obj += &format!(
+            "usemtl {name}\nf 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n"
+        );
+        std::fs::write(dir.join(format!("{name}.obj")), obj).unwrap();
+        std::fs::write(
+            dir.join(format!("{name}.mtl")),
+            format!("newmtl {name}\nKd {kd}\n"),
+        )
+        .unwrap();
+        let out = dir.join(format!("{name}.vxl"));
+        let o = run_voxd(&[
+            "voxelize",
+            dir.join(format!("{name}.obj")).to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--origin=0,0,0",
+            "--voxel-size=1",
+            "--dims=10,6,6",
+            "--color",
+            "--material",
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        out
+    };
+    let (red, blue) = (cube("red", "1 0 0", 0.0), cube("blue", "0 0 1", 2.0));
+    let union = dir.join("union.vxl");
+    let o = run_voxd(&[
+        "csg",
+        "union",
+        red.to_str().unwrap(),
+        blue.to_str().unwrap(),
+        "-o",
+        union.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (v, meta) = voxd::codec::vxl::decode(&std::fs::read(&union).unwrap()).unwrap();
+    let names: Vec<&str> = meta["materials"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| m["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["red", "blue"]);
+    let voxd::volume::Volume::Channels(a) = v else {
+        panic!("channels")
+    };
+    use voxd::volume::kind::VoxelValue;
+    // Red covers x 1..5, blue x 3..7: x = 3 is both (red first), x = 6 blue only.
+    assert_eq!(
+        a.value("rgba", 1, 2, 2),
+        Some(VoxelValue::Rgba8([255, 0, 0, 255]))
+    );
+    assert_eq!(
+        a.value("rgba", 3, 2, 2),
+        Some(VoxelValue::Rgba8([255, 0, 0, 255]))
+    );
+    assert_eq!(
+        a.value("rgba", 6, 2, 2),
+        Some(VoxelValue::Rgba8([0, 0, 255, 255]))
+    );
+    assert_eq!(a.value("material", 6, 2, 2), Some(VoxelValue::U16(1)));
+    let fat = dir.join("fat.vxl");
+    let o = run_voxd(&[
+        "morph",
+        "dilate",
+        blue.to_str().unwrap(),
+        "-o",
+        fat.to_str().unwrap(),
+        "--radius",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (v, meta) = voxd::codec::vxl::decode(&std::fs::read(&fat).unwrap()).unwrap();
+    assert_eq!(meta["materials"][0]["name"], "blue");
+    let voxd::volume::Volume::Channels(a) = v else {
+        panic!("channels")
+    };
+    assert!(a.len() > 4 * 4 * 4);
+    assert!(a.colours().unwrap().iter().all(|&c| c == [0, 0, 255, 255]));
+    assert_eq!(
+        a.value("rgba", 2, 2, 2),
+        Some(VoxelValue::Rgba8([0, 0, 255, 255])),
+        "an added voxel"
+    );
+}

@@ -76,7 +76,7 @@ pub fn merge_materials(
         }
         maps.push(map);
     }
-    let none = (metas.iter().any(|m| has(m)) && metas.iter().any(|m| !has(m))).then(|| {
+    let none = (metas.iter().any(has) && metas.iter().any(|m| !has(m))).then(|| {
         table.push(MaterialMeta {
             id: table.len() as u16,
             name: NO_MATERIAL.into(),
@@ -116,30 +116,41 @@ pub async fn csg_stored_with(
             super::distance::csg_operand(store, id, crate::volume::csg::ACCEPTS, "CSG").await?,
         );
     }
-    let attrs: Vec<Option<&AttributesMeta>> = metas.iter().map(|m| m.attributes.as_ref()).collect();
+    let mut operands = vec![];
+    for (id, m) in ids.iter().zip(metas) {
+        operands.push((id.clone(), load(store, id).await?, m.attributes));
+    }
+    let provenance = expr.to_json();
+    let (v, table) = blocking_with(ctl, move |ctl| combine(&expr, operands, ctl)).await?;
+    ctl.check()?;
+    store_attributed(store, v, label, "csg", provenance, table).await
+}
+
+/// A CSG expression over `operands` (each id with its volume, bits or channels, and its
+/// attributes' metadata), with channels carried: the result and its material table.
+pub fn combine(
+    expr: &CsgExpr,
+    operands: Vec<(String, Volume, Option<AttributesMeta>)>,
+    ctl: &Control,
+) -> Result<(Attributed, Vec<MaterialMeta>)> {
+    let attrs: Vec<Option<&AttributesMeta>> = operands.iter().map(|o| o.2.as_ref()).collect();
     let (table, maps, none) = merge_materials(&attrs);
     let mut vols: HashMap<String, Arc<Attributed>> = HashMap::new();
-    for (k, id) in ids.iter().enumerate() {
-        let a = attributed(load(store, id).await?, id)?;
+    for (k, (id, v, _)) in operands.into_iter().enumerate() {
+        let a = attributed(v, &id)?;
         let a = if maps[k].is_empty() {
             a
         } else {
             carry::remap(&a, MATERIAL, &maps[k])
         };
-        vols.insert(id.clone(), Arc::new(a));
+        vols.insert(id, Arc::new(a));
     }
-    let provenance = expr.to_json();
-    let v = blocking_with(ctl, move |ctl| {
-        let missing = move |name: &str| match name {
-            MATERIAL => none.map(VoxelValue::U16),
-            RGBA => Some(VoxelValue::Rgba8([0; 4])),
-            _ => None,
-        };
-        eval(&expr, &vols, &missing, ctl)
-    })
-    .await?;
-    ctl.check()?;
-    store_attributed(store, v, label, "csg", provenance, table).await
+    let missing = move |name: &str| match name {
+        MATERIAL => none.map(VoxelValue::U16),
+        RGBA => Some(VoxelValue::Rgba8([0; 4])),
+        _ => None,
+    };
+    Ok((eval(expr, &vols, &missing, ctl)?, table))
 }
 
 /// Evaluates `expr` over attributed volumes, with progress by operands combined.
@@ -204,19 +215,7 @@ pub async fn morphology_stored_with(
         ));
     };
     let table = meta.attributes.map(|a| a.materials).unwrap_or_default();
-    let out = blocking_with(ctl, move |ctl| {
-        morphology_grid(src.bits().grid(), &req, &limits)?;
-        let bits = morph::apply_with(
-            src.bits(),
-            req.op,
-            req.radius,
-            req.kernel,
-            req.grow,
-            &ctl.stage(0.0, 0.6),
-        )?;
-        Ok(carry::morphology(&src, bits, &ctl.stage(0.6, 1.0))?)
-    })
-    .await?;
+    let out = blocking_with(ctl, move |ctl| morphology(&src, &req, &limits, ctl)).await?;
     ctl.check()?;
     store_attributed(
         store,
@@ -227,6 +226,46 @@ pub async fn morphology_stored_with(
         table,
     )
     .await
+}
+
+/// Morphology of a volume with channels within the limits, its channels carried.
+pub fn morphology(
+    src: &Attributed,
+    req: &MorphologyRequest,
+    limits: &Limits,
+    ctl: &Control,
+) -> Result<Attributed> {
+    morphology_grid(src.bits().grid(), req, limits)?;
+    let bits = morph::apply_with(
+        src.bits(),
+        req.op,
+        req.radius,
+        req.kernel,
+        req.grow,
+        &ctl.stage(0.0, 0.6),
+    )?;
+    Ok(carry::morphology(src, bits, &ctl.stage(0.6, 1.0))?)
+}
+
+/// The material table a `.vxl` header's `meta.materials` holds (id = position).
+pub fn header_materials(meta: &serde_json::Map<String, serde_json::Value>) -> Vec<MaterialMeta> {
+    let Some(t) = meta.get("materials").and_then(|t| t.as_array()) else {
+        return vec![];
+    };
+    t.iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let c: Vec<f32> = m["base_color"]
+                .as_array()
+                .map(|a| a.iter().map(|v| v.as_f64().unwrap_or(1.0) as f32).collect())
+                .unwrap_or_default();
+            MaterialMeta {
+                id: i as u16,
+                name: m["name"].as_str().unwrap_or("").to_string(),
+                base_color: std::array::from_fn(|k| c.get(k).copied().unwrap_or(1.0)),
+            }
+        })
+        .collect()
 }
 
 /// Stores a derived volume with channels and its material table.

@@ -16,7 +16,10 @@ use voxd::volume::csg::CsgOp;
 use voxd::volume::morph::{Kernel, MorphOp};
 
 use super::args::VoxelizeArgs;
-use super::output::{describe_fill, describe_mesh, emit, outln, read_volume, write_volume};
+use super::output::{
+    describe_fill, describe_mesh, emit, outln, read_volume, read_volume_with_materials,
+    write_volume,
+};
 
 pub fn voxelize(a: &VoxelizeArgs) -> Result<(), String> {
     let t0 = Instant::now();
@@ -187,34 +190,57 @@ pub fn info(p: &Path) -> Result<(), String> {
     emit(out)
 }
 
-/// A bit volume from a file for CSG or morphology (which take bit volumes only: a channel
-/// volume is refused, not stripped of its channels), or why not (named after the file).
-fn read_bits(p: &Path, what: &str) -> Result<voxd::BitVolume, String> {
-    let v = read_volume(p)?;
-    ops::require(&v, voxd::volume::BITS_ONLY, what)
-        .and_then(|()| ops::require_bits(v, what))
-        .map_err(|e| format!("{}: {e}", p.display()))
-}
-
 pub fn csg(op: CsgOp, inputs: &[std::path::PathBuf], output: &Path) -> Result<(), String> {
     let f = volume_format_of(output)?;
-    let mut vols = HashMap::new();
+    let mut loaded = vec![];
     let mut operands = vec![];
     for p in inputs {
         let id = p.display().to_string();
-        vols.insert(id.clone(), Arc::new(read_bits(p, "CSG")?));
+        let (v, table) = read_volume_with_materials(p)?;
+        ops::require(&v, voxd::volume::csg::ACCEPTS, "CSG")
+            .map_err(|e| format!("{}: {e}", p.display()))?;
+        loaded.push((id.clone(), v, table));
         operands.push(CsgExpr::Volume(id));
     }
     let expr = CsgExpr::Op { op, operands };
-    let r = ops::eval_csg(&expr, &vols).map_err(|e| e.to_string())?;
-    let (g, n) = (*r.grid(), r.count_ones());
     let provenance = expr.to_json();
+    let (r, table) = if loaded.iter().any(|o| matches!(o.1, Volume::Channels(_))) {
+        // Colour and material channels carried (app::carry), the tables merged.
+        let with_attributes = loaded
+            .into_iter()
+            .map(|(id, v, materials)| {
+                let attrs = match &v {
+                    Volume::Channels(a) => Some(voxd::app::store::AttributesMeta {
+                        channels: a.channels().iter().map(|c| c.name.clone()).collect(),
+                        materials,
+                    }),
+                    _ => None,
+                };
+                (id, v, attrs)
+            })
+            .collect();
+        let (a, table) =
+            app::carry::combine(&expr, with_attributes, &voxd::cancel::Control::none())
+                .map_err(|e| e.to_string())?;
+        (Volume::Channels(a), table)
+    } else {
+        let mut vols = HashMap::new();
+        for (id, v, _) in loaded {
+            vols.insert(
+                id,
+                Arc::new(ops::require_bits(v, "CSG").map_err(|e| e.to_string())?),
+            );
+        }
+        let r = ops::eval_csg(&expr, &vols).map_err(|e| e.to_string())?;
+        (Volume::Bits(r), vec![])
+    };
+    let (g, n) = (*r.grid(), r.count_occupied());
     let header = metadata::vxl_header(&Origin::Derived {
         method: "csg",
         provenance: &provenance,
-        materials: &[],
+        materials: &table,
     });
-    write_volume(output, f, &Volume::Bits(r), &header)?;
+    write_volume(output, f, &r, &header)?;
     println!(
         "{} -> {}: {}x{}x{} grid at {:?}, {n} voxels set",
         inputs.len(),
@@ -244,19 +270,24 @@ pub fn morph(
     let limits = Limits::LOCAL;
     req.check(&limits).map_err(|e| e.to_string())?;
     let f = volume_format_of(output)?;
-    let v = read_bits(input, "morphology")?;
-    let r = super::progress::with_bar(&input.display().to_string(), |ctl| {
-        ops::morphology_with(&v, &req, &limits, ctl)
+    let (v, table) = read_volume_with_materials(input)?;
+    ops::require(&v, voxd::volume::morph::ACCEPTS, "morphology")
+        .map_err(|e| format!("{}: {e}", input.display()))?;
+    let r = super::progress::with_bar(&input.display().to_string(), |ctl| match &v {
+        // Colour and material channels carried: added voxels take their nearest source's.
+        Volume::Channels(a) => app::carry::morphology(a, &req, &limits, ctl).map(Volume::Channels),
+        Volume::Bits(b) => ops::morphology_with(b, &req, &limits, ctl).map(Volume::Bits),
+        _ => unreachable!("required above"),
     })
     .map_err(|e| format!("{}: {e}", input.display()))?;
-    let (d, n) = (r.dims(), r.count_ones());
+    let (d, n) = (r.grid().dims, r.count_occupied());
     let provenance = ops::morphology_provenance(&input.display().to_string(), &req);
     let header = metadata::vxl_header(&Origin::Derived {
         method: "morphology",
         provenance: &provenance,
-        materials: &[],
+        materials: &table,
     });
-    write_volume(output, f, &Volume::Bits(r), &header)?;
+    write_volume(output, f, &r, &header)?;
     println!(
         "{} -> {}: {}x{}x{}, {n} voxels set",
         input.display(),

@@ -86,6 +86,20 @@ pub fn write_volume(
     voxd::app::files::write_volume(path, f, v, meta).map_err(|e| err(&e))
 }
 
+/// [`read_volume`] with the material table a `.vxl`'s header holds (empty for other formats).
+pub fn read_volume_with_materials(
+    p: &Path,
+) -> Result<(Volume, Vec<voxd::app::store::MaterialMeta>), String> {
+    let bytes = std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))?;
+    if VolumeFormat::sniff(&bytes) != Some(VolumeFormat::Vxl) {
+        return Ok((read_volume(p)?, vec![]));
+    }
+    let (v, meta) =
+        voxd::codec::vxl::decode_limited(&bytes, voxd::limits::Limits::LOCAL.max_voxels)
+            .map_err(|e| format!("{}: {e}", p.display()))?;
+    Ok((v, voxd::app::carry::header_materials(&meta)))
+}
+
 pub fn read_volume(p: &Path) -> Result<Volume, String> {
     let bytes = std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))?;
     let f = VolumeFormat::sniff(&bytes)

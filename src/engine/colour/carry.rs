@@ -65,7 +65,7 @@ fn sources(
             if !has[i] {
                 continue;
             }
-            let p = [x, y, z].map(|c| i64::from(c));
+            let p = [x, y, z].map(i64::from);
             let q = [0, 1, 2].map(|k| p[k] - offsets[i][k]);
             let d = a.bits().dims();
             if (0..3).any(|k| q[k] < 0 || q[k] >= i64::from(d[k])) {

@@ -265,7 +265,7 @@ impl<'a> Line<'a> {
     /// `str::parse::<i64>` reads it (as [`Line::index`] refuses it). Short
     /// indices are read as they are scanned, anything else by the standard parser.
     #[inline]
-    pub(super) fn corner(&mut self) -> Option<Result<(i64, Option<i64>), &'a [u8]>> {
+    pub(super) fn corner(&mut self) -> Option<Corner<'a>> {
         let first = self.signed_digits()?;
         let value = |d: &Signed| {
             let n = d.value as i64;
@@ -311,6 +311,10 @@ impl<'a> Line<'a> {
         })
     }
 }
+
+/// A face corner's vertex and texture coordinate indices ([`Line::corner`]), or the token whose
+/// vertex index is not a number.
+pub(super) type Corner<'a> = Result<(i64, Option<i64>), &'a [u8]>;
 
 /// What [`Line::signed_digits`] read of a token.
 struct Signed {

@@ -114,6 +114,11 @@ def sync_detailed(
     number of voxels apart); the result's grid is the operands' bounding grid for union and
     xor, their overlap for intersection, and the first operand's for difference. The
     expression is kept as the volume's provenance.
+    Volumes with channels (color, material) combine with each other and with bit volumes:
+    a result voxel takes each channel from the first operand, in the expression's order,
+    set there with that channel (rgba (0, 0, 0, 0) and material "none" where only a bit
+    volume covers it); the operands' material tables are merged into one (equal name and
+    base colour shared), ids renumbered (docs/methods.md, "Colour and material").
     Distance volumes combine with each other only (a bit volume among them is
     wrong-volume-kind), on one grid (else misaligned-grids), by min (union), max
     (intersection) and max(a, -b) (difference); xor is invalid-parameter. Operands are
@@ -157,6 +162,11 @@ def sync(
     number of voxels apart); the result's grid is the operands' bounding grid for union and
     xor, their overlap for intersection, and the first operand's for difference. The
     expression is kept as the volume's provenance.
+    Volumes with channels (color, material) combine with each other and with bit volumes:
+    a result voxel takes each channel from the first operand, in the expression's order,
+    set there with that channel (rgba (0, 0, 0, 0) and material "none" where only a bit
+    volume covers it); the operands' material tables are merged into one (equal name and
+    base colour shared), ids renumbered (docs/methods.md, "Colour and material").
     Distance volumes combine with each other only (a bit volume among them is
     wrong-volume-kind), on one grid (else misaligned-grids), by min (union), max
     (intersection) and max(a, -b) (difference); xor is invalid-parameter. Operands are
@@ -195,6 +205,11 @@ async def asyncio_detailed(
     number of voxels apart); the result's grid is the operands' bounding grid for union and
     xor, their overlap for intersection, and the first operand's for difference. The
     expression is kept as the volume's provenance.
+    Volumes with channels (color, material) combine with each other and with bit volumes:
+    a result voxel takes each channel from the first operand, in the expression's order,
+    set there with that channel (rgba (0, 0, 0, 0) and material "none" where only a bit
+    volume covers it); the operands' material tables are merged into one (equal name and
+    base colour shared), ids renumbered (docs/methods.md, "Colour and material").
     Distance volumes combine with each other only (a bit volume among them is
     wrong-volume-kind), on one grid (else misaligned-grids), by min (union), max
     (intersection) and max(a, -b) (difference); xor is invalid-parameter. Operands are
@@ -236,6 +251,11 @@ async def asyncio(
     number of voxels apart); the result's grid is the operands' bounding grid for union and
     xor, their overlap for intersection, and the first operand's for difference. The
     expression is kept as the volume's provenance.
+    Volumes with channels (color, material) combine with each other and with bit volumes:
+    a result voxel takes each channel from the first operand, in the expression's order,
+    set there with that channel (rgba (0, 0, 0, 0) and material "none" where only a bit
+    volume covers it); the operands' material tables are merged into one (equal name and
+    base colour shared), ids renumbered (docs/methods.md, "Colour and material").
     Distance volumes combine with each other only (a bit volume among them is
     wrong-volume-kind), on one grid (else misaligned-grids), by min (union), max
     (intersection) and max(a, -b) (difference); xor is invalid-parameter. Operands are

@@ -113,7 +113,9 @@ def sync_detailed(
 
      Kernels: cube (Chebyshev ball), cross (Manhattan ball: r steps of the 6-neighbourhood),
     sphere (Euclidean ball). Voxels outside the grid are empty. With grow, dilate and close
-    work on (and return) the grid enlarged by radius voxels on every side.
+    work on (and return) the grid enlarged by radius voxels on every side. A volume with
+    channels keeps them: a voxel set in the source keeps its values, an added one takes
+    those of the nearest set source voxel (Euclidean, centre to centre).
 
     Args:
         id (str):
@@ -152,7 +154,9 @@ def sync(
 
      Kernels: cube (Chebyshev ball), cross (Manhattan ball: r steps of the 6-neighbourhood),
     sphere (Euclidean ball). Voxels outside the grid are empty. With grow, dilate and close
-    work on (and return) the grid enlarged by radius voxels on every side.
+    work on (and return) the grid enlarged by radius voxels on every side. A volume with
+    channels keeps them: a voxel set in the source keeps its values, an added one takes
+    those of the nearest set source voxel (Euclidean, centre to centre).
 
     Args:
         id (str):
@@ -186,7 +190,9 @@ async def asyncio_detailed(
 
      Kernels: cube (Chebyshev ball), cross (Manhattan ball: r steps of the 6-neighbourhood),
     sphere (Euclidean ball). Voxels outside the grid are empty. With grow, dilate and close
-    work on (and return) the grid enlarged by radius voxels on every side.
+    work on (and return) the grid enlarged by radius voxels on every side. A volume with
+    channels keeps them: a voxel set in the source keeps its values, an added one takes
+    those of the nearest set source voxel (Euclidean, centre to centre).
 
     Args:
         id (str):
@@ -223,7 +229,9 @@ async def asyncio(
 
      Kernels: cube (Chebyshev ball), cross (Manhattan ball: r steps of the 6-neighbourhood),
     sphere (Euclidean ball). Voxels outside the grid are empty. With grow, dilate and close
-    work on (and return) the grid enlarged by radius voxels on every side.
+    work on (and return) the grid enlarged by radius voxels on every side. A volume with
+    channels keeps them: a voxel set in the source keeps its values, an added one takes
+    those of the nearest set source voxel (Euclidean, centre to centre).
 
     Args:
         id (str):
