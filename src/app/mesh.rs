@@ -48,6 +48,9 @@ pub struct Planned {
     pub bits: BitVolume,
     pub triangles: u64,
     pub algorithm: Algorithm,
+    /// A volume with channels, whose `rgba` colours the mesh's vertices
+    /// ([`crate::extract::colour`]).
+    pub colours: Option<crate::volume::Attributed>,
 }
 
 /// Bytes a build holds per triangle of the bound: the triangle (12), its share of vertices
@@ -65,8 +68,15 @@ pub fn plan(v: Volume, algorithm: Algorithm, limits: &Limits) -> Result<Planned>
              was made from, not from the volume (app::hermite)",
         ));
     }
+    let mut colours = None;
     let (volume, bits) = match (algorithm, v) {
         (_, Volume::Bits(b)) => (None, b),
+        // Bits with channels: extracted as bits, the colours kept for the vertices.
+        (_, Volume::Channels(a)) => {
+            let bits = a.bits().clone();
+            colours = a.colours().is_some().then_some(a);
+            (None, bits)
+        }
         (Algorithm::Cubes | Algorithm::DualContouring, v) => (None, occupancy(&v)),
         (Algorithm::SurfaceNets | Algorithm::MarchingCubes, v) => {
             let bits = surface_nets::inside(&v).into_owned();
@@ -98,15 +108,18 @@ pub fn plan(v: Volume, algorithm: Algorithm, limits: &Limits) -> Result<Planned>
         bits,
         triangles,
         algorithm,
+        colours,
     })
 }
 
 /// Bytes the build of `p` needs beyond the occupancy: the triangles' share
-/// ([`BYTES_PER_TRIANGLE`]) and a bit per lattice point (the rectangles' corners).
+/// ([`BYTES_PER_TRIANGLE`]), a bit per lattice point (the rectangles' corners), and with
+/// colours a colour per vertex (4 bytes; at most three vertices a triangle).
 pub fn build_cost(p: &Planned) -> u64 {
     let d = p.bits.dims().map(|n| u64::from(n) + 1);
+    let colours = if p.colours.is_some() { 12 } else { 0 };
     p.triangles
-        .saturating_mul(BYTES_PER_TRIANGLE)
+        .saturating_mul(BYTES_PER_TRIANGLE + colours)
         .saturating_add((d[0] * d[1] * d[2]).div_ceil(8))
 }
 
@@ -137,6 +150,10 @@ pub fn build(p: &Planned, ctl: &Control) -> Result<TriMesh> {
             surface_nets::surface_nets(&field, ctl)?
         }
     };
+    let mut m = m;
+    if let Some(a) = &p.colours {
+        m.colors = crate::extract::colour::vertex_colours(&m, a);
+    }
     ctl.complete();
     Ok(m.to_world(&grid))
 }

@@ -89,7 +89,16 @@ pub fn mesh(a: &MeshArgs) -> Result<(), String> {
 }
 
 /// The mesh of volume `v` in lattice units (not dual contouring).
+/// The mesh of `v` (lattice coordinates), its vertices coloured when `v` has colours.
 fn extract(v: &Volume, algorithm: Algorithm, name: &str) -> Result<TriMesh, String> {
+    let mut m = extract_shape(v, algorithm, name)?;
+    if let Volume::Channels(a) = v {
+        m.colors = voxd::extract::colour::vertex_colours(&m, a);
+    }
+    Ok(m)
+}
+
+fn extract_shape(v: &Volume, algorithm: Algorithm, name: &str) -> Result<TriMesh, String> {
     super::progress::with_bar(name, |ctl| match algorithm {
         Algorithm::Cubes => cubes::cubes(&occupancy(v), ctl),
         Algorithm::SurfaceNets => surface_nets::surface_nets(&surface_nets::Field::of(v), ctl),

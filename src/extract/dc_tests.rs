@@ -60,6 +60,7 @@ fn lattice(m: &Mesh, g: &Grid) -> TriMesh {
             .map(|p| [0, 1, 2].map(|a| (p[a] - g.origin[a]) / g.voxel_size))
             .collect(),
         triangles: m.triangles().to_vec(),
+        colors: vec![],
     }
 }
 

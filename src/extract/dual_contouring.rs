@@ -88,6 +88,7 @@ pub fn dual_contouring(bits: &BitVolume, h: &Hermite, ctl: &Control) -> Result<T
     Ok(TriMesh {
         positions,
         triangles,
+        colors: vec![],
     })
 }
 

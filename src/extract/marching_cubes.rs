@@ -41,6 +41,7 @@ pub fn marching_cubes(field: &Field<'_>, ctl: &Control) -> Result<TriMesh, Cance
     let mut out = TriMesh {
         positions: n.crossings,
         triangles: Vec::with_capacity(2 * n.quads.len()),
+        colors: vec![],
     };
     let counter = ctl.counter(nv as u64);
     let mut ring: Vec<u32> = Vec::new();

@@ -15,6 +15,7 @@
 //! are exact) and placed in the world by [`TriMesh::to_world`].
 
 pub mod check;
+pub mod colour;
 pub mod cubes;
 pub mod dual_contouring;
 mod faces;
@@ -29,11 +30,13 @@ pub mod write;
 
 use crate::grid::Grid;
 
-/// A triangle mesh: positions and counter-clockwise (outward) triangles.
+/// A triangle mesh: positions and counter-clockwise (outward) triangles, and, from a volume with
+/// colours, one sRGB RGBA per vertex (`colour::vertex_colours`; empty otherwise).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TriMesh {
     pub positions: Vec<[f64; 3]>,
     pub triangles: Vec<[u32; 3]>,
+    pub colors: Vec<[u8; 4]>,
 }
 
 impl TriMesh {

@@ -300,6 +300,7 @@ pub fn surface_nets(field: &Field<'_>, ctl: &Control) -> Result<TriMesh, Cancele
     let mut out = TriMesh {
         positions,
         triangles: Vec::with_capacity(2 * quads.len()),
+        colors: vec![],
     };
     for q in &quads {
         let p = q.map(|i| out.positions[i as usize]);

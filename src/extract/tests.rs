@@ -197,7 +197,8 @@ fn files_hold_the_mesh() {
         write(&m, f, &mut out).unwrap();
         let out_len = out.len() as u64;
         assert!(
-            out.len() as u64 <= f.size_bound(m.positions.len() as u64, m.triangles.len() as u64)
+            out.len() as u64
+                <= f.size_bound(m.positions.len() as u64, m.triangles.len() as u64, false)
         );
         match f {
             MeshFormat::Stl => assert_eq!(out.len(), 84 + 50 * m.triangles.len()),
@@ -237,6 +238,93 @@ fn files_hold_the_mesh() {
         }
         if let Some(n) = encoded_len(&m, f) {
             assert_eq!(n, out_len, "{f:?}");
+        }
+    }
+}
+
+/// A two-voxel bar, one voxel red and one blue, as cubes: each vertex takes the mean (in linear
+/// light) of the colours of the set voxels meeting at it, so the far ends are pure and the
+/// shared face's corners the linear mix; the GLB's COLOR_0 (read by the gltf crate) is that in
+/// linear f32, the PLY's and OBJ's the sRGB colours; every size within its bound.
+#[test]
+fn vertex_colours_come_from_the_voxels_meeting_there() {
+    use crate::mesh::texture::{linear_to_srgb, srgb_to_linear};
+    use crate::volume::{Attributed, ChannelValues};
+    let mut b = BitVolume::new(grid([4, 3, 3]));
+    b.set(1, 1, 1, true);
+    b.set(2, 1, 1, true);
+    let mut a = Attributed::new(b.clone());
+    let (red, blue) = ([255u8, 0, 0, 255], [0u8, 0, 255, 255]);
+    a.add("rgba", ChannelValues::Rgba8(vec![red, blue]))
+        .unwrap();
+    let mut m = cubes(&b, &Control::none()).unwrap();
+    m.colors = super::colour::vertex_colours(&m, &a);
+    let mix = (linear_to_srgb(srgb_to_linear(1.0) / 2.0) * 255.0).round() as u8;
+    assert_eq!(m.colors.len(), m.positions.len());
+    for (p, c) in m.positions.iter().zip(&m.colors) {
+        let want = match p[0] as u32 {
+            1 => red,
+            3 => blue,
+            2 => [mix, 0, mix, 255],
+            x => panic!("a vertex at x = {x}"),
+        };
+        assert_eq!(*c, want, "vertex {p:?}");
+    }
+    let m = m.to_world(b.grid());
+    for f in MeshFormat::ALL {
+        let mut out = Vec::new();
+        write(&m, f, &mut out).unwrap();
+        assert!(
+            out.len() as u64
+                <= f.size_bound(m.positions.len() as u64, m.triangles.len() as u64, true),
+            "{f:?}"
+        );
+        if let Some(n) = encoded_len(&m, f) {
+            assert_eq!(n, out.len() as u64, "{f:?}");
+        }
+        match f {
+            MeshFormat::Glb => {
+                let g = gltf::Gltf::from_slice(&out).unwrap();
+                let blob = g.blob.as_deref().unwrap();
+                let prim = g.meshes().next().unwrap().primitives().next().unwrap();
+                let reader = prim.reader(|_| Some(blob));
+                let got: Vec<[f32; 4]> = reader.read_colors(0).unwrap().into_rgba_f32().collect();
+                let lin = crate::mesh::texture::srgb_to_linear_table();
+                let want: Vec<[f32; 4]> = m
+                    .colors
+                    .iter()
+                    .map(|c| {
+                        [
+                            lin[c[0] as usize],
+                            lin[c[1] as usize],
+                            lin[c[2] as usize],
+                            c[3] as f32 / 255.0,
+                        ]
+                    })
+                    .collect();
+                assert_eq!(got, want);
+            }
+            MeshFormat::Ply => {
+                let text = String::from_utf8_lossy(&out);
+                assert!(text.contains("property uchar red\nproperty uchar green\nproperty uchar blue\nproperty uchar alpha\n"));
+                let end = out.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
+                // The first vertex's colour follows its three doubles.
+                assert_eq!(out[end + 24..end + 28], m.colors[0]);
+            }
+            MeshFormat::Obj => {
+                let text = String::from_utf8(out).unwrap();
+                let v = text.lines().find(|l| l.starts_with("v ")).unwrap();
+                let n: Vec<f32> = v.split(' ').skip(1).map(|x| x.parse().unwrap()).collect();
+                assert_eq!(n.len(), 6);
+                assert_eq!(
+                    n[3..],
+                    m.colors[0][..3]
+                        .iter()
+                        .map(|&b| f32::from(b) / 255.0)
+                        .collect::<Vec<_>>()[..]
+                );
+            }
+            MeshFormat::Stl => {}
         }
     }
 }

@@ -64,13 +64,15 @@ impl MeshFormat {
         })
     }
 
-    /// Bytes [`write`] produces for `m` (exact for STL and PLY, an upper bound for OBJ).
-    pub fn size_bound(self, vertices: u64, triangles: u64) -> u64 {
+    /// Bytes [`write`] produces for a mesh of `vertices` and `triangles` (an upper bound),
+    /// with vertex colours when `colours`.
+    pub fn size_bound(self, vertices: u64, triangles: u64, colours: bool) -> u64 {
+        let c = u64::from(colours);
         match self {
-            MeshFormat::Obj => 256 + vertices * 80 + triangles * 40,
+            MeshFormat::Obj => 256 + vertices * (80 + 30 * c) + triangles * 40,
             MeshFormat::Stl => 84 + triangles * 50,
-            MeshFormat::Ply => 256 + vertices * 24 + triangles * 13,
-            MeshFormat::Glb => 1024 + vertices * 12 + triangles * 12,
+            MeshFormat::Ply => 256 + 64 * c + vertices * (24 + 4 * c) + triangles * 13,
+            MeshFormat::Glb => 1024 + vertices * (12 + 16 * c) + triangles * 12,
         }
     }
 }
@@ -81,15 +83,31 @@ pub fn encoded_len(m: &TriMesh, format: MeshFormat) -> Option<u64> {
     match format {
         MeshFormat::Obj => None,
         MeshFormat::Stl => Some(84 + 50 * t),
-        MeshFormat::Ply => Some(ply_header(m).len() as u64 + 24 * v + 13 * t),
-        MeshFormat::Glb => Some(12 + 8 + glb_json(m).len() as u64 + 8 + 12 * v + 12 * t),
+        MeshFormat::Ply => Some(ply_header(m).len() as u64 + (24 + 4 * coloured(m)) * v + 13 * t),
+        MeshFormat::Glb => Some(12 + 8 + glb_json(m).len() as u64 + 8 + glb_bin(m)),
     }
 }
 
+/// 1 when `m` has vertex colours.
+fn coloured(m: &TriMesh) -> u64 {
+    u64::from(!m.colors.is_empty())
+}
+
+/// The GLB's binary chunk: positions, indices, and the colours (linear f32 RGBA) when any.
+fn glb_bin(m: &TriMesh) -> u64 {
+    let (v, t) = (m.positions.len() as u64, m.triangles.len() as u64);
+    12 * v + 12 * t + 16 * v * coloured(m)
+}
+
 fn ply_header(m: &TriMesh) -> String {
+    let colour = if m.colors.is_empty() {
+        ""
+    } else {
+        "property uchar red\nproperty uchar green\nproperty uchar blue\nproperty uchar alpha\n"
+    };
     format!(
         "ply\nformat binary_little_endian 1.0\ncomment voxd\n\
-         element vertex {}\nproperty double x\nproperty double y\nproperty double z\n\
+         element vertex {}\nproperty double x\nproperty double y\nproperty double z\n{colour}\
          element face {}\nproperty list uchar uint vertex_indices\nend_header\n",
         m.positions.len(),
         m.triangles.len()
@@ -113,8 +131,9 @@ fn bounds(m: &TriMesh) -> ([f32; 3], [f32; 3]) {
 }
 
 /// The GLB's JSON chunk, padded with spaces to a multiple of 4 bytes: positions (view 0) then
-/// indices (view 1) in the one binary buffer. (Both views' lengths are multiples of 4, so the
-/// binary chunk needs no padding.)
+/// indices (view 1) in the one binary buffer, then the vertex colours (view 2, `COLOR_0`, linear
+/// as glTF defines it) when any. (Every view's length is a multiple of 4, so the binary chunk
+/// needs no padding.)
 fn glb_json(m: &TriMesh) -> String {
     let (v, t) = (m.positions.len() as u64, m.triangles.len() as u64);
     let (lo, hi) = bounds(m);
@@ -133,9 +152,18 @@ fn glb_json(m: &TriMesh) -> String {
             {"buffer": 0, "byteOffset": 0, "byteLength": 12 * v, "target": 34962},
             {"buffer": 0, "byteOffset": 12 * v, "byteLength": 12 * t, "target": 34963}
         ],
-        "buffers": [{"byteLength": 12 * v + 12 * t}]
-    })
-    .to_string();
+        "buffers": [{"byteLength": glb_bin(m)}]
+    });
+    if !m.colors.is_empty() {
+        j["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = 2.into();
+        j["accessors"].as_array_mut().expect("an array").push(
+            serde_json::json!({"bufferView": 2, "componentType": 5126, "count": v, "type": "VEC4"}),
+        );
+        j["bufferViews"].as_array_mut().expect("an array").push(
+            serde_json::json!({"buffer": 0, "byteOffset": 12 * v + 12 * t, "byteLength": 16 * v, "target": 34962}),
+        );
+    }
+    let mut j = j.to_string();
     while !j.len().is_multiple_of(4) {
         j.push(' ');
     }
@@ -153,8 +181,25 @@ pub fn write(m: &TriMesh, format: MeshFormat, w: &mut impl Write) -> io::Result<
                 m.positions.len(),
                 m.triangles.len()
             )?;
-            for p in &m.positions {
-                writeln!(w, "v {} {} {}", p[0], p[1], p[2])?;
+            if m.colors.is_empty() {
+                for p in &m.positions {
+                    writeln!(w, "v {} {} {}", p[0], p[1], p[2])?;
+                }
+            } else {
+                // The vertex colour extension (`v x y z r g b`, sRGB in [0, 1]).
+                for (p, c) in m.positions.iter().zip(&m.colors) {
+                    let f = |b: u8| f32::from(b) / 255.0;
+                    writeln!(
+                        w,
+                        "v {} {} {} {} {} {}",
+                        p[0],
+                        p[1],
+                        p[2],
+                        f(c[0]),
+                        f(c[1]),
+                        f(c[2])
+                    )?;
+                }
             }
             for t in &m.triangles {
                 writeln!(w, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1)?;
@@ -190,9 +235,12 @@ pub fn write(m: &TriMesh, format: MeshFormat, w: &mut impl Write) -> io::Result<
         }
         MeshFormat::Ply => {
             w.write_all(ply_header(m).as_bytes())?;
-            for p in &m.positions {
+            for (i, p) in m.positions.iter().enumerate() {
                 for c in p {
                     w.write_all(&c.to_le_bytes())?;
+                }
+                if let Some(c) = m.colors.get(i) {
+                    w.write_all(c)?;
                 }
             }
             for t in &m.triangles {
@@ -204,7 +252,7 @@ pub fn write(m: &TriMesh, format: MeshFormat, w: &mut impl Write) -> io::Result<
         }
         MeshFormat::Glb => {
             let json = glb_json(m);
-            let bin = 12 * (m.positions.len() as u64 + m.triangles.len() as u64);
+            let bin = glb_bin(m);
             let total = 12 + 8 + json.len() as u64 + 8 + bin;
             let total = u32::try_from(total).map_err(|_| {
                 io::Error::new(
@@ -229,6 +277,13 @@ pub fn write(m: &TriMesh, format: MeshFormat, w: &mut impl Write) -> io::Result<
                 for i in t {
                     w.write_all(&i.to_le_bytes())?;
                 }
+            }
+            let lin = crate::mesh::texture::srgb_to_linear_table();
+            for c in &m.colors {
+                for k in 0..3 {
+                    w.write_all(&lin[usize::from(c[k])].to_le_bytes())?;
+                }
+                w.write_all(&(f32::from(c[3]) / 255.0).to_le_bytes())?;
             }
         }
     }

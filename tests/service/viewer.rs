@@ -124,21 +124,7 @@ fn the_viewer_page_draws_the_volume_in_a_headless_browser() {
         .problem(404, "not-found");
     let Some(chromium) = chromium() else { return };
     let url = format!("http://{}/v1/volumes/{id}/view", srv.addr);
-    // The DOM once the scripts ran: the canvas, the mesh drawn, no error. A page not drawn yet
-    // when the browser's time budget ran out (a loaded machine) is loaded again, 3 times at most.
-    let mut dom = String::new();
-    for attempt in 0..3 {
-        dom = browse(
-            &chromium,
-            &dir.join(format!("profile-dom-{attempt}")),
-            &url,
-            &["--dump-dom"],
-        );
-        if dom.contains("data-drawn=\"yes\"") || dom.contains("data-errors") {
-            break;
-        }
-        eprintln!("attempt {attempt}: not drawn yet: {}", page_state(&dom));
-    }
+    let dom = drawn_dom(&chromium, &dir, &url);
     assert!(dom.contains("<canvas"), "no canvas: {}", page_state(&dom));
     assert!(!dom.contains("data-errors"), "errors: {}", page_state(&dom));
     assert!(
@@ -164,13 +150,47 @@ fn the_viewer_page_draws_the_volume_in_a_headless_browser() {
         "no grid {dims:?}: {}",
         page_state(&dom)
     );
-    // The screenshot: the model's colour at the middle of the 3D view, the background at its
-    // corner.
+    let (centre, _) = screenshot(&chromium, &dir, &url);
+    // The model's orange, lit: red well over blue.
+    let model = centre
+        .iter()
+        .filter(|p| p[0] > 80 && i32::from(p[0]) - i32::from(p[2]) > 40)
+        .count();
+    assert!(
+        model > 3200,
+        "only {model} of 6400 pixels at the centre show the model"
+    );
+    let _ = std::fs::copy(dir.join("view.png"), scratch_root().join("viewer.png"));
+    srv.stop();
+}
+
+/// The DOM once the scripts ran. A page not drawn yet when the browser's time budget ran out (a
+/// loaded machine) is loaded again, 3 times at most.
+fn drawn_dom(chromium: &Path, dir: &Path, url: &str) -> String {
+    let mut dom = String::new();
+    for attempt in 0..3 {
+        dom = browse(
+            chromium,
+            &dir.join(format!("profile-dom-{attempt}")),
+            url,
+            &["--dump-dom"],
+        );
+        if dom.contains("data-drawn=\"yes\"") || dom.contains("data-errors") {
+            break;
+        }
+        eprintln!("attempt {attempt}: not drawn yet: {}", page_state(&dom));
+    }
+    dom
+}
+
+/// A screenshot of the page (`dir/view.png`): the 80 × 80 pixels at the middle of the 3D view
+/// (the page's left 700 of 1000 pixels), checked to have the background (#1d2025) at its corner.
+fn screenshot(chromium: &Path, dir: &Path, url: &str) -> (Vec<[u8; 3]>, PathBuf) {
     let shot = dir.join("view.png");
     browse(
-        &chromium,
+        chromium,
         &dir.join("profile-shot"),
-        &url,
+        url,
         &[&format!("--screenshot={}", shot.display())],
     );
     let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&shot).unwrap()));
@@ -182,22 +202,65 @@ fn the_viewer_page_draws_the_volume_in_a_headless_browser() {
         let i = (y * info.width as usize + x) * ch;
         [buf[i], buf[i + 1], buf[i + 2]]
     };
-    // The 3D view is the page's left 700 of 1000 pixels; its background is #1d2025.
-    let background = [0x1d, 0x20, 0x25];
-    assert_eq!(px(10, 10), background);
+    assert_eq!(px(10, 10), [0x1d, 0x20, 0x25]);
     let (cx, cy) = (350, info.height as usize / 2);
-    let mut model = 0;
+    let mut centre = vec![];
     for y in cy - 40..cy + 40 {
         for x in cx - 40..cx + 40 {
-            let p = px(x, y);
-            // The model's orange, lit: red well over blue.
-            model += usize::from(p[0] > 80 && i32::from(p[0]) - i32::from(p[2]) > 40);
+            centre.push(px(x, y));
         }
     }
-    assert!(
-        model > 3200,
-        "only {model} of 6400 pixels at the centre show the model"
+    (centre, shot)
+}
+
+/// A volume with colours is drawn in its colours: a blue box (a zipped OBJ whose material is
+/// blue, `color=true`) shows blue at the centre of the view, where a volume without colours is
+/// orange, and the page says it uses vertex colours.
+#[test]
+fn the_viewer_page_shows_a_volumes_colours() {
+    let dir = tmpdir("viewer-colour");
+    let srv = Server::start(&dir, &[]);
+    let obj = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nv 0 0 1\nv 1 0 1\nv 0 1 1\nv 1 1 1\nusemtl blue\nf 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n";
+    let body = super::zip_upload::zip_of(&[
+        ("box.obj", obj.as_bytes()),
+        ("m.mtl", b"newmtl blue\nKd 0.1 0.3 1\n"),
+    ]);
+    let v = srv.created(
+        "/v1/voxelize?resolution=24&color=true&wait=60",
+        &[("Content-Type", "application/zip")],
+        &body,
     );
-    let _ = std::fs::copy(&shot, scratch_root().join("viewer.png"));
+    let id = v["id"].as_str().unwrap();
+    // The mesh the page loads has COLOR_0.
+    let glb = srv
+        .req(
+            "GET",
+            &format!("/v1/volumes/{id}/mesh?format=glb&algorithm=surface-nets"),
+            &[],
+            &[],
+        )
+        .ok(200)
+        .body;
+    let g = gltf::Gltf::from_slice(&glb).unwrap();
+    let prim = g.meshes().next().unwrap().primitives().next().unwrap();
+    assert!(prim.get(&gltf::Semantic::Colors(0)).is_some());
+    let Some(chromium) = chromium() else { return };
+    let url = format!("http://{}/v1/volumes/{id}/view", srv.addr);
+    let dom = drawn_dom(&chromium, &dir, &url);
+    assert!(!dom.contains("data-errors"), "errors: {}", page_state(&dom));
+    assert!(
+        dom.contains("data-colours=\"yes\""),
+        "no colours: {}",
+        page_state(&dom)
+    );
+    let (centre, _) = screenshot(&chromium, &dir, &url);
+    let blue = centre
+        .iter()
+        .filter(|p| p[2] > 60 && i32::from(p[2]) - i32::from(p[0]) > 40)
+        .count();
+    assert!(
+        blue > 3200,
+        "only {blue} of 6400 pixels at the centre are blue"
+    );
     srv.stop();
 }

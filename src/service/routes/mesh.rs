@@ -73,8 +73,11 @@ pub async fn mesh(
     let planned = mesh::plan_stored(&*app.store, &id, algorithm, &app.limits, &ctl).await?;
     let building = app
         .admit(
-            mesh::build_cost(&planned)
-                .saturating_add(format.size_bound(planned.triangles, planned.triangles)),
+            mesh::build_cost(&planned).saturating_add(format.size_bound(
+                planned.triangles,
+                planned.triangles,
+                planned.colours.is_some(),
+            )),
             &format!(
                 "a mesh of volume {id} (up to {} triangles)",
                 planned.triangles
@@ -123,7 +126,7 @@ async fn dual_contouring(
         .admit(
             s.hermite_bytes()
                 .saturating_add(triangles.saturating_mul(mesh::BYTES_PER_TRIANGLE))
-                .saturating_add(format.size_bound(triangles, triangles)),
+                .saturating_add(format.size_bound(triangles, triangles, false)),
             &format!("{what} (up to {triangles} triangles)"),
         )
         .await?;
