@@ -100,40 +100,22 @@ fn gather(
         None => missing,
     };
     let from = 0..n;
-    match missing {
-        V::U8(_) => ChannelValues::U8(
-            from.clone()
-                .map(|f| match value(&f) {
-                    V::U8(v) => v,
-                    _ => unreachable!("one type a channel"),
-                })
-                .collect(),
-        ),
-        V::U16(_) => ChannelValues::U16(
-            from.clone()
-                .map(|f| match value(&f) {
-                    V::U16(v) => v,
-                    _ => unreachable!("one type a channel"),
-                })
-                .collect(),
-        ),
-        V::F32(_) => ChannelValues::F32(
-            from.clone()
-                .map(|f| match value(&f) {
-                    V::F32(v) => v,
-                    _ => unreachable!("one type a channel"),
-                })
-                .collect(),
-        ),
-        V::Rgba8(_) => ChannelValues::Rgba8(
-            from.clone()
-                .map(|f| match value(&f) {
-                    V::Rgba8(v) => v,
-                    _ => unreachable!("one type a channel"),
-                })
-                .collect(),
-        ),
+    // One arm a value type: the values of that type, in order.
+    macro_rules! typed {
+        ($($variant:ident),*) => {
+            match missing {
+                $(V::$variant(_) => ChannelValues::$variant(
+                    from.clone()
+                        .map(|f| match value(&f) {
+                            V::$variant(v) => v,
+                            _ => unreachable!("one type a channel"),
+                        })
+                        .collect(),
+                ),)*
+            }
+        };
     }
+    typed!(U8, U16, F32, Rgba8)
 }
 
 /// The zero of a value type (the missing value of a channel `missing` does not name).

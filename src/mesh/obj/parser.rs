@@ -204,12 +204,19 @@ pub(super) fn parse_chunk(
                 }
                 texcoords.push(uv);
             }
-            b'f' if shared.uv => {
+            b'f' => {
                 let defined = (vbase + positions.len()) as i64;
                 let defined_uv = (tbase + texcoords.len()) as i64;
                 poly.clear();
                 poly_uv.clear();
-                while let Some(c) = line.corner() {
+                loop {
+                    // With texture coordinates kept, each corner's `vt` index too.
+                    let next = if shared.uv {
+                        line.corner()
+                    } else {
+                        line.index().map(|r| r.map(|n| (n, None)))
+                    };
+                    let Some(c) = next else { break };
                     let (n, t) = c.map_err(|tok| {
                         err(&format!(
                             "{:?} is not a vertex index",
@@ -221,6 +228,9 @@ pub(super) fn parse_chunk(
                         forward = Some((lbase + i + 1, n, abs));
                     }
                     poly.push(abs as u32);
+                    if !shared.uv {
+                        continue;
+                    }
                     let t = match t {
                         Some(t) => {
                             let abs = resolve_index(t, defined_uv, None).map_err(|m| {
@@ -244,31 +254,6 @@ pub(super) fn parse_chunk(
                     corners.resize(before, [NO_UV; 3]);
                     fan(&poly_uv, &mut corners);
                 }
-                if !names.is_empty() {
-                    material.resize(triangles.len(), current);
-                }
-                if triangles.len() - reported >= REPORT_EVERY {
-                    shared.add(triangles.len() - reported)?;
-                    reported = triangles.len();
-                }
-            }
-            b'f' => {
-                let defined = (vbase + positions.len()) as i64;
-                poly.clear();
-                while let Some(n) = line.index() {
-                    let n = n.map_err(|t| {
-                        err(&format!(
-                            "{:?} is not a vertex index",
-                            String::from_utf8_lossy(t)
-                        ))
-                    })?;
-                    let abs = resolve_index(n, defined, total).map_err(|m| err(&m))?;
-                    if abs as i64 >= defined && forward.is_none_or(|f| abs > f.2) {
-                        forward = Some((lbase + i + 1, n, abs));
-                    }
-                    poly.push(abs as u32);
-                }
-                fan(&poly, &mut triangles);
                 if !names.is_empty() {
                     material.resize(triangles.len(), current);
                 }
