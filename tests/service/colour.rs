@@ -112,8 +112,8 @@ fn srgb(l: f64) -> u8 {
 
 /// The data of a `.npy` (its header skipped) and its shape.
 fn npy(b: &[u8]) -> (Vec<usize>, &[u8]) {
-    let n = u16::from_le_bytes([b[8], b[9]]) as usize;
-    let header = std::str::from_utf8(&b[10..10 + n]).unwrap();
+    let data = npy_payload(b);
+    let header = std::str::from_utf8(&b[10..b.len() - data.len()]).unwrap();
     let shape = header.split("'shape': (").nth(1).unwrap();
     let shape = shape.split(')').next().unwrap();
     let dims = shape
@@ -121,7 +121,7 @@ fn npy(b: &[u8]) -> (Vec<usize>, &[u8]) {
         .filter(|s| !s.trim().is_empty())
         .map(|s| s.trim().parse().unwrap())
         .collect();
-    (dims, &b[10 + n..])
+    (dims, data)
 }
 
 /// The faces of the cube [LO, HI]³: (axis, side) in the order −x, +x, −y, +y, −z, +z.

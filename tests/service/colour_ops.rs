@@ -55,13 +55,9 @@ fn arrays(srv: &Server, id: &str) -> (Vec<[u8; 4]>, Vec<u16>, Vec<u8>) {
             .req("GET", &format!("/v1/volumes/{id}/data?{q}"), &[], &[])
             .ok(200)
             .body;
-        let n = u16::from_le_bytes([b[8], b[9]]) as usize;
-        b[10 + n..].to_vec()
+        npy_payload(&b).to_vec()
     };
-    let rgba = get("format=npy&attributes=rgba")
-        .chunks(4)
-        .map(|c| [c[0], c[1], c[2], c[3]])
-        .collect();
+    let rgba = rgba_of(srv, id);
     let mat = get("format=npy&attributes=material")
         .chunks(2)
         .map(|c| u16::from_le_bytes([c[0], c[1]]))
@@ -146,20 +142,8 @@ fn csg_and_morphology_carry_colour_and_material() {
     assert_eq!(m["kind"], "channels", "{m}");
     assert_eq!(m["attributes"]["materials"][0]["name"], "red");
     assert_eq!(m["grid"]["dims"], serde_json::json!([14, 10, 10]));
-    let id = m["id"].as_str().unwrap();
-    let b = srv
-        .req(
-            "GET",
-            &format!("/v1/volumes/{id}/data?format=npy&attributes=rgba"),
-            &[],
-            &[],
-        )
-        .ok(200)
-        .body;
-    let n = u16::from_le_bytes([b[8], b[9]]) as usize;
-    let colours: std::collections::BTreeSet<&[u8]> = b[10 + n..].chunks(4).collect();
-    assert_eq!(
-        colours.into_iter().collect::<Vec<_>>(),
-        [&[0u8; 4][..], &RED[..]]
-    );
+    let colours: std::collections::BTreeSet<[u8; 4]> = rgba_of(&srv, m["id"].as_str().unwrap())
+        .into_iter()
+        .collect();
+    assert_eq!(colours.into_iter().collect::<Vec<_>>(), [[0u8; 4], RED]);
 }

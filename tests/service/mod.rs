@@ -121,3 +121,27 @@ fn assert_problem(r: &Resp, status: u16, slug: &str) -> Value {
 pub(crate) fn box_obj(lo: [f64; 3], hi: [f64; 3]) -> Vec<u8> {
     to_obj(&box_mesh(lo, hi))
 }
+
+/// A `.npy`'s data, its header skipped.
+pub(crate) fn npy_payload(b: &[u8]) -> &[u8] {
+    let n = u16::from_le_bytes([b[8], b[9]]) as usize;
+    &b[10 + n..]
+}
+
+/// The dense `rgba` array of volume `id` (`format=npy&attributes=rgba`), voxel by voxel in C
+/// order.
+pub(crate) fn rgba_of(srv: &Server, id: &str) -> Vec<[u8; 4]> {
+    let b = srv
+        .req(
+            "GET",
+            &format!("/v1/volumes/{id}/data?format=npy&attributes=rgba"),
+            &[],
+            &[],
+        )
+        .ok(200)
+        .body;
+    npy_payload(&b)
+        .chunks(4)
+        .map(|c| [c[0], c[1], c[2], c[3]])
+        .collect()
+}

@@ -69,19 +69,9 @@ fn a_zipped_obj_brings_its_materials() {
         .collect();
     assert_eq!(names, ["red", "blue"]);
     let id = v["id"].as_str().unwrap().to_string();
-    let b = srv
-        .req(
-            "GET",
-            &format!("/v1/volumes/{id}/data?format=npy&attributes=rgba"),
-            &[],
-            &[],
-        )
-        .ok(200)
-        .body;
-    let n = u16::from_le_bytes([b[8], b[9]]) as usize;
-    let c = &b[10 + n..];
+    let c = rgba_of(&srv, &id);
     // Voxel x = 2..6 is the red cube ([0, 1]), x = 10..14 the blue one ([2, 3]).
-    let at = |x: usize, y: usize, z: usize| &c[4 * ((x * 8 + y) * 8 + z)..][..4];
+    let at = |x: usize, y: usize, z: usize| c[(x * 8 + y) * 8 + z];
     assert_eq!(at(3, 3, 3), [255, 0, 0, 255]);
     assert_eq!(at(11, 3, 3), [0, 0, 255, 255]);
 }
@@ -149,20 +139,10 @@ fn a_zipped_obj_brings_its_texture() {
         &body,
     );
     let id = v["id"].as_str().unwrap();
-    let b = srv
-        .req(
-            "GET",
-            &format!("/v1/volumes/{id}/data?format=npy&attributes=rgba"),
-            &[],
-            &[],
-        )
-        .ok(200)
-        .body;
-    let n = u16::from_le_bytes([b[8], b[9]]) as usize;
-    let colours: std::collections::BTreeSet<&[u8]> = b[10 + n..].chunks(4).collect();
+    let colours: std::collections::BTreeSet<[u8; 4]> = rgba_of(&srv, id).into_iter().collect();
     assert_eq!(
         colours.into_iter().collect::<Vec<_>>(),
-        [&[0u8, 0, 0, 0][..], &[255, 255, 255, 255][..]]
+        [[0u8, 0, 0, 0], [255, 255, 255, 255]]
     );
 }
 
