@@ -398,17 +398,9 @@ fn texture_coordinates_resolve_across_chunks_and_blocks() {
 fn cli_csg_and_morph_keep_colour_and_materials() {
     let dir = tmpdir("attributes-cli-carry");
     let cube = |name: &str, kd: &str, x0: f64| {
-        let mut obj = format!("mtllib {name}.mtl\n");
-        for c in 0..8u32 {
-            let p = [
-                x0 + f64::from(c & 1) * 4.0,
-                f64::from(c >> 1 & 1) * 4.0,
-                f64::from(c >> 2 & 1) * 4.0,
-            ];
-            obj += &format!("v {} {} {}\n", p[0] + 1.0, p[1] + 1.0, p[2] + 1.0);
-        }
-        obj += &format!(
-            "usemtl {name}\nf 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n"
+        let obj = material_boxes_obj(
+            &format!("{name}.mtl"),
+            &[(name, [x0 + 1.0, 1.0, 1.0], [x0 + 5.0, 5.0, 5.0])],
         );
         std::fs::write(dir.join(format!("{name}.obj")), obj).unwrap();
         std::fs::write(

@@ -9,7 +9,7 @@ use std::sync::Arc;
 
 use super::error::{Error, Result};
 use super::metadata::Origin;
-use super::ops::{Label, blocking_with, load, morphology_grid, morphology_provenance};
+use super::ops::{Label, blocking_with, eval_tree, load, morphology_provenance, morphology_with};
 use super::request::{CsgExpr, MorphologyRequest};
 use super::store::{AttributesMeta, MaterialMeta, VolumeMeta, VolumeStore};
 use crate::cancel::Control;
@@ -17,7 +17,7 @@ use crate::engine::colour::carry::{self, CarryError};
 use crate::engine::colour::{MATERIAL, RGBA};
 use crate::limits::Limits;
 use crate::volume::kind::VoxelValue;
-use crate::volume::{Attributed, Volume, VolumeKind, morph};
+use crate::volume::{Attributed, Volume};
 
 impl From<CarryError> for Error {
     fn from(e: CarryError) -> Self {
@@ -27,11 +27,6 @@ impl From<CarryError> for Error {
             CarryError::ChannelTypes(_) => Error::invalid(e.to_string()),
         }
     }
-}
-
-/// Does any operand have channels?
-pub fn any_channels(metas: &[&VolumeMeta]) -> bool {
-    metas.iter().any(|m| m.kind == VolumeKind::Channels)
 }
 
 /// The name of the material table's entry for voxels no operand with a material channel covers.
@@ -87,35 +82,28 @@ pub fn merge_materials(
     (table, maps, none)
 }
 
-/// A loaded operand as an attributed volume (a bit volume: no channels).
+/// A loaded operand as an attributed volume (a bit volume: no channels). Callers have checked
+/// its kind against `csg::ACCEPTS`.
 fn attributed(v: Volume, id: &str) -> Result<Attributed> {
     match v {
         Volume::Channels(a) => Ok(a),
-        Volume::Bits(b) => Ok(Attributed::new(b)),
-        other => Err(Error::from(
-            other
-                .kind()
-                .require(crate::volume::BITS_AND_CHANNELS, "CSG")
-                .expect_err("not bits"),
-        )
-        .context(format!("volume {id}"))),
+        other => other
+            .into_bits("CSG")
+            .map(Attributed::new)
+            .map_err(|e| Error::from(e).context(format!("volume {id}"))),
     }
 }
 
 /// A CSG expression over stored volumes of which some have channels, stored.
+/// `metas`: the operands' metadata, in the order of `expr.volume_ids()`.
 pub async fn csg_stored_with(
     store: &dyn VolumeStore,
     expr: CsgExpr,
+    metas: Vec<VolumeMeta>,
     label: Label,
     ctl: &Control,
 ) -> Result<VolumeMeta> {
     let ids = expr.volume_ids();
-    let mut metas = vec![];
-    for id in &ids {
-        metas.push(
-            super::distance::csg_operand(store, id, crate::volume::csg::ACCEPTS, "CSG").await?,
-        );
-    }
     let mut operands = vec![];
     for (id, m) in ids.iter().zip(metas) {
         operands.push((id.clone(), load(store, id).await?, m.attributes));
@@ -150,53 +138,10 @@ pub fn combine(
         RGBA => Some(VoxelValue::Rgba8([0; 4])),
         _ => None,
     };
-    Ok((eval(expr, &vols, &missing, ctl)?, table))
-}
-
-/// Evaluates `expr` over attributed volumes, with progress by operands combined.
-fn eval(
-    expr: &CsgExpr,
-    vols: &HashMap<String, Arc<Attributed>>,
-    missing: carry::Missing,
-    ctl: &Control,
-) -> Result<Attributed> {
-    fn operands(e: &CsgExpr) -> usize {
-        match e {
-            CsgExpr::Volume(_) => 0,
-            CsgExpr::Op { operands: o, .. } => o.len() + o.iter().map(operands).sum::<usize>(),
-        }
-    }
-    let total = operands(expr).max(1) as f64;
-    let mut done = 0usize;
-    fn walk(
-        e: &CsgExpr,
-        vols: &HashMap<String, Arc<Attributed>>,
-        missing: carry::Missing,
-        ctl: &Control,
-        total: f64,
-        done: &mut usize,
-    ) -> Result<Arc<Attributed>> {
-        match e {
-            CsgExpr::Volume(id) => vols
-                .get(id)
-                .cloned()
-                .ok_or_else(|| Error::not_found("volume", id)),
-            CsgExpr::Op { op, operands } => {
-                let vs: Vec<Arc<Attributed>> = operands
-                    .iter()
-                    .map(|o| walk(o, vols, missing, ctl, total, done))
-                    .collect::<Result<_>>()?;
-                let refs: Vec<&Attributed> = vs.iter().map(|v| &**v).collect();
-                let (lo, hi) = (*done, *done + operands.len());
-                *done = hi;
-                let part = ctl.stage(lo as f64 / total, hi as f64 / total);
-                Ok(Arc::new(carry::csg(*op, &refs, missing, &part)?))
-            }
-        }
-    }
-    let v = walk(expr, vols, missing, ctl, total, &mut done)?;
-    ctl.complete();
-    Ok(Arc::try_unwrap(v).unwrap_or_else(|v| (*v).clone()))
+    let v = eval_tree(expr, &vols, ctl, |op, refs, part| {
+        Ok(carry::csg(op, refs, &missing, part)?)
+    })?;
+    Ok((v, table))
 }
 
 /// Morphology of a stored volume with channels, stored with its material table.
@@ -235,37 +180,8 @@ pub fn morphology(
     limits: &Limits,
     ctl: &Control,
 ) -> Result<Attributed> {
-    morphology_grid(src.bits().grid(), req, limits)?;
-    let bits = morph::apply_with(
-        src.bits(),
-        req.op,
-        req.radius,
-        req.kernel,
-        req.grow,
-        &ctl.stage(0.0, 0.6),
-    )?;
+    let bits = morphology_with(src.bits(), req, limits, &ctl.stage(0.0, 0.6))?;
     Ok(carry::morphology(src, bits, &ctl.stage(0.6, 1.0))?)
-}
-
-/// The material table a `.vxl` header's `meta.materials` holds (id = position).
-pub fn header_materials(meta: &serde_json::Map<String, serde_json::Value>) -> Vec<MaterialMeta> {
-    let Some(t) = meta.get("materials").and_then(|t| t.as_array()) else {
-        return vec![];
-    };
-    t.iter()
-        .enumerate()
-        .map(|(i, m)| {
-            let c: Vec<f32> = m["base_color"]
-                .as_array()
-                .map(|a| a.iter().map(|v| v.as_f64().unwrap_or(1.0) as f32).collect())
-                .unwrap_or_default();
-            MaterialMeta {
-                id: i as u16,
-                name: m["name"].as_str().unwrap_or("").to_string(),
-                base_color: std::array::from_fn(|k| c.get(k).copied().unwrap_or(1.0)),
-            }
-        })
-        .collect()
 }
 
 /// Stores a derived volume with channels and its material table.

@@ -6,7 +6,7 @@ use serde_json::{Map, Value};
 use super::error::Result;
 use super::request::{Band, MethodSpec};
 use super::store::DistanceMeta;
-use super::store::{SourceInfo, VolumeMeta, Vxl};
+use super::store::{MaterialMeta, SourceInfo, VolumeMeta, Vxl};
 use super::voxelize::{Prepared, distance_thickness};
 use crate::codec::vxl;
 use crate::engine::fill::FillReport;
@@ -85,16 +85,8 @@ pub fn vxl_header(origin: &Origin) -> Map<String, Value> {
             if let Some(job) = job {
                 m.insert("job".into(), (*job).into());
             }
-            // The material table a material channel's ids index (id = position).
             if p.attributes.material {
-                let table: Vec<Value> = p
-                    .mesh
-                    .attributes()
-                    .materials
-                    .iter()
-                    .map(|mat| serde_json::json!({"name": mat.name, "base_color": mat.base_color}))
-                    .collect();
-                m.insert("materials".into(), table.into());
+                m.insert("materials".into(), table_json(&mesh_materials(p)));
             }
         }
         Origin::Derived {
@@ -104,11 +96,7 @@ pub fn vxl_header(origin: &Origin) -> Map<String, Value> {
         } => {
             m.insert("provenance".into(), (*provenance).clone());
             if !materials.is_empty() {
-                let table: Vec<Value> = materials
-                    .iter()
-                    .map(|mat| serde_json::json!({"name": mat.name, "base_color": mat.base_color}))
-                    .collect();
-                m.insert("materials".into(), table.into());
+                m.insert("materials".into(), table_json(materials));
             }
         }
     }
@@ -147,6 +135,52 @@ fn distance_meta(volume: &Volume, origin: &Origin) -> Option<DistanceMeta> {
     (d != DistanceMeta::default()).then_some(d)
 }
 
+/// The mesh's material table (id = position).
+fn mesh_materials(p: &Prepared) -> Vec<MaterialMeta> {
+    p.mesh
+        .attributes()
+        .materials
+        .iter()
+        .enumerate()
+        .map(|(i, m)| MaterialMeta {
+            id: i as u16,
+            name: m.name.clone(),
+            base_color: m.base_color,
+        })
+        .collect()
+}
+
+/// A material table as the `.vxl` header's `meta.materials` holds it: `{name, base_color}`
+/// entries, the id being the position ([`header_materials`] reads it back).
+fn table_json(table: &[MaterialMeta]) -> Value {
+    table
+        .iter()
+        .map(|mat| serde_json::json!({"name": mat.name, "base_color": mat.base_color}))
+        .collect::<Vec<_>>()
+        .into()
+}
+
+/// The material table a `.vxl` header's `meta.materials` holds (written by [`vxl_header`]).
+pub fn header_materials(meta: &Map<String, Value>) -> Vec<MaterialMeta> {
+    let Some(t) = meta.get("materials").and_then(|t| t.as_array()) else {
+        return vec![];
+    };
+    t.iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let c: Vec<f32> = m["base_color"]
+                .as_array()
+                .map(|a| a.iter().map(|v| v.as_f64().unwrap_or(1.0) as f32).collect())
+                .unwrap_or_default();
+            MaterialMeta {
+                id: i as u16,
+                name: m["name"].as_str().unwrap_or("").to_string(),
+                base_color: std::array::from_fn(|k| c.get(k).copied().unwrap_or(1.0)),
+            }
+        })
+        .collect()
+}
+
 /// The channels of a channel volume, and the mesh's material table when one is a material id.
 fn attributes_meta(v: &Volume, origin: &Origin) -> Option<super::store::AttributesMeta> {
     let Volume::Channels(a) = v else { return None };
@@ -157,17 +191,7 @@ fn attributes_meta(v: &Volume, origin: &Origin) -> Option<super::store::Attribut
                 .iter()
                 .any(|c| c == crate::engine::colour::MATERIAL) =>
         {
-            p.mesh
-                .attributes()
-                .materials
-                .iter()
-                .enumerate()
-                .map(|(i, m)| super::store::MaterialMeta {
-                    id: i as u16,
-                    name: m.name.clone(),
-                    base_color: m.base_color,
-                })
-                .collect()
+            mesh_materials(p)
         }
         Origin::Derived { materials, .. } => materials.to_vec(),
         _ => vec![],

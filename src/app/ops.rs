@@ -97,45 +97,53 @@ pub fn eval_csg_with(
     volumes: &HashMap<String, Arc<BitVolume>>,
     ctl: &Control,
 ) -> Result<BitVolume> {
-    struct Eval<'a> {
-        vols: &'a HashMap<String, Arc<BitVolume>>,
-        ctl: &'a Control,
-        total: f64,
-        done: usize,
-    }
+    eval_tree(expr, volumes, ctl, csg::apply_with::<Error>)
+}
+
+/// Evaluates a CSG expression over volumes of any type `V` already loaded (`volumes` holds every
+/// id it names), each operation by `apply` under its share of `ctl` (by operands combined).
+pub fn eval_tree<V: Clone>(
+    expr: &CsgExpr,
+    volumes: &HashMap<String, Arc<V>>,
+    ctl: &Control,
+    apply: impl Fn(csg::CsgOp, &[&V], &Control) -> Result<V>,
+) -> Result<V> {
+    /// One operation of the tree: its operator, operands and share of the progress.
+    type Apply<'a, V> = &'a dyn Fn(csg::CsgOp, &[&V], &Control) -> Result<V>;
     fn operands(e: &CsgExpr) -> usize {
         match e {
             CsgExpr::Volume(_) => 0,
             CsgExpr::Op { operands: o, .. } => o.len() + o.iter().map(operands).sum::<usize>(),
         }
     }
-    fn eval(e: &CsgExpr, st: &mut Eval) -> Result<Arc<BitVolume>> {
+    fn walk<V>(
+        e: &CsgExpr,
+        vols: &HashMap<String, Arc<V>>,
+        apply: Apply<V>,
+        ctl: &Control,
+        total: f64,
+        done: &mut usize,
+    ) -> Result<Arc<V>> {
         match e {
-            CsgExpr::Volume(id) => st
-                .vols
+            CsgExpr::Volume(id) => vols
                 .get(id)
                 .cloned()
                 .ok_or_else(|| Error::not_found("volume", id)),
             CsgExpr::Op { op, operands } => {
-                let vs: Vec<Arc<BitVolume>> = operands
+                let vs: Vec<Arc<V>> = operands
                     .iter()
-                    .map(|o| eval(o, st))
+                    .map(|o| walk(o, vols, apply, ctl, total, done))
                     .collect::<Result<_>>()?;
-                let refs: Vec<&BitVolume> = vs.iter().map(|v| &**v).collect();
-                let (lo, hi) = (st.done, st.done + operands.len());
-                st.done = hi;
-                let part = st.ctl.stage(lo as f64 / st.total, hi as f64 / st.total);
-                Ok(Arc::new(csg::apply_with::<Error>(*op, &refs, &part)?))
+                let refs: Vec<&V> = vs.iter().map(|v| &**v).collect();
+                let (lo, hi) = (*done, *done + operands.len());
+                *done = hi;
+                let part = ctl.stage(lo as f64 / total, hi as f64 / total);
+                Ok(Arc::new(apply(*op, &refs, &part)?))
             }
         }
     }
-    let mut st = Eval {
-        vols: volumes,
-        ctl,
-        total: operands(expr).max(1) as f64,
-        done: 0,
-    };
-    let v = eval(expr, &mut st)?;
+    let total = operands(expr).max(1) as f64;
+    let v = walk(expr, volumes, &apply, ctl, total, &mut 0)?;
     ctl.complete();
     Ok(Arc::try_unwrap(v).unwrap_or_else(|v| (*v).clone()))
 }
@@ -621,10 +629,13 @@ pub async fn csg_stored_with(
     }
     let mut metas = vec![];
     for id in expr.volume_ids() {
-        metas.extend(store.get(&id).await?);
+        metas.push(super::distance::csg_operand(store, &id, csg::ACCEPTS, "CSG").await?);
     }
-    if super::carry::any_channels(&metas.iter().collect::<Vec<_>>()) {
-        return super::carry::csg_stored_with(store, expr, label, ctl).await;
+    if metas
+        .iter()
+        .any(|m| m.kind == crate::volume::VolumeKind::Channels)
+    {
+        return super::carry::csg_stored_with(store, expr, metas, label, ctl).await;
     }
     let mut vols = HashMap::new();
     for id in expr.volume_ids() {

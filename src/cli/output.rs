@@ -97,7 +97,7 @@ pub fn read_volume_with_materials(
     let (v, meta) =
         voxd::codec::vxl::decode_limited(&bytes, voxd::limits::Limits::LOCAL.max_voxels)
             .map_err(|e| format!("{}: {e}", p.display()))?;
-    Ok((v, voxd::app::carry::header_materials(&meta)))
+    Ok((v, voxd::app::metadata::header_materials(&meta)))
 }
 
 pub fn read_volume(p: &Path) -> Result<Volume, String> {

@@ -11,7 +11,8 @@
 //! face shows its corners' colours interpolated, not each voxel's.
 
 use super::TriMesh;
-use crate::mesh::texture::{linear_to_srgb, srgb_to_linear_table};
+use crate::engine::colour::to_rgba8;
+use crate::mesh::texture::srgb_to_linear_table;
 use crate::volume::Attributed;
 
 /// One colour per vertex of `m` (lattice coordinates) from `a`'s `rgba` channel; empty when `a`
@@ -64,14 +65,8 @@ pub fn vertex_colours(m: &TriMesh, a: &Attributed) -> Vec<[u8; 4]> {
                 }
                 return best.map_or([255; 4], |(_, c)| c);
             }
-            let n = f64::from(n);
-            let byte = |l: f64| (linear_to_srgb(l / n).clamp(0.0, 1.0) * 255.0).round() as u8;
-            [
-                byte(sum[0]),
-                byte(sum[1]),
-                byte(sum[2]),
-                ((sum[3] / n).clamp(0.0, 1.0) * 255.0).round() as u8,
-            ]
+            // Stored as the colour voxels are: sRGB bytes, alpha linear.
+            to_rgba8(sum.map(|v| (v / f64::from(n)) as f32))
         })
         .collect()
 }

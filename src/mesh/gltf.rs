@@ -3,8 +3,6 @@
 //! skins ignored (bind pose). Buffers come from the GLB chunk or `data:` URIs; other URIs are read
 //! only when [`ExternalResources::BesideFile`] allows it, and never outside that directory.
 
-use std::path::{Component, Path};
-
 use base64::Engine as _;
 use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::Mode;
@@ -398,18 +396,11 @@ fn read_uri(uri: &str, external: &ExternalResources) -> Result<Vec<u8>, MeshErro
             uri: uri.to_string(),
         });
     };
-    let decoded = percent_decode(uri);
-    let rel = Path::new(&decoded);
-    let inside = !decoded.contains(':')
-        && rel
-            .components()
-            .all(|c| matches!(c, Component::Normal(_) | Component::CurDir));
-    if !inside {
+    let Some(path) = super::beside(dir, &percent_decode(uri)) else {
         return Err(MeshError::ExternalRefused {
             uri: uri.to_string(),
         });
-    }
-    let path = dir.join(rel);
+    };
     std::fs::read(&path)
         .map_err(|e| MeshError::Io(format!("{} (glTF buffer): {e}", path.display())))
 }

@@ -58,10 +58,13 @@ pub(super) fn materials(
                 None => match image_bytes(&src, buffers)? {
                     None => None,
                     Some(bytes) => {
-                        let img = texture::decode(&bytes, budget, &format!("glTF image {slot}"))?;
-                        budget -= u64::from(img.width) * u64::from(img.height) * 4;
-                        images.push(img);
-                        decoded[slot] = Some(images.len() - 1);
+                        let i = texture::decode_into(
+                            &mut images,
+                            &mut budget,
+                            &bytes,
+                            &format!("glTF image {slot}"),
+                        )?;
+                        decoded[slot] = Some(i);
                         decoded[slot]
                     }
                 },

@@ -92,6 +92,21 @@ pub enum MeshError {
     },
 }
 
+/// `dir` joined with the relative path `rel`, when `rel` stays inside `dir` (only plain names
+/// and `.`: no `..`, no root, no drive or URI scheme); the rule for every file a mesh read from
+/// disk refers to (glTF buffers, OBJ material libraries and textures).
+fn beside(dir: &Path, rel: &str) -> Option<PathBuf> {
+    let path = Path::new(rel);
+    let inside = !rel.contains(':')
+        && path.components().all(|c| {
+            matches!(
+                c,
+                std::path::Component::Normal(_) | std::path::Component::CurDir
+            )
+        });
+    inside.then(|| dir.join(path))
+}
+
 fn malformed(format: &'static str, detail: impl Into<String>) -> MeshError {
     MeshError::Malformed {
         format,

@@ -81,6 +81,20 @@ pub fn linear_to_srgb(c: f64) -> f64 {
     }
 }
 
+/// Decodes `bytes` ([`decode`]) within what is left of a mesh's texture budget, takes the
+/// image's texels from it and adds the image to `images`: its index there.
+pub fn decode_into(
+    images: &mut Vec<Image>,
+    budget: &mut u64,
+    bytes: &[u8],
+    what: &str,
+) -> Result<usize, MeshError> {
+    let img = decode(bytes, *budget, what)?;
+    *budget -= u64::from(img.width) * u64::from(img.height) * 4;
+    images.push(img);
+    Ok(images.len() - 1)
+}
+
 /// Decodes a PNG or JPEG image (recognised by its bytes) whose texels fit in `budget` bytes (4 a
 /// texel), refusing a larger one before decoding it. `what` names it in errors ("image 2").
 pub fn decode(bytes: &[u8], budget: u64, what: &str) -> Result<Image, MeshError> {

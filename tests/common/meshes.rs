@@ -290,6 +290,26 @@ pub fn to_obj(mesh: &Mesh) -> Vec<u8> {
     s.into_bytes()
 }
 
+/// An OBJ of closed, outward boxes [lo, hi], each with its `usemtl` name, reading the material
+/// library `mtllib`: the colour tests' models.
+pub fn material_boxes_obj(mtllib: &str, boxes: &[(&str, [f64; 3], [f64; 3])]) -> String {
+    let (mut p, mut t) = (vec![], vec![]);
+    let mut s = format!("mtllib {mtllib}\n");
+    for &(name, lo, hi) in boxes {
+        let first = t.len();
+        push_box(&mut p, &mut t, lo, hi);
+        s += &format!("usemtl {name}\n");
+        for f in &t[first..] {
+            s += &format!("f {} {} {}\n", f[0] + 1, f[1] + 1, f[2] + 1);
+        }
+    }
+    let vertices: String = p
+        .iter()
+        .map(|q| format!("v {} {} {}\n", q[0], q[1], q[2]))
+        .collect();
+    vertices + &s
+}
+
 /// A sphere with its top cut off (an open bowl) and one more triangle missing: not watertight,
 /// and parity streaks on it.
 pub fn open_bowl() -> Mesh {

@@ -7,22 +7,7 @@ use super::*;
 
 /// A zipped OBJ of the box [lo, hi] (a `usemtl name` material with colour `kd`).
 fn coloured_box(name: &str, kd: [f32; 3], lo: [f64; 3], hi: [f64; 3]) -> Vec<u8> {
-    let mut obj = String::from("mtllib m.mtl\n");
-    for c in 0..8u32 {
-        let p = [0, 1, 2].map(|a| if c >> a & 1 == 1 { hi[a] } else { lo[a] });
-        obj += &format!("v {} {} {}\n", p[0], p[1], p[2]);
-    }
-    obj += &format!("usemtl {name}\n");
-    for f in [
-        [1, 3, 4, 2],
-        [5, 6, 8, 7],
-        [1, 2, 6, 5],
-        [3, 7, 8, 4],
-        [1, 5, 7, 3],
-        [2, 4, 8, 6],
-    ] {
-        obj += &format!("f {} {} {} {}\n", f[0], f[1], f[2], f[3]);
-    }
+    let obj = material_boxes_obj("m.mtl", &[(name, lo, hi)]);
     let mtl = format!("newmtl {name}\nKd {} {} {}\n", kd[0], kd[1], kd[2]);
     super::zip_upload::zip_of(&[("b/box.obj", obj.as_bytes()), ("b/m.mtl", mtl.as_bytes())])
 }

@@ -220,7 +220,7 @@ fn screenshot(chromium: &Path, dir: &Path, url: &str) -> (Vec<[u8; 3]>, PathBuf)
 fn the_viewer_page_shows_a_volumes_colours() {
     let dir = tmpdir("viewer-colour");
     let srv = Server::start(&dir, &[]);
-    let obj = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nv 0 0 1\nv 1 0 1\nv 0 1 1\nv 1 1 1\nusemtl blue\nf 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n";
+    let obj = material_boxes_obj("m.mtl", &[("blue", [0.0; 3], [1.0; 3])]);
     let body = super::zip_upload::zip_of(&[
         ("box.obj", obj.as_bytes()),
         ("m.mtl", b"newmtl blue\nKd 0.1 0.3 1\n"),

@@ -20,25 +20,13 @@ pub(super) fn zip_of(entries: &[(&str, &[u8])]) -> Vec<u8> {
 
 /// Two unit cubes side by side, `usemtl red` and `usemtl blue`, their library `m.mtl`.
 fn two_cubes() -> (String, String) {
-    let mut obj = String::from("mtllib m.mtl\n");
-    for (i, (name, x)) in [("red", 0.0), ("blue", 2.0)].iter().enumerate() {
-        for c in 0..8u32 {
-            let p = [c & 1, c >> 1 & 1, c >> 2 & 1].map(f64::from);
-            obj += &format!("v {} {} {}\n", p[0] + x, p[1], p[2]);
-        }
-        obj += &format!("usemtl {name}\n");
-        let b = 8 * i as u32 + 1;
-        for f in [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ] {
-            obj += &format!("f {} {} {} {}\n", b + f[0], b + f[1], b + f[2], b + f[3]);
-        }
-    }
+    let obj = material_boxes_obj(
+        "m.mtl",
+        &[
+            ("red", [0.0; 3], [1.0; 3]),
+            ("blue", [2.0, 0.0, 0.0], [3.0, 1.0, 1.0]),
+        ],
+    );
     let mtl = "newmtl red\nKd 1 0 0\nnewmtl blue\nKd 0 0 1\n".to_string();
     (obj, mtl)
 }

@@ -50,6 +50,9 @@ pub fn remap(a: &Attributed, channel: &str, map: &[u16]) -> Attributed {
     out
 }
 
+/// Per set voxel, the (operand, rank) it takes a channel from, `None` where no operand has it.
+type Sources = Vec<Option<(usize, usize)>>;
+
 /// The operand and rank each set voxel of `bits` (on `grid`) takes a channel from, by the rule
 /// of the module docs; `None` where no operand with the channel covers it.
 fn sources(
@@ -57,7 +60,7 @@ fn sources(
     operands: &[&Attributed],
     has: &[bool],
     offsets: &[[i64; 3]],
-) -> Vec<Option<(usize, usize)>> {
+) -> Sources {
     let mut out = Vec::with_capacity(bits.count_ones() as usize);
     for [x, y, z] in bits.iter_ones() {
         let mut found = None;
@@ -171,11 +174,19 @@ pub fn csg(
         }
     }
     let mut result = Attributed::new(out);
+    // A channel that the same operands have as the one before shares its sources (rgba and
+    // material, mostly): the voxels' lookups are made once. One list is held at a time.
+    let mut found: Option<(Vec<bool>, Sources)> = None;
     for (k, (name, m)) in names.iter().enumerate() {
         ctl.check()?;
         ctl.set(0.5 + 0.5 * k as f64 / names.len() as f64);
         let has: Vec<bool> = operands.iter().map(|a| a.channel(name).is_some()).collect();
-        let from = sources(result.bits(), operands, &has, &offsets);
+        if found.as_ref().is_none_or(|(h, _)| *h != has) {
+            drop(found.take()); // the previous list freed before the next is made
+            let from = sources(result.bits(), operands, &has, &offsets);
+            found = Some((has, from));
+        }
+        let from = &found.as_ref().expect("just set").1;
         let values = gather(name, operands, from.len(), |k| from[k], *m);
         result.add(name, values).expect("one value a set voxel");
     }

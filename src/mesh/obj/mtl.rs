@@ -12,7 +12,6 @@
 //! left out), as OBJ viewers do. A texture's path is relative to its library's directory.
 
 use std::collections::HashMap;
-use std::path::{Component, Path};
 
 use crate::mesh::ExternalResources;
 
@@ -49,16 +48,9 @@ pub(super) fn read(external: &ExternalResources, rel: &str, max: u64) -> Result<
             None => Err("not in the uploaded archive".into()),
         },
         ExternalResources::BesideFile(dir) => {
-            let rel = rel.replace('\\', "/");
-            let path = Path::new(&rel);
-            if rel.contains(':')
-                || !path
-                    .components()
-                    .all(|c| matches!(c, Component::Normal(_) | Component::CurDir))
-            {
+            let Some(path) = crate::mesh::beside(dir, &rel.replace('\\', "/")) else {
                 return Err("a path outside the OBJ's directory is not read".into());
-            }
-            let path = dir.join(path);
+            };
             match std::fs::metadata(&path) {
                 Ok(m) if m.len() > max => {
                     Err(format!("{} bytes, over the limit of {max}", m.len()))

@@ -45,16 +45,12 @@ pub(super) fn table(
                     None => {
                         let slot = match mtl::read(&opts.external, &m.path, opts.max_texture_bytes)
                         {
-                            Ok(bytes) => {
-                                let img = texture::decode(
-                                    &bytes,
-                                    budget,
-                                    &format!("texture {}", m.path),
-                                )?;
-                                budget -= u64::from(img.width) * u64::from(img.height) * 4;
-                                images.push(img);
-                                Some(images.len() - 1)
-                            }
+                            Ok(bytes) => Some(texture::decode_into(
+                                &mut images,
+                                &mut budget,
+                                &bytes,
+                                &format!("texture {}", m.path),
+                            )?),
                             Err(e) => {
                                 tracing::warn!(material = %name, texture = %m.path, "texture not read: {e}");
                                 None
