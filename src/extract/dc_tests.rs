@@ -252,3 +252,40 @@ fn a_solid_cut_by_the_grid_contours_to_a_valid_mesh() {
         "{lo} {hi}"
     );
 }
+
+/// No two dual-contouring triangles of rocker-arm cross at 128, 192 and 256 voxels along its
+/// longest side (at 192 six pairs did before `untangle`: vertices on sharp edges folded their
+/// triangles through their neighbours'), counted by the independent all-pairs check.
+#[test]
+fn rocker_arm_has_no_crossing_triangles() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../shared/meshes/rocker-arm.obj"
+    );
+    let Ok(m) = crate::mesh::load_file(std::path::Path::new(path), usize::MAX) else {
+        eprintln!("SKIP rocker_arm_has_no_crossing_triangles: {path} is absent");
+        return;
+    };
+    let d = m.diagnostics();
+    let long = (0..3)
+        .map(|a| d.bbox_max[a] - d.bbox_min[a])
+        .fold(0.0, f64::max);
+    for n in [128.0, 192.0, 256.0] {
+        let s = long / n;
+        let origin = d.bbox_min.map(|c| c - 2.0 * s);
+        let dims = [0, 1, 2].map(|a| ((d.bbox_max[a] - origin[a]) / s).ceil() as u32 + 2);
+        let g = Grid {
+            origin,
+            voxel_size: s,
+            dims,
+        };
+        let ctl = Control::none();
+        let (bits, _) =
+            fill::voxelize_with(&CpuEngine, &m, &g, Method::Solid, Fill::Parity, &d, &ctl).unwrap();
+        let tris = crate::engine::sdf::lattice_triangles(&m, &g, Some(FIXED_ONE)).unwrap();
+        let h = hermite::hermite(&tris, &bits, &ctl).unwrap();
+        let out = dual_contouring::dual_contouring(&bits, &h, &ctl).unwrap();
+        assert!(check::check(&out).is_valid(), "{n}");
+        assert_eq!(self_intersections(&out), 0, "rocker-arm at {n} voxels");
+    }
+}

@@ -15,12 +15,16 @@
 //!   face the quad's outward axis, if only one split does; else along the one whose triangles
 //!   pass nearer the quad's own crossing point (the surface is there: at a sharp edge this is
 //!   the diagonal on the edge).
+//! * **No crossing triangles.** Where the vertices placed far from their mass points fold
+//!   triangles through each other, those vertices move back towards their mass points
+//!   ([`super::untangle`]).
 
 use std::borrow::Cow;
 
 use super::TriMesh;
 use super::qef::Qef;
 use super::surface_nets::{Field, net};
+use super::untangle::{Tangle, untangle};
 use super::vec3::{cross, dot, sub};
 use crate::cancel::{Canceled, Control};
 use crate::engine::hermite::Hermite;
@@ -54,13 +58,16 @@ pub fn dual_contouring(bits: &BitVolume, h: &Hermite, ctl: &Control) -> Result<T
         crossing.push(p);
     }
     let cells: Vec<[f64; 3]> = n.cells.iter().map(|c| c.map(f64::from)).collect();
-    let positions: Vec<[f64; 3]> = qefs
+    let mass: Vec<[f64; 3]> = qefs.iter().map(Qef::mass_point).collect();
+    let solved: Vec<[f64; 3]> = qefs
         .iter()
+        .zip(&mass)
         .zip(&cells)
-        .map(|(q, c)| keep_in_cell(q.solve(), q.mass_point(), *c))
+        .map(|((q, m), c)| keep_in_cell(q.solve(), *m, *c))
         .collect();
-    let mut triangles = Vec::with_capacity(2 * n.quads.len());
-    for ((q, f), c) in n.quads.iter().zip(&n.faces).zip(&crossing) {
+    let mut positions = solved.clone();
+    let split = |i: usize, positions: &[[f64; 3]]| {
+        let (q, f, c) = (n.quads[i], &n.faces[i], crossing[i]);
         let mut dir = [0.0; 3];
         dir[f.a] = if f.plus { 1.0 } else { -1.0 };
         let splits = [
@@ -72,7 +79,7 @@ pub fn dual_contouring(bits: &BitVolume, h: &Hermite, ctl: &Control) -> Result<T
             let out = tri.iter().all(|t| dot(normal(t), dir) > 0.0);
             let near = tri
                 .iter()
-                .map(|t| distance2(*c, t))
+                .map(|t| distance2(c, t))
                 .fold(f64::INFINITY, f64::min);
             (out, near)
         };
@@ -82,8 +89,30 @@ pub fn dual_contouring(bits: &BitVolume, h: &Hermite, ctl: &Control) -> Result<T
         } else {
             usize::from(b.1 < a.1)
         };
-        triangles.extend(splits[pick]);
-    }
+        splits[pick]
+    };
+    let mut triangles: Vec<[u32; 3]> = (0..n.quads.len())
+        .flat_map(|i| split(i, &positions))
+        .collect();
+    ctl.check()?;
+    let t0 = std::time::Instant::now();
+    let (left, moved) = untangle(
+        &mut Tangle {
+            cells: &n.cells,
+            mass: &mass,
+            solved: &solved,
+            quads: &n.quads,
+            positions: &mut positions,
+            triangles: &mut triangles,
+        },
+        split,
+    );
+    tracing::debug!(
+        moved,
+        left,
+        secs = t0.elapsed().as_secs_f64(),
+        "dual contouring untangled"
+    );
     ctl.complete();
     Ok(TriMesh {
         positions,

@@ -273,7 +273,39 @@ pub fn feature_distances(out: &TriMesh, features: &[Feature], clear: f64) -> Vec
 /// interior, exactly by the signs of f64 determinants; triangles sharing a vertex are tested
 /// with the edges away from it, sharing an edge not at all).
 pub fn self_intersections(m: &TriMesh) -> usize {
+    crossing_pairs(m).len()
+}
+
+/// The pairs of triangles [`self_intersections`] counts (lower index first, in no order).
+pub fn crossing_pairs(m: &TriMesh) -> Vec<(u32, u32)> {
     let bins = Bins::new(m);
+    let mut seen = std::collections::HashSet::new();
+    let mut pairs = vec![];
+    for ts in bins.cells.values() {
+        for (i, &a) in ts.iter().enumerate() {
+            for &b in &ts[i + 1..] {
+                let (ta, tb) = (m.triangles[a as usize], m.triangles[b as usize]);
+                if !seen.insert((a.min(b), a.max(b))) {
+                    continue;
+                }
+                if triangles_cross(ta, bins.tri(a), tb, bins.tri(b)) {
+                    pairs.push((a.min(b), a.max(b)));
+                }
+            }
+        }
+    }
+    pairs
+}
+
+/// Do triangles `ta` and `tb` (vertex ids; corners `pa`, `pb`) cross: an edge of one through
+/// the other's interior, by the signs of f64 determinants? Sharing an edge: no; sharing a
+/// vertex: only the edges away from it are tested.
+pub(super) fn triangles_cross(
+    ta: [u32; 3],
+    pa: [[f64; 3]; 3],
+    tb: [u32; 3],
+    pb: [[f64; 3]; 3],
+) -> bool {
     let orient = |a: [f64; 3], b: [f64; 3], c: [f64; 3], d: [f64; 3]| {
         dot(cross(sub(b, a), sub(c, a)), sub(d, a))
     };
@@ -285,30 +317,19 @@ pub fn self_intersections(m: &TriMesh) -> usize {
         let w = [0, 1, 2].map(|i| orient(p, q, t[i], t[(i + 1) % 3]));
         w.iter().all(|&x| x > 0.0) || w.iter().all(|&x| x < 0.0)
     };
-    let mut seen = std::collections::HashSet::new();
-    let mut count = 0;
-    for ts in bins.cells.values() {
-        for (i, &a) in ts.iter().enumerate() {
-            for &b in &ts[i + 1..] {
-                let (ta, tb) = (m.triangles[a as usize], m.triangles[b as usize]);
-                let shared = ta.iter().filter(|v| tb.contains(v)).count();
-                if shared >= 2 || !seen.insert((a.min(b), a.max(b))) {
-                    continue;
-                }
-                let (pa, pb) = (bins.tri(a), bins.tri(b));
-                let mut hit = false;
-                for (x, tx, y, py) in [(ta, pa, tb, pb), (tb, pb, ta, pa)] {
-                    for k in 0..3 {
-                        let (u, v) = (x[k], x[(k + 1) % 3]);
-                        if y.contains(&u) || y.contains(&v) {
-                            continue;
-                        }
-                        hit |= crosses(tx[k], tx[(k + 1) % 3], py);
-                    }
-                }
-                count += usize::from(hit);
+    if ta.iter().filter(|v| tb.contains(v)).count() >= 2 {
+        return false;
+    }
+    for (x, tx, y, py) in [(ta, pa, tb, pb), (tb, pb, ta, pa)] {
+        for k in 0..3 {
+            let (u, v) = (x[k], x[(k + 1) % 3]);
+            if y.contains(&u) || y.contains(&v) {
+                continue;
+            }
+            if crosses(tx[k], tx[(k + 1) % 3], py) {
+                return true;
             }
         }
     }
-    count
+    false
 }

@@ -25,6 +25,7 @@ mod pinches;
 pub mod qef;
 mod slabs;
 pub mod surface_nets;
+mod untangle;
 mod vec3;
 pub mod write;
 

@@ -294,9 +294,11 @@ pub fn surface_nets(field: &Field<'_>, ctl: &Control) -> Result<TriMesh, Cancele
         .iter()
         .map(|s| [s[0] / s[3], s[1] / s[3], s[2] / s[3]])
         .collect();
+    let t0 = std::time::Instant::now();
     if field.value.is_none() {
         relax(&mut positions, &quads, &cells, RELAX, &ctl.stage(0.7, 0.95))?;
     }
+    let t1 = std::time::Instant::now();
     let mut out = TriMesh {
         positions,
         triangles: Vec::with_capacity(2 * quads.len()),
@@ -313,6 +315,11 @@ pub fn surface_nets(field: &Field<'_>, ctl: &Control) -> Result<TriMesh, Cancele
             out.triangles.push([q[1], q[2], q[3]]);
         }
     }
+    tracing::debug!(
+        relax_s = (t1 - t0).as_secs_f64(),
+        split_s = t1.elapsed().as_secs_f64(),
+        "surface nets"
+    );
     ctl.complete();
     Ok(out)
 }
@@ -343,8 +350,11 @@ pub(super) fn net_in_runs(
     run_faces: usize,
 ) -> Result<Net, Canceled> {
     let bits: &BitVolume = &field.inside;
+    let t0 = std::time::Instant::now();
     let faces = faces(bits, &ctl.stage(0.0, 0.4))?;
+    let t1 = std::time::Instant::now();
     let joins = super::pinches::Joins::decide(bits);
+    let t2 = std::time::Instant::now();
     let ctl2 = ctl.stage(0.4, 1.0);
     let counter = ctl2.counter(faces.len() as u64);
     // The faces in runs of whole lattice slabs, one run a task: each numbers its vertices from
@@ -385,6 +395,7 @@ pub(super) fn net_in_runs(
             run(field, &joins, &faces[range], upto, q, c, &counter)
         })
         .collect::<Result<Vec<Run>, Canceled>>()?;
+    let t3 = std::time::Instant::now();
     // Join the runs: run r's vertices from `shared` on are the first of run r + 1's.
     let mut offsets = Vec::with_capacity(parts.len());
     let mut offset = 0u32;
@@ -422,6 +433,14 @@ pub(super) fn net_in_runs(
             *v += offset;
         }
     });
+    tracing::debug!(
+        faces_s = (t1 - t0).as_secs_f64(),
+        pinches_s = (t2 - t1).as_secs_f64(),
+        runs_s = (t3 - t2).as_secs_f64(),
+        join_s = t3.elapsed().as_secs_f64(),
+        faces = faces.len(),
+        "net"
+    );
     ctl.complete();
     Ok(Net {
         faces,

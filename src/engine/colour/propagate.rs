@@ -2,9 +2,17 @@
 //! distance transform (Felzenszwalb and Huttenlocher's lower envelope of parabolas, one axis at
 //! a time: z, then y, then x), carrying each voxel's nearest source rather than its distance.
 //! Every voxel of the grid gets the source whose centre is nearest to its own (straight-line
-//! distance, as a distance transform measures it); among equally near sources the pass keeps the
-//! one it met first along its axis (deterministic, whatever the thread count). Three passes
-//! over the grid, each linear in its voxels and parallel over lines; one `u32` a voxel.
+//! distance, as a distance transform measures it); among equally near sources, the one of
+//! lowest key (x, then y, then z). Each pass keeps, among equally near candidates, the one it
+//! met first along its axis (the lowest coordinate): the x pass so picks the lowest x among
+//! the nearest sources, the y pass before it the lowest y within that slab, the z pass the
+//! lowest z within that column (deterministic, whatever the thread count). Three passes over
+//! the grid, each linear in its voxels and parallel over lines; one `u32` a voxel.
+//!
+//! When nearly every set voxel is a source (`surface`, `conservative`: only voxels that a
+//! triangle touches with zero area are not), the few others are looked up directly instead
+//! ([`local`]): the sources in growing cubes around each, by the same rule. That answer is
+//! the transform's exactly (tested against it and against brute force).
 
 use rayon::prelude::*;
 
@@ -99,6 +107,117 @@ fn envelope(f: &[Option<u64>], feat: &mut [u32], v: &mut Vec<usize>, z: &mut Vec
 /// `sources` (sorted keys of [`super::key`]) of its nearest source (module docs); 0 for every
 /// voxel when there are no sources.
 pub fn nearest(bits: &BitVolume, sources: &[u64], ctl: &Control) -> Result<Vec<u32>, Canceled> {
+    if let Some(v) = local(bits, sources, LOCAL_RADIUS, ctl)? {
+        return Ok(v);
+    }
+    transform(bits, sources, ctl)
+}
+
+/// Non-source set voxels [`local`] looks up at most: a set fraction and a floor.
+const LOCAL_SHARE: u64 = 64;
+const LOCAL_FLOOR: u64 = 4096;
+/// The largest cube (half side, voxels) [`local`] searches around a voxel.
+pub(super) const LOCAL_RADIUS: u32 = 6;
+
+/// [`nearest`] by direct lookup when few set voxels are not sources: each of those searches the
+/// cube of half side r = 1, 2, … about it; the nearest source in the cube is the nearest of all
+/// once its distance is at most r (any source outside is farther than r), and every source as
+/// near is in the cube, so the lowest key among them is the rule's choice. `None` (the caller
+/// runs the transform) when more than one set voxel in [`LOCAL_SHARE`] (and over
+/// [`LOCAL_FLOOR`]) is not a source, some voxel has no source within `radius`, or the lookups
+/// pass the grid's voxel count (one pass of the transform).
+pub(super) fn local(
+    bits: &BitVolume,
+    sources: &[u64],
+    radius: u32,
+    ctl: &Control,
+) -> Result<Option<Vec<u32>>, Canceled> {
+    let dims = bits.dims();
+    if sources.is_empty() {
+        return Ok(None);
+    }
+    let limit = (bits.count_ones() / LOCAL_SHARE).max(LOCAL_FLOOR);
+    // Each set voxel's source rank, or NONE; sources and set voxels are both in key order.
+    let mut out = Vec::with_capacity(bits.count_ones() as usize);
+    let mut others = Vec::new();
+    let mut j = 0;
+    for v in bits.iter_ones() {
+        let k = super::key(v, dims);
+        while j < sources.len() && sources[j] < k {
+            j += 1;
+        }
+        if j < sources.len() && sources[j] == k {
+            out.push(j as u32);
+        } else {
+            if others.len() as u64 >= limit {
+                return Ok(None);
+            }
+            others.push((out.len(), v));
+            out.push(NONE);
+        }
+    }
+    if others.is_empty() {
+        return Ok(Some(out));
+    }
+    let mut is_source = BitVolume::new(*bits.grid());
+    for &k in sources {
+        let [x, y, z] = coords(k, dims);
+        is_source.set(x, y, z, true);
+    }
+    let mut budget = dims.iter().map(|&d| u64::from(d)).product::<u64>();
+    for (i, (rank, v)) in others.into_iter().enumerate() {
+        if i % 1024 == 0 {
+            ctl.check()?;
+        }
+        let mut found = None;
+        for r in 1..=radius {
+            let lo = v.map(|c| c.saturating_sub(r));
+            let hi: [u32; 3] = std::array::from_fn(|a| (v[a] + r).min(dims[a] - 1));
+            let cube = (0..3)
+                .map(|a| u64::from(hi[a] - lo[a] + 1))
+                .product::<u64>();
+            let Some(left) = budget.checked_sub(cube) else {
+                return Ok(None);
+            };
+            budget = left;
+            // (squared distance, key): the rule's order.
+            let mut best: Option<(u64, u64)> = None;
+            for x in lo[0]..=hi[0] {
+                for y in lo[1]..=hi[1] {
+                    for z in lo[2]..=hi[2] {
+                        if is_source.get(x, y, z) {
+                            let d2 = [x, y, z]
+                                .iter()
+                                .zip(&v)
+                                .map(|(&a, &b)| (i64::from(a) - i64::from(b)).unsigned_abs().pow(2))
+                                .sum::<u64>();
+                            let c = (d2, super::key([x, y, z], dims));
+                            best = Some(best.map_or(c, |b: (u64, u64)| b.min(c)));
+                        }
+                    }
+                }
+            }
+            if let Some((d2, k)) = best
+                && d2 <= u64::from(r) * u64::from(r)
+            {
+                found = Some(k);
+                break;
+            }
+        }
+        let Some(k) = found else {
+            return Ok(None);
+        };
+        out[rank] = sources.binary_search(&k).expect("a source") as u32;
+    }
+    Ok(Some(out))
+}
+
+/// [`nearest`] by the feature transform (the module docs).
+pub(super) fn transform(
+    bits: &BitVolume,
+    sources: &[u64],
+    ctl: &Control,
+) -> Result<Vec<u32>, Canceled> {
     let dims = bits.dims();
     let [nx, ny, nz] = dims.map(|d| d as usize);
     let n = nx * ny * nz;

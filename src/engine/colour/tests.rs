@@ -263,3 +263,133 @@ fn sub_triangles_tile_the_triangle() {
         assert!(pts.iter().all(|&(s, r)| s > 0.0 && r > 0.0 && s + r < 1.0));
     }
 }
+
+/// The nearest source by brute force: least squared distance, ties by the lowest key.
+fn brute_nearest(v: [u32; 3], keys: &[u64], dims: [u32; 3]) -> usize {
+    let d2 = |k: u64| {
+        let s = propagate::coords(k, dims);
+        (0..3)
+            .map(|a| (i64::from(s[a]) - i64::from(v[a])).pow(2))
+            .sum::<i64>()
+    };
+    (0..keys.len())
+        .min_by_key(|&i| (d2(keys[i]), keys[i]))
+        .expect("a source")
+}
+
+/// The feature transform's tie rule, against brute force: on small grids with few sources many
+/// voxels are equally near several, and each must get the lowest key among them.
+#[test]
+fn the_transform_breaks_ties_by_the_lowest_key() {
+    let mut rng = crate::testkit::Rng::new(341);
+    let mut ties = 0;
+    for _ in 0..60 {
+        let dims = [0; 3].map(|_| 2 + rng.below(10) as u32);
+        let g = grid(dims);
+        let mut bits = BitVolume::new(g);
+        let mut keys = vec![];
+        for x in 0..dims[0] {
+            for y in 0..dims[1] {
+                for z in 0..dims[2] {
+                    bits.set(x, y, z, rng.below(3) > 0);
+                    if rng.below(12) == 0 {
+                        keys.push(key([x, y, z], dims));
+                    }
+                }
+            }
+        }
+        if keys.is_empty() {
+            continue;
+        }
+        let got = propagate::transform(&bits, &keys, &Control::none()).unwrap();
+        for (r, v) in bits.iter_ones().enumerate() {
+            let want = brute_nearest(v, &keys, dims);
+            assert_eq!(got[r] as usize, want, "voxel {v:?} of {dims:?}");
+            // Count the voxels where the rule had to choose.
+            let d2 = |k: u64| {
+                let s = propagate::coords(k, dims);
+                (0..3)
+                    .map(|a| (i64::from(s[a]) - i64::from(v[a])).pow(2))
+                    .sum::<i64>()
+            };
+            let best = d2(keys[want]);
+            ties += usize::from(keys.iter().filter(|&&k| d2(k) == best).count() > 1);
+        }
+    }
+    assert!(
+        ties > 1000,
+        "only {ties} tied voxels: the test does not test ties"
+    );
+}
+
+/// The direct lookup used when nearly every set voxel is a source gives the transform's answer
+/// (and brute force's); it declines when a voxel has no source within its radius or too many
+/// voxels are not sources, and `nearest` is then the transform's.
+#[test]
+fn the_local_lookup_equals_the_transform() {
+    let mut rng = crate::testkit::Rng::new(342);
+    let mut looked_up = 0;
+    for round in 0..40 {
+        let dims = [0; 3].map(|_| 3 + rng.below(14) as u32);
+        let g = grid(dims);
+        let mut bits = BitVolume::new(g);
+        let mut keys = vec![];
+        for x in 0..dims[0] {
+            for y in 0..dims[1] {
+                for z in 0..dims[2] {
+                    let set = rng.below(4) == 0;
+                    bits.set(x, y, z, set);
+                    // Sources: the set voxels but a few, and a few unset voxels.
+                    if (set && rng.below(40) > 0) || (!set && rng.below(30) == 0) {
+                        keys.push(key([x, y, z], dims));
+                    }
+                }
+            }
+        }
+        if keys.is_empty() {
+            continue;
+        }
+        let radius = 1 + (round % 4) as u32;
+        let want = propagate::transform(&bits, &keys, &Control::none()).unwrap();
+        if let Some(got) = propagate::local(&bits, &keys, radius, &Control::none()).unwrap() {
+            assert_eq!(got, want, "{dims:?}, radius {radius}");
+            looked_up += got
+                .iter()
+                .zip(bits.iter_ones())
+                .filter(|&(&s, v)| keys[s as usize] != key(v, dims))
+                .count();
+        }
+        let all = propagate::nearest(&bits, &keys, &Control::none()).unwrap();
+        assert_eq!(all, want);
+        for (r, v) in bits.iter_ones().enumerate() {
+            assert_eq!(want[r] as usize, brute_nearest(v, &keys, dims), "{v:?}");
+        }
+    }
+    assert!(looked_up > 100, "only {looked_up} voxels were looked up");
+    // A set voxel with no source within the radius: declined.
+    let g = grid([20, 20, 20]);
+    let mut bits = BitVolume::new(g);
+    bits.set(0, 0, 0, true);
+    bits.set(19, 19, 19, true);
+    let keys = vec![0];
+    assert_eq!(
+        propagate::local(&bits, &keys, 6, &Control::none()).unwrap(),
+        None
+    );
+    assert_eq!(
+        propagate::nearest(&bits, &keys, &Control::none()).unwrap(),
+        vec![0, 0]
+    );
+    // Most set voxels not sources: declined.
+    for x in 0..20 {
+        for y in 0..20 {
+            for z in 0..20 {
+                bits.set(x, y, z, true);
+            }
+        }
+    }
+    assert_eq!(
+        propagate::local(&bits, &keys, 40, &Control::none()).unwrap(),
+        None
+    );
+}

@@ -1,0 +1,183 @@
+//! Dual contouring's crossing triangles undone: a vertex the QEF placed far from its mass point
+//! (on a sharp edge or corner) can fold its triangles through their neighbours'. The triangles
+//! around such vertices are tested against every triangle near them; where two cross, the
+//! vertices of both move halfway back to their mass points and the quads around them are split
+//! again, until none cross (surface nets' mass-point mesh is what they tend to).
+//!
+//! * **Tested**: each triangle with a vertex over [`FAR`] from its mass point, then each
+//!   triangle a repair re-split, against every triangle that can reach it. Every vertex lies
+//!   in its dual cell (the unit cube about its lattice point) and a quad's four lattice points
+//!   differ by at most one on each axis, so a triangle meeting triangle `t`'s bounding box has
+//!   its lattice points within 1.5 of that box on every axis: those are found through the
+//!   vertices' lattice points (sorted: the net numbers vertices in (x, y, z) order), and
+//!   tested when their boxes overlap.
+//! * **Crossing**: `measure::triangles_cross` (an edge of one through the other's interior).
+//! * **Bounded**: at most [`ROUNDS`] rounds; in the last a vertex goes to its mass point.
+//!   What still crosses after it is left and logged (not met on the test meshes).
+
+use rayon::prelude::*;
+
+use super::measure::triangles_cross;
+
+/// A vertex farther than this (voxels) from its mass point makes its triangles suspects.
+pub const FAR: f64 = 0.25;
+/// Rounds of halving at most (the last puts the vertices on their mass points).
+pub const ROUNDS: usize = 8;
+
+/// The mesh being untangled: vertices (with their lattice points, mass points and QEF
+/// positions), quads and their triangles (two a quad, `2q` and `2q + 1`).
+pub(super) struct Tangle<'a> {
+    pub cells: &'a [[u32; 3]],
+    pub mass: &'a [[f64; 3]],
+    /// The QEF position (kept in the cell).
+    pub solved: &'a [[f64; 3]],
+    pub quads: &'a [[u32; 4]],
+    pub positions: &'a mut [[f64; 3]],
+    pub triangles: &'a mut [[u32; 3]],
+}
+
+/// Untangles `t` (module docs), re-splitting a quad with `split(quad index, positions)`;
+/// returns the crossing pairs left (0 when untangled) and the vertices moved.
+pub(super) fn untangle(
+    t: &mut Tangle<'_>,
+    split: impl Fn(usize, &[[f64; 3]]) -> [[u32; 3]; 2],
+) -> (usize, usize) {
+    let n = t.positions.len();
+    let far: Vec<usize> = (0..n)
+        .filter(|&v| distance(t.positions[v], t.mass[v]) > FAR)
+        .collect();
+    tracing::debug!(far = far.len(), "untangle suspects");
+    if far.is_empty() {
+        return (0, 0);
+    }
+    // Each vertex's quads.
+    let mut start = vec![0u32; n + 1];
+    for q in t.quads {
+        for &v in q {
+            start[v as usize + 1] += 1;
+        }
+    }
+    for i in 0..n {
+        start[i + 1] += start[i];
+    }
+    let mut fill = start.clone();
+    let mut of = vec![0u32; start[n] as usize];
+    for (i, q) in t.quads.iter().enumerate() {
+        for &v in q {
+            of[fill[v as usize] as usize] = i as u32;
+            fill[v as usize] += 1;
+        }
+    }
+    let quads_of = |v: u32| &of[start[v as usize] as usize..start[v as usize + 1] as usize];
+    let triangles_at = |vs: &mut dyn Iterator<Item = u32>| {
+        let mut out: Vec<u32> = vs
+            .flat_map(|v| quads_of(v).iter().flat_map(|&q| [2 * q, 2 * q + 1]))
+            .collect();
+        out.sort_unstable();
+        out.dedup();
+        out
+    };
+    // The halving step each vertex has reached (0: at its QEF position).
+    let mut step = vec![0u8; n];
+    let mut suspects = triangles_at(&mut far.iter().map(|&v| v as u32));
+    let mut moved = 0;
+    for round in 0..=ROUNDS {
+        let pairs = crossings(t, &suspects, &triangles_at);
+        if pairs.is_empty() || round == ROUNDS {
+            if !pairs.is_empty() {
+                tracing::warn!(
+                    pairs = pairs.len(),
+                    "dual contouring: crossing triangles left"
+                );
+            }
+            return (pairs.len(), moved);
+        }
+        let mut vs: Vec<u32> = pairs
+            .iter()
+            .flat_map(|&(a, b)| {
+                let (ta, tb) = (t.triangles[a as usize], t.triangles[b as usize]);
+                ta.into_iter().chain(tb)
+            })
+            .collect();
+        vs.sort_unstable();
+        vs.dedup();
+        for &v in &vs {
+            let v = v as usize;
+            moved += usize::from(step[v] == 0);
+            step[v] += 1;
+            // Halfway to the mass point each round; on it in the last.
+            let s = if round + 1 == ROUNDS {
+                0.0
+            } else {
+                0.5f64.powi(i32::from(step[v]))
+            };
+            t.positions[v] = [0, 1, 2].map(|a| t.mass[v][a] + s * (t.solved[v][a] - t.mass[v][a]));
+        }
+        let mut touched: Vec<u32> = vs.iter().flat_map(|&v| quads_of(v).to_vec()).collect();
+        touched.sort_unstable();
+        touched.dedup();
+        for &q in &touched {
+            let [a, b] = split(q as usize, t.positions);
+            t.triangles[2 * q as usize] = a;
+            t.triangles[2 * q as usize + 1] = b;
+        }
+        suspects = touched.iter().flat_map(|&q| [2 * q, 2 * q + 1]).collect();
+    }
+    unreachable!("the last round returns")
+}
+
+/// The pairs (lower first) of a suspect and any triangle that crosses it.
+fn crossings(
+    t: &Tangle<'_>,
+    suspects: &[u32],
+    triangles_at: &(dyn Fn(&mut dyn Iterator<Item = u32>) -> Vec<u32> + Sync),
+) -> Vec<(u32, u32)> {
+    let corners = |i: u32| t.triangles[i as usize].map(|v| t.positions[v as usize]);
+    let bbox = |p: &[[f64; 3]; 3]| -> ([f64; 3], [f64; 3]) {
+        (
+            std::array::from_fn(|k| p[0][k].min(p[1][k]).min(p[2][k])),
+            std::array::from_fn(|k| p[0][k].max(p[1][k]).max(p[2][k])),
+        )
+    };
+    let mut pairs: Vec<(u32, u32)> = suspects
+        .par_iter()
+        .flat_map_iter(|&a| {
+            let (ta, pa) = (t.triangles[a as usize], corners(a));
+            let (lo, hi) = bbox(&pa);
+            // A triangle meeting this one's box has its lattice points within 1.5 of the box
+            // on every axis (its vertices are within ½ of theirs, which differ by at most 1).
+            let from: [u32; 3] = std::array::from_fn(|k| (lo[k] - 1.5).ceil().max(0.0) as u32);
+            let to: [u32; 3] = std::array::from_fn(|k| (hi[k] + 1.5).floor().max(0.0) as u32);
+            let mut near = vec![];
+            for x in from[0]..=to[0] {
+                for y in from[1]..=to[1] {
+                    let i = t
+                        .cells
+                        .partition_point(|c| (c[0], c[1], c[2]) < (x, y, from[2]));
+                    let j =
+                        i + t.cells[i..].partition_point(|c| (c[0], c[1], c[2]) <= (x, y, to[2]));
+                    near.extend(i as u32..j as u32);
+                }
+            }
+            triangles_at(&mut near.into_iter())
+                .into_iter()
+                .filter(move |&b| {
+                    if b == a {
+                        return false;
+                    }
+                    let pb = corners(b);
+                    let (blo, bhi) = bbox(&pb);
+                    (0..3).all(|k| blo[k] <= hi[k] && bhi[k] >= lo[k])
+                        && triangles_cross(ta, pa, t.triangles[b as usize], pb)
+                })
+                .map(move |b| (a.min(b), a.max(b)))
+        })
+        .collect();
+    pairs.sort_unstable();
+    pairs.dedup();
+    pairs
+}
+
+fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt()
+}
