@@ -58,14 +58,24 @@ impl Lines {
     }
 }
 
-/// One line's lower envelope: `f[q]` (`None`: no source) are the squared distances along the
-/// axes done so far; on return `feat[i]` is the feature of the q minimising f[q] + (i − q)².
-fn envelope(f: &[Option<u64>], feat: &mut [u32], v: &mut Vec<usize>, z: &mut Vec<f64>) {
+/// No source on the line yet: [`envelope`]'s `f` value.
+const FAR: u64 = u64::MAX;
+
+/// One line's lower envelope: `f[q]` ([`FAR`]: no source) are the squared distances along the
+/// axes done so far; on return `feat[i]` is the feature of the q minimising f[q] + (i − q)²
+/// (the lowest q among equal ones). `v`, `z` and `orig` are scratch.
+fn envelope(
+    f: &[u64],
+    feat: &mut [u32],
+    v: &mut Vec<usize>,
+    z: &mut Vec<f64>,
+    orig: &mut Vec<u32>,
+) {
     v.clear();
     z.clear();
-    let parab = |q: usize| f[q].expect("a source") as f64 + (q * q) as f64;
-    for (q, fq) in f.iter().enumerate() {
-        if fq.is_none() {
+    let parab = |q: usize| f[q] as f64 + (q * q) as f64;
+    for (q, &fq) in f.iter().enumerate() {
+        if fq == FAR {
             continue;
         }
         loop {
@@ -93,7 +103,8 @@ fn envelope(f: &[Option<u64>], feat: &mut [u32], v: &mut Vec<usize>, z: &mut Vec
     if v.is_empty() {
         return;
     }
-    let orig: Vec<u32> = v.iter().map(|&q| feat[q]).collect();
+    orig.clear();
+    orig.extend(v.iter().map(|&q| feat[q]));
     let mut k = 0;
     for (i, out) in feat.iter_mut().enumerate() {
         while k + 1 < v.len() && z[k + 1] < i as f64 {
@@ -102,6 +113,12 @@ fn envelope(f: &[Option<u64>], feat: &mut [u32], v: &mut Vec<usize>, z: &mut Vec
         *out = orig[k];
     }
 }
+
+/// Scratch of one thread's lines: f, v, z, orig and a line.
+type Scratch = (Vec<u64>, Vec<usize>, Vec<f64>, Vec<u32>, Vec<u32>);
+
+/// z lines per x-pass task: read together, 16 `u32` share a cache line.
+const TILE: usize = 16;
 
 /// For each set voxel of `bits` (by rank: the order of [`BitVolume::iter_ones`]), the index in
 /// `sources` (sorted keys of [`super::key`]) of its nearest source (module docs); 0 for every
@@ -227,60 +244,100 @@ pub(super) fn transform(
         feat[k as usize] = i as u32;
     }
     let d = |a: u32, b: u32| (i64::from(a) - i64::from(b)).unsigned_abs().pow(2);
-    // z: contiguous columns.
-    feat.par_chunks_mut(nz).for_each_init(
-        || (vec![], vec![], vec![]),
-        |(f, v, zs), col| {
+    // z: contiguous columns (one with no source stays as it is).
+    feat.par_chunks_mut(nz)
+        .for_each_init(Scratch::default, |(f, v, zs, orig, _), col| {
+            if col.iter().all(|&s| s == NONE) {
+                return;
+            }
             f.clear();
-            f.extend(col.iter().map(|&s| (s != NONE).then_some(0u64)));
-            envelope(f, col, v, zs);
-        },
-    );
+            f.extend(col.iter().map(|&s| if s == NONE { FAR } else { 0 }));
+            envelope(f, col, v, zs, orig);
+        });
     ctl.check()?;
     ctl.set(1.0 / 3.0);
     // y: within each x slab, lines of stride Z.
-    feat.par_chunks_mut(ny * nz).for_each_init(
-        || (vec![], vec![], vec![], vec![]),
-        |(f, line, v, zs), slab| {
+    feat.par_chunks_mut(ny * nz)
+        .for_each_init(Scratch::default, |(f, v, zs, orig, line), slab| {
             for z in 0..nz {
                 line.clear();
                 line.extend((0..ny).map(|y| slab[y * nz + z]));
+                if line.iter().all(|&s| s == NONE) {
+                    continue;
+                }
                 f.clear();
-                f.extend(
-                    line.iter()
-                        .map(|&s| (s != NONE).then(|| d(z as u32, at[s as usize][2]))),
-                );
-                envelope(f, line, v, zs);
+                f.extend(line.iter().map(|&s| {
+                    if s == NONE {
+                        FAR
+                    } else {
+                        d(z as u32, at[s as usize][2])
+                    }
+                }));
+                envelope(f, line, v, zs, orig);
                 for (y, &s) in line.iter().enumerate() {
                     slab[y * nz + z] = s;
                 }
             }
-        },
-    );
+        });
     ctl.check()?;
     ctl.set(2.0 / 3.0);
-    // x: lines of stride Y·Z, one (y, z) each.
+    // x: lines of stride Y·Z, one (y, z) each, TILE of them (consecutive z) a task; only the
+    // lines with a set voxel (the answer is read there only).
+    let wanted: Vec<Vec<u64>> = (0..ny)
+        .into_par_iter()
+        .map(|y| {
+            let mut any = vec![0u64; bits.words_per_column()];
+            for x in 0..nx {
+                for (a, w) in any.iter_mut().zip(bits.column(x as u32, y as u32)) {
+                    *a |= w;
+                }
+            }
+            any
+        })
+        .collect();
     let shared = Lines(feat.as_mut_ptr());
     let shared = &shared;
-    (0..ny * nz).into_par_iter().with_min_len(64).for_each_init(
-        || (vec![], vec![], vec![], vec![]),
-        |(f, line, v, zs), yz| {
-            let (y, z) = ((yz / nz) as u32, (yz % nz) as u32);
-            line.clear();
-            // SAFETY: line yz is read and written by this closure only (module-level note on
-            // `Lines`); every index is below X·Y·Z.
-            line.extend((0..nx).map(|x| unsafe { shared.get(x * ny * nz + yz) }));
-            f.clear();
-            f.extend(line.iter().map(|&s| {
-                (s != NONE).then(|| {
-                    let p = at[s as usize];
-                    d(y, p[1]) + d(z, p[2])
-                })
-            }));
-            envelope(f, line, v, zs);
-            for (x, &s) in line.iter().enumerate() {
-                // SAFETY: as above.
-                unsafe { shared.set(x * ny * nz + yz, s) };
+    let tiles = nz.div_ceil(TILE);
+    (0..ny * tiles).into_par_iter().for_each_init(
+        || (Scratch::default(), vec![NONE; nx * TILE]),
+        |((f, v, zs, orig, _), block), t| {
+            let (y, z0) = (t / tiles, (t % tiles) * TILE);
+            let width = TILE.min(nz - z0);
+            let wanted = &wanted[y];
+            let want = |z: usize| wanted[z / 64] >> (z % 64) & 1 == 1;
+            if !(z0..z0 + width).any(want) {
+                return;
+            }
+            let base = y * nz + z0;
+            for x in 0..nx {
+                for j in 0..width {
+                    // SAFETY: the lines (y, z0..z0 + width) are read and written by this task
+                    // only (module-level note on `Lines`); every index is below X·Y·Z.
+                    block[j * nx + x] = unsafe { shared.get(x * ny * nz + base + j) };
+                }
+            }
+            for j in (0..width).filter(|&j| want(z0 + j)) {
+                let z = (z0 + j) as u32;
+                let col = &mut block[j * nx..(j + 1) * nx];
+                if col.iter().all(|&s| s == NONE) {
+                    continue;
+                }
+                f.clear();
+                f.extend(col.iter().map(|&s| {
+                    if s == NONE {
+                        FAR
+                    } else {
+                        let p = at[s as usize];
+                        d(y as u32, p[1]) + d(z, p[2])
+                    }
+                }));
+                envelope(f, col, v, zs, orig);
+            }
+            for x in 0..nx {
+                for j in 0..width {
+                    // SAFETY: as above.
+                    unsafe { shared.set(x * ny * nz + base + j, block[j * nx + x]) };
+                }
             }
         },
     );
