@@ -142,6 +142,17 @@ pub fn decode(bytes: &[u8], budget: u64, what: &str) -> Result<Image, MeshError>
     })
 }
 
+/// A texel's sRGB bytes in linear light (alpha as it is).
+fn linear(c: [u8; 4]) -> [f32; 4] {
+    let lin = srgb_to_linear_table();
+    [
+        lin[c[0] as usize],
+        lin[c[1] as usize],
+        lin[c[2] as usize],
+        f32::from(c[3]) / 255.0,
+    ]
+}
+
 fn wrap(i: i64, n: u32, mode: Wrap) -> u32 {
     let n = i64::from(n);
     (match mode {
@@ -158,14 +169,7 @@ impl Image {
     fn texel(&self, i: i64, j: i64, t: &TextureRef) -> [f32; 4] {
         let x = wrap(i, self.width, t.wrap[0]);
         let y = wrap(j, self.height, t.wrap[1]);
-        let c = self.texels[y as usize * self.width as usize + x as usize];
-        let lin = srgb_to_linear_table();
-        [
-            lin[c[0] as usize],
-            lin[c[1] as usize],
-            lin[c[2] as usize],
-            f32::from(c[3]) / 255.0,
-        ]
+        linear(self.texels[y as usize * self.width as usize + x as usize])
     }
 
     /// The linear RGBA at texture coordinates (u, v) through `t`'s sampler. Coordinates that
@@ -192,10 +196,17 @@ impl Image {
                 let (x0, y0) = (x.floor(), y.floor());
                 let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
                 let (i, j) = (x0 as i64, y0 as i64);
-                let a = self.texel(i, j, t);
-                let b = self.texel(i + 1, j, t);
-                let c = self.texel(i, j + 1, t);
-                let d = self.texel(i + 1, j + 1, t);
+                let (w, h) = (i64::from(self.width), i64::from(self.height));
+                let [a, b, c, d] = if i >= 0 && j >= 0 && i + 1 < w && j + 1 < h {
+                    // All four inside: no wrapping (what `texel` would give, without its
+                    // divisions).
+                    let at = (j * w + i) as usize;
+                    let w = w as usize;
+                    [at, at + 1, at + w, at + w + 1].map(|k| linear(self.texels[k]))
+                } else {
+                    [(i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)]
+                        .map(|(i, j)| self.texel(i, j, t))
+                };
                 std::array::from_fn(|k| {
                     let top = a[k] + (b[k] - a[k]) * fx;
                     let bottom = c[k] + (d[k] - c[k]) * fx;

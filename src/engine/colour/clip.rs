@@ -59,67 +59,92 @@ pub fn double_area(poly: &[Vertex]) -> f64 {
 /// Calls `f(voxel, piece)` for each part of triangle `tri` (grid coordinates) inside a voxel of
 /// a grid of `dims`, in (x, y, z) order; parts outside the grid are left out. Pieces may have
 /// zero area (a triangle along a voxel face, a corner touching one).
-pub fn pieces(tri: &[[f64; 3]; 3], dims: [u32; 3], mut f: impl FnMut([u32; 3], &[Vertex])) {
-    let lo: [f64; 3] = std::array::from_fn(|k| tri[0][k].min(tri[1][k]).min(tri[2][k]));
-    let hi: [f64; 3] = std::array::from_fn(|k| tri[0][k].max(tri[1][k]).max(tri[2][k]));
-    let mut first = [0i64; 3];
-    let mut last = [0i64; 3];
-    for k in 0..3 {
-        first[k] = lo[k].floor().max(0.0) as i64;
-        last[k] = (hi[k].floor() as i64).min(i64::from(dims[k]) - 1);
-        if hi[k] < 0.0 || first[k] > last[k] {
-            return;
-        }
-    }
-    let corner = |p: [f64; 3], b: [f64; 2]| Vertex { p, b };
-    let poly = vec![
-        corner(tri[0], [0.0, 0.0]),
-        corner(tri[1], [1.0, 0.0]),
-        corner(tri[2], [0.0, 1.0]),
-    ];
-    let mut bufs: [Vec<Vertex>; 6] = Default::default();
-    // Cut away what lies below the grid's first plane on each axis.
-    let mut rest_x = poly;
-    let [b0, a0, b1, a1, b2, a2] = &mut bufs;
-    for k in 0..3 {
-        if lo[k] < first[k] as f64 {
-            split(&rest_x, k, first[k] as f64, b0, a0);
-            std::mem::swap(&mut rest_x, a0);
-            if rest_x.len() < 3 {
+pub fn pieces(tri: &[[f64; 3]; 3], dims: [u32; 3], f: impl FnMut([u32; 3], &[Vertex])) {
+    Clipper::default().pieces(tri, dims, f);
+}
+
+/// [`pieces`] with its polygons' buffers kept from one triangle to the next (one per thread:
+/// allocating them for each triangle was a tenth of the colour pass).
+#[derive(Default)]
+pub struct Clipper {
+    bufs: [Vec<Vertex>; 7],
+}
+
+impl Clipper {
+    /// [`pieces`].
+    pub fn pieces(
+        &mut self,
+        tri: &[[f64; 3]; 3],
+        dims: [u32; 3],
+        mut f: impl FnMut([u32; 3], &[Vertex]),
+    ) {
+        let lo: [f64; 3] = std::array::from_fn(|k| tri[0][k].min(tri[1][k]).min(tri[2][k]));
+        let hi: [f64; 3] = std::array::from_fn(|k| tri[0][k].max(tri[1][k]).max(tri[2][k]));
+        let mut first = [0i64; 3];
+        let mut last = [0i64; 3];
+        for k in 0..3 {
+            first[k] = lo[k].floor().max(0.0) as i64;
+            last[k] = (hi[k].floor() as i64).min(i64::from(dims[k]) - 1);
+            if hi[k] < 0.0 || first[k] > last[k] {
                 return;
             }
         }
-    }
-    for i in first[0]..=last[0] {
-        split(&rest_x, 0, (i + 1) as f64, b0, a0);
-        std::mem::swap(&mut rest_x, a0);
-        if b0.len() >= 3 {
-            let mut rest_y = std::mem::take(b0);
-            for j in first[1]..=last[1] {
-                split(&rest_y, 1, (j + 1) as f64, b1, a1);
-                std::mem::swap(&mut rest_y, a1);
-                if b1.len() >= 3 {
-                    let mut rest_z = std::mem::take(b1);
-                    for k in first[2]..=last[2] {
-                        split(&rest_z, 2, (k + 1) as f64, b2, a2);
-                        std::mem::swap(&mut rest_z, a2);
-                        if b2.len() >= 3 {
-                            f([i as u32, j as u32, k as u32], b2);
-                        }
-                        if rest_z.len() < 3 {
-                            break;
-                        }
-                    }
-                    *b1 = rest_z;
-                }
-                if rest_y.len() < 3 {
-                    break;
+        let corner = |p: [f64; 3], b: [f64; 2]| Vertex { p, b };
+        let poly = [
+            corner(tri[0], [0.0, 0.0]),
+            corner(tri[1], [1.0, 0.0]),
+            corner(tri[2], [0.0, 1.0]),
+        ];
+        // Wholly inside one voxel (every coordinate in [first, first + 1)): the triangle is its
+        // one piece, as the cuts below would leave it.
+        if (0..3).all(|k| {
+            first[k] == last[k] && lo[k] >= first[k] as f64 && hi[k] < (first[k] + 1) as f64
+        }) {
+            f(first.map(|c| c as u32), &poly);
+            return;
+        }
+        let [rest_x, b0, a0, b1, a1, b2, a2] = &mut self.bufs;
+        rest_x.clear();
+        rest_x.extend(poly);
+        // Cut away what lies below the grid's first plane on each axis.
+        for k in 0..3 {
+            if lo[k] < first[k] as f64 {
+                split(rest_x, k, first[k] as f64, b0, a0);
+                std::mem::swap(rest_x, a0);
+                if rest_x.len() < 3 {
+                    return;
                 }
             }
-            *b0 = rest_y;
         }
-        if rest_x.len() < 3 {
-            break;
+        for i in first[0]..=last[0] {
+            split(rest_x, 0, (i + 1) as f64, b0, a0);
+            std::mem::swap(rest_x, a0);
+            if b0.len() >= 3 {
+                let rest_y = &mut *b0;
+                for j in first[1]..=last[1] {
+                    split(rest_y, 1, (j + 1) as f64, b1, a1);
+                    std::mem::swap(rest_y, a1);
+                    if b1.len() >= 3 {
+                        let rest_z = &mut *b1;
+                        for k in first[2]..=last[2] {
+                            split(rest_z, 2, (k + 1) as f64, b2, a2);
+                            std::mem::swap(rest_z, a2);
+                            if b2.len() >= 3 {
+                                f([i as u32, j as u32, k as u32], b2);
+                            }
+                            if rest_z.len() < 3 {
+                                break;
+                            }
+                        }
+                    }
+                    if rest_y.len() < 3 {
+                        break;
+                    }
+                }
+            }
+            if rest_x.len() < 3 {
+                break;
+            }
         }
     }
 }

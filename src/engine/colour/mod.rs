@@ -37,7 +37,7 @@ use crate::mesh::texture::{Image, linear_to_srgb, srgb_to_linear};
 use crate::mesh::{Attributes, Mesh};
 use crate::volume::{Attributed, BitVolume, ChannelValues};
 
-pub use clip::{Vertex, double_area, pieces};
+pub use clip::{Clipper, Vertex, double_area, pieces};
 
 /// Most subdivision levels of a textured fan triangle (4^4 = 256 samples).
 pub const MAX_LEVEL: u32 = 4;
@@ -291,21 +291,25 @@ pub fn surface(
         let mut batch: Vec<Piece> = (start..end)
             .into_par_iter()
             .with_min_len(256)
-            .fold(Vec::new, |mut out, t| {
-                let tri = mesh.triangle(t).map(to_grid);
-                pieces(&tri, dims, |v, piece| {
-                    let (area, rgba) = shader.integrate(t, piece, s2);
-                    if area > 0.0 {
-                        out.push(Piece {
-                            key: key(v, dims),
-                            tri: t as u32,
-                            area,
-                            rgba,
-                        });
-                    }
-                });
-                out
-            })
+            .fold(
+                || (Vec::new(), Clipper::default()),
+                |(mut out, mut clipper), t| {
+                    let tri = mesh.triangle(t).map(to_grid);
+                    clipper.pieces(&tri, dims, |v, piece| {
+                        let (area, rgba) = shader.integrate(t, piece, s2);
+                        if area > 0.0 {
+                            out.push(Piece {
+                                key: key(v, dims),
+                                tri: t as u32,
+                                area,
+                                rgba,
+                            });
+                        }
+                    });
+                    (out, clipper)
+                },
+            )
+            .map(|(out, _)| out)
             .reduce(Vec::new, |mut a, mut b| {
                 a.append(&mut b);
                 a
