@@ -8,20 +8,9 @@ set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/../.." && pwd)
 peers=$root/bench/peers
-VENV=${VOXD_PEERS_VENV:-${XDG_CACHE_HOME:-$HOME/.cache}/voxd/peers-venv}
-PIN=$(sha256sum "$peers/requirements.txt" | cut -d' ' -f1)
-if [[ ! -x $VENV/bin/python || "$(cat "$VENV/.pins" 2>/dev/null)" != "$PIN" ]]; then
-  echo "installing the pinned peers ($peers/requirements.txt) into $VENV" >&2
-  rm -rf "$VENV"
-  python3 -m venv "$VENV"
-  "$VENV/bin/pip" install -q --disable-pip-version-check -r "$peers/requirements.txt"
-  echo "$PIN" >"$VENV/.pins"
-fi
-MPIN=$(sha256sum "$peers/requirements-mesh.txt" | cut -d' ' -f1)
-if [[ "$(cat "$VENV/.pins-mesh" 2>/dev/null)" != "$MPIN" ]]; then
-  "$VENV/bin/pip" install -q --disable-pip-version-check --no-deps -r "$peers/requirements-mesh.txt"
-  echo "$MPIN" >"$VENV/.pins-mesh"
-fi
+. "$peers/venv.sh"
+peers_venv
+peers_extra mesh "$peers/requirements-mesh.txt" --no-deps
 args=("$@")
 if [[ " $* " != *" --voxd "* ]]; then
   (cd "$root" && cargo build --release --locked --quiet)

@@ -12,9 +12,7 @@ set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/../.." && pwd)
 
-VENV=${VOXD_PEERS_VENV:-${XDG_CACHE_HOME:-$HOME/.cache}/voxd/peers-venv}
-REQS=$here/requirements.txt
-PIN=$(sha256sum "$REQS" | cut -d' ' -f1)
+. "$here/venv.sh"
 if [[ $(id -u) == 0 ]] && command -v apt-get >/dev/null; then
   need=()
   python3 -c 'import ensurepip, venv' 2>/dev/null || need+=(python3-venv)
@@ -28,22 +26,9 @@ if [[ $(id -u) == 0 ]] && command -v apt-get >/dev/null; then
       echo "notice: apt-get install ${need[*]} failed; the peers that need them are skipped" >&2
   fi
 fi
-if [[ ! -x $VENV/bin/python || "$(cat "$VENV/.pins" 2>/dev/null)" != "$PIN" ]]; then
-  echo "installing the pinned peers ($REQS) into $VENV" >&2
-  rm -rf "$VENV"
-  python3 -m venv "$VENV"
-  "$VENV/bin/pip" install -q --disable-pip-version-check -r "$REQS"
-  echo "$PIN" >"$VENV/.pins"
-fi
-DPIN=$(sha256sum "$here/requirements-distance.txt" | cut -d' ' -f1)
-if [[ "$(cat "$VENV/.pins-distance" 2>/dev/null)" != "$DPIN" ]]; then
-  if CPATH=/usr/include/eigen3${CPATH:+:$CPATH} "$VENV/bin/pip" install -q --disable-pip-version-check \
-    -r "$here/requirements-distance.txt"; then
-    echo "$DPIN" >"$VENV/.pins-distance"
-  else
-    echo "notice: pysdf did not install (requirements-distance.txt); it is skipped" >&2
-  fi
-fi
+peers_venv
+CPATH=/usr/include/eigen3${CPATH:+:$CPATH} peers_extra distance "$here/requirements-distance.txt" ||
+  echo "notice: pysdf did not install (requirements-distance.txt); it is skipped" >&2
 
 voxd_given=0
 for a in "$@"; do [[ $a == --voxd || $a == --voxd=* || $a == -h || $a == --help ]] && voxd_given=1; done

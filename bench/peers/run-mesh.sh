@@ -11,9 +11,7 @@ set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/../.." && pwd)
 
-VENV=${VOXD_PEERS_VENV:-${XDG_CACHE_HOME:-$HOME/.cache}/voxd/peers-venv}
-REQS=$here/requirements.txt
-PIN=$(sha256sum "$REQS" | cut -d' ' -f1)
+. "$here/venv.sh"
 if [[ $(id -u) == 0 ]] && command -v apt-get >/dev/null; then
   need=()
   python3 -c 'import ensurepip, venv' 2>/dev/null || need+=(python3-venv)
@@ -25,21 +23,9 @@ if [[ $(id -u) == 0 ]] && command -v apt-get >/dev/null; then
       echo "notice: apt-get install ${need[*]} failed; the peers that need them are skipped" >&2
   fi
 fi
-if [[ ! -x $VENV/bin/python || "$(cat "$VENV/.pins" 2>/dev/null)" != "$PIN" ]]; then
-  echo "installing the pinned peers ($REQS) into $VENV" >&2
-  rm -rf "$VENV"
-  python3 -m venv "$VENV"
-  "$VENV/bin/pip" install -q --disable-pip-version-check -r "$REQS"
-  echo "$PIN" >"$VENV/.pins"
-fi
-MPIN=$(sha256sum "$here/requirements-mesh.txt" | cut -d' ' -f1)
-if [[ "$(cat "$VENV/.pins-mesh" 2>/dev/null)" != "$MPIN" ]]; then
-  if "$VENV/bin/pip" install -q --disable-pip-version-check --no-deps -r "$here/requirements-mesh.txt"; then
-    echo "$MPIN" >"$VENV/.pins-mesh"
-  else
-    echo "notice: scikit-image did not install (requirements-mesh.txt); it is skipped" >&2
-  fi
-fi
+peers_venv
+peers_extra mesh "$here/requirements-mesh.txt" --no-deps ||
+  echo "notice: scikit-image did not install (requirements-mesh.txt); it is skipped" >&2
 
 voxd_given=0
 for a in "$@"; do [[ $a == --voxd || $a == --voxd=* || $a == -h || $a == --help ]] && voxd_given=1; done

@@ -10,25 +10,17 @@ set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/../.." && pwd)
 
-VENV=${VOXD_PEERS_VENV:-${XDG_CACHE_HOME:-$HOME/.cache}/voxd/peers-venv}
-REQS=$here/requirements.txt
-PIN=$(sha256sum "$REQS" | cut -d' ' -f1)
-if [[ ! -x $VENV/bin/python || "$(cat "$VENV/.pins" 2>/dev/null)" != "$PIN" ]]; then
-  echo "installing the pinned peers ($REQS) into $VENV" >&2
-  if [[ $(id -u) == 0 ]] && command -v apt-get >/dev/null; then
-    need=()
-    python3 -c 'import ensurepip, venv' 2>/dev/null || need+=(python3-venv)
-    ldconfig -p | grep -q 'libusb-1.0.so.0' || need+=(libusb-1.0-0) # open3d's pybind links it
-    if ((${#need[@]})); then
-      (apt-get update -qq || true) >/dev/null 2>&1
-      DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${need[@]}" >/dev/null
-    fi
+. "$here/venv.sh"
+if [[ $(id -u) == 0 ]] && command -v apt-get >/dev/null; then
+  need=()
+  python3 -c 'import ensurepip, venv' 2>/dev/null || need+=(python3-venv)
+  ldconfig -p | grep -q 'libusb-1.0.so.0' || need+=(libusb-1.0-0) # open3d's pybind links it
+  if ((${#need[@]})); then
+    (apt-get update -qq || true) >/dev/null 2>&1
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${need[@]}" >/dev/null
   fi
-  rm -rf "$VENV"
-  python3 -m venv "$VENV"
-  "$VENV/bin/pip" install -q --disable-pip-version-check -r "$REQS"
-  echo "$PIN" >"$VENV/.pins"
 fi
+peers_venv
 
 voxd_given=0
 for a in "$@"; do [[ $a == --voxd || $a == --voxd=* || $a == -h || $a == --help ]] && voxd_given=1; done

@@ -198,25 +198,38 @@ fn an_l_bracket_keeps_its_concave_edge() {
     assert_sharp("L-bracket", &m, &grid([22, 21, 16]), true);
 }
 
-#[test]
-fn rocker_arm_stays_sharp() {
+/// `rocker-arm` from `../shared/meshes` (`None` with a notice for `test` when absent).
+fn rocker_arm(test: &str) -> Option<Mesh> {
     let path = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../shared/meshes/rocker-arm.obj"
     );
-    let Ok(m) = crate::mesh::load_file(std::path::Path::new(path), usize::MAX) else {
-        eprintln!("SKIP rocker_arm_stays_sharp: {path} is absent");
-        return;
-    };
+    let m = crate::mesh::load_file(std::path::Path::new(path), usize::MAX).ok();
+    if m.is_none() {
+        eprintln!("SKIP {test}: {path} is absent");
+    }
+    m
+}
+
+/// A grid of voxel size `s` over `m` with two voxels to spare on every side.
+fn padded_grid(m: &Mesh, s: f64) -> Grid {
     let d = m.diagnostics();
-    let s = std::env::var("VOXD_ROCKER_S").map_or(1.0 / 96.0, |v| v.parse().unwrap());
     let origin = d.bbox_min.map(|c| c - 2.0 * s);
     let dims = [0, 1, 2].map(|a| ((d.bbox_max[a] - origin[a]) / s).ceil() as u32 + 2);
-    let g = Grid {
+    Grid {
         origin,
         voxel_size: s,
         dims,
+    }
+}
+
+#[test]
+fn rocker_arm_stays_sharp() {
+    let Some(m) = rocker_arm("rocker_arm_stays_sharp") else {
+        return;
     };
+    let s = std::env::var("VOXD_ROCKER_S").map_or(1.0 / 96.0, |v| v.parse().unwrap());
+    let g = padded_grid(&m, s);
     let [dc, sn, mc] = measure("rocker-arm", &m, &g, 60.0);
     assert!(dc.hausdorff <= 1.0, "Hausdorff {}", dc.hausdorff);
     assert_eq!(dc.intersections, 0);
@@ -258,12 +271,7 @@ fn a_solid_cut_by_the_grid_contours_to_a_valid_mesh() {
 /// triangles through their neighbours'), counted by the independent all-pairs check.
 #[test]
 fn rocker_arm_has_no_crossing_triangles() {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../shared/meshes/rocker-arm.obj"
-    );
-    let Ok(m) = crate::mesh::load_file(std::path::Path::new(path), usize::MAX) else {
-        eprintln!("SKIP rocker_arm_has_no_crossing_triangles: {path} is absent");
+    let Some(m) = rocker_arm("rocker_arm_has_no_crossing_triangles") else {
         return;
     };
     let d = m.diagnostics();
@@ -271,14 +279,7 @@ fn rocker_arm_has_no_crossing_triangles() {
         .map(|a| d.bbox_max[a] - d.bbox_min[a])
         .fold(0.0, f64::max);
     for n in [128.0, 192.0, 256.0] {
-        let s = long / n;
-        let origin = d.bbox_min.map(|c| c - 2.0 * s);
-        let dims = [0, 1, 2].map(|a| ((d.bbox_max[a] - origin[a]) / s).ceil() as u32 + 2);
-        let g = Grid {
-            origin,
-            voxel_size: s,
-            dims,
-        };
+        let g = padded_grid(&m, long / n);
         let ctl = Control::none();
         let (bits, _) =
             fill::voxelize_with(&CpuEngine, &m, &g, Method::Solid, Fill::Parity, &d, &ctl).unwrap();

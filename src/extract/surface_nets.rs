@@ -534,16 +534,9 @@ fn run(
     })
 }
 
-/// Gibson's constrained relaxation: `rounds` times, every vertex to the mean of its quad
-/// neighbours, clamped to its dual cell (the unit cube about its lattice point) shrunk by 1/16.
-fn relax(
-    positions: &mut [[f64; 3]],
-    quads: &[[u32; 4]],
-    cells: &[[u32; 3]],
-    rounds: usize,
-    ctl: &Control,
-) -> Result<(), Canceled> {
-    let n = positions.len();
+/// Each vertex's corners of `quads` (of `n` vertices), as `4·quad + corner`: vertex v's are
+/// `corners[start[v]..start[v + 1]]`, in the order of the quads.
+pub(super) fn corners_by_vertex(n: usize, quads: &[[u32; 4]]) -> (Vec<u32>, Vec<u32>) {
     let mut start = vec![0u32; n + 1];
     for q in quads {
         for &v in q {
@@ -554,22 +547,43 @@ fn relax(
         start[i + 1] += start[i];
     }
     let mut fill = start.clone();
-    let mut adj = vec![0u32; start[n] as usize];
+    let mut corners = vec![0u32; start[n] as usize];
+    for (i, q) in quads.iter().enumerate() {
+        for (j, &v) in q.iter().enumerate() {
+            corners[fill[v as usize] as usize] = (4 * i + j) as u32;
+            fill[v as usize] += 1;
+        }
+    }
+    (start, corners)
+}
+
+/// Gibson's constrained relaxation: `rounds` times, every vertex to the mean of its quad
+/// neighbours, clamped to its dual cell (the unit cube about its lattice point) shrunk by 1/16.
+fn relax(
+    positions: &mut [[f64; 3]],
+    quads: &[[u32; 4]],
+    cells: &[[u32; 3]],
+    rounds: usize,
+    ctl: &Control,
+) -> Result<(), Canceled> {
+    let n = positions.len();
+    let (start, corners) = corners_by_vertex(n, quads);
+    // Each neighbour once: the mesh is closed and consistently oriented, so each edge v → w
+    // is in exactly one quad.
+    let adj: Vec<u32> = corners
+        .iter()
+        .map(|&c| quads[c as usize / 4][(c as usize % 4 + 1) % 4])
+        .collect();
     // The sum of each vertex's neighbours' lattice points less its own (the neighbours are
     // in the next cells: −1, 0 or 1 on each axis).
     // (Each term is −1, 0 or 1 and a vertex has at most 12 neighbours: bytes, a quarter of
     // the f32s' memory traffic in the passes.)
     let mut steps = vec![[0i8; 4]; n];
-    // Each neighbour once: the mesh is closed and consistently oriented, so each edge v → w
-    // is in exactly one quad.
-    for q in quads {
-        for j in 0..4 {
-            let (v, w) = (q[j] as usize, q[(j + 1) % 4] as usize);
-            adj[fill[v] as usize] = w as u32;
+    for (v, step) in steps.iter_mut().enumerate() {
+        for &w in &adj[start[v] as usize..start[v + 1] as usize] {
             for k in 0..3 {
-                steps[v][k] += (i64::from(cells[w][k]) - i64::from(cells[v][k])) as i8;
+                step[k] += (i64::from(cells[w as usize][k]) - i64::from(cells[v][k])) as i8;
             }
-            fill[v] += 1;
         }
     }
     let counter = ctl.counter(rounds as u64);

@@ -51,23 +51,8 @@ pub(super) fn untangle(
         return (0, 0);
     }
     // Each vertex's quads.
-    let mut start = vec![0u32; n + 1];
-    for q in t.quads {
-        for &v in q {
-            start[v as usize + 1] += 1;
-        }
-    }
-    for i in 0..n {
-        start[i + 1] += start[i];
-    }
-    let mut fill = start.clone();
-    let mut of = vec![0u32; start[n] as usize];
-    for (i, q) in t.quads.iter().enumerate() {
-        for &v in q {
-            of[fill[v as usize] as usize] = i as u32;
-            fill[v as usize] += 1;
-        }
-    }
+    let (start, corners) = super::surface_nets::corners_by_vertex(n, t.quads);
+    let of: Vec<u32> = corners.iter().map(|c| c / 4).collect();
     let quads_of = |v: u32| &of[start[v as usize] as usize..start[v as usize + 1] as usize];
     let triangles_at = |vs: &mut dyn Iterator<Item = u32>| {
         let mut out: Vec<u32> = vs

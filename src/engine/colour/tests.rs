@@ -264,6 +264,30 @@ fn sub_triangles_tile_the_triangle() {
     }
 }
 
+/// A random bit volume on `dims` and sorted source keys: each voxel set when `set(rng)`, and a
+/// source when `source(rng, set)`.
+fn random_sources(
+    rng: &mut crate::testkit::Rng,
+    dims: [u32; 3],
+    set: impl Fn(&mut crate::testkit::Rng) -> bool,
+    source: impl Fn(&mut crate::testkit::Rng, bool) -> bool,
+) -> (BitVolume, Vec<u64>) {
+    let mut bits = BitVolume::new(grid(dims));
+    let mut keys = vec![];
+    for x in 0..dims[0] {
+        for y in 0..dims[1] {
+            for z in 0..dims[2] {
+                let on = set(rng);
+                bits.set(x, y, z, on);
+                if source(rng, on) {
+                    keys.push(key([x, y, z], dims));
+                }
+            }
+        }
+    }
+    (bits, keys)
+}
+
 /// The nearest source by brute force: least squared distance, ties by the lowest key.
 fn brute_nearest(v: [u32; 3], keys: &[u64], dims: [u32; 3]) -> usize {
     let d2 = |k: u64| {
@@ -285,19 +309,8 @@ fn the_transform_breaks_ties_by_the_lowest_key() {
     let mut ties = 0;
     for _ in 0..60 {
         let dims = [0; 3].map(|_| 2 + rng.below(10) as u32);
-        let g = grid(dims);
-        let mut bits = BitVolume::new(g);
-        let mut keys = vec![];
-        for x in 0..dims[0] {
-            for y in 0..dims[1] {
-                for z in 0..dims[2] {
-                    bits.set(x, y, z, rng.below(3) > 0);
-                    if rng.below(12) == 0 {
-                        keys.push(key([x, y, z], dims));
-                    }
-                }
-            }
-        }
+        let (bits, keys) =
+            random_sources(&mut rng, dims, |r| r.below(3) > 0, |r, _| r.below(12) == 0);
         if keys.is_empty() {
             continue;
         }
@@ -331,21 +344,19 @@ fn the_local_lookup_equals_the_transform() {
     let mut looked_up = 0;
     for round in 0..40 {
         let dims = [0; 3].map(|_| 3 + rng.below(14) as u32);
-        let g = grid(dims);
-        let mut bits = BitVolume::new(g);
-        let mut keys = vec![];
-        for x in 0..dims[0] {
-            for y in 0..dims[1] {
-                for z in 0..dims[2] {
-                    let set = rng.below(4) == 0;
-                    bits.set(x, y, z, set);
-                    // Sources: the set voxels but a few, and a few unset voxels.
-                    if (set && rng.below(40) > 0) || (!set && rng.below(30) == 0) {
-                        keys.push(key([x, y, z], dims));
-                    }
+        // Sources: the set voxels but a few, and a few unset voxels.
+        let (bits, keys) = random_sources(
+            &mut rng,
+            dims,
+            |r| r.below(4) == 0,
+            |r, set| {
+                if set {
+                    r.below(40) > 0
+                } else {
+                    r.below(30) == 0
                 }
-            }
-        }
+            },
+        );
         if keys.is_empty() {
             continue;
         }
