@@ -575,9 +575,8 @@ fn relax(
         .map(|&c| quads[c as usize / 4][(c as usize % 4 + 1) % 4])
         .collect();
     // The sum of each vertex's neighbours' lattice points less its own (the neighbours are
-    // in the next cells: −1, 0 or 1 on each axis).
-    // (Each term is −1, 0 or 1 and a vertex has at most 12 neighbours: bytes, a quarter of
-    // the f32s' memory traffic in the passes.)
+    // in the next cells: −1, 0 or 1 on each axis, and a vertex has at most 12 of them), as
+    // bytes: a quarter of f32s' memory traffic in the passes.
     let mut steps = vec![[0i8; 4]; n];
     for (v, step) in steps.iter_mut().enumerate() {
         for &w in &adj[start[v] as usize..start[v + 1] as usize] {

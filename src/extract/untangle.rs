@@ -18,6 +18,7 @@
 use rayon::prelude::*;
 
 use super::measure::triangles_cross;
+use super::vec3::{dot, sub};
 
 /// A vertex farther than this (voxels) from its mass point makes its triangles suspects.
 pub const FAR: f64 = 0.25;
@@ -44,7 +45,10 @@ pub(super) fn untangle(
 ) -> (usize, usize) {
     let n = t.positions.len();
     let far: Vec<usize> = (0..n)
-        .filter(|&v| distance(t.positions[v], t.mass[v]) > FAR)
+        .filter(|&v| {
+            let d = sub(t.positions[v], t.mass[v]);
+            dot(d, d).sqrt() > FAR
+        })
         .collect();
     tracing::debug!(far = far.len(), "untangle suspects");
     if far.is_empty() {
@@ -161,8 +165,4 @@ fn crossings(
     pairs.sort_unstable();
     pairs.dedup();
     pairs
-}
-
-fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
-    (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt()
 }

@@ -9,8 +9,8 @@
 //! lowest z within that column (deterministic, whatever the thread count). Three passes over
 //! the grid, each linear in its voxels and parallel over lines; one `u32` a voxel.
 //!
-//! When nearly every set voxel is a source (`surface`, `conservative`: only voxels that a
-//! triangle touches with zero area are not), the few others are looked up directly instead
+//! When nearly every set voxel is a source (`surface`: only voxels that a triangle touches
+//! with zero area are not), the few others are looked up directly instead
 //! ([`local`]): the sources in growing cubes around each, by the same rule. That answer is
 //! the transform's exactly (tested against it and against brute force).
 
@@ -116,6 +116,25 @@ fn envelope(
 
 /// Scratch of one thread's lines: f, v, z, orig and a line.
 type Scratch = (Vec<u64>, Vec<usize>, Vec<f64>, Vec<u32>, Vec<u32>);
+
+/// One pass over one line of features (`NONE`: none yet): each voxel takes the nearest of the
+/// line's features, `dist(feature)` being its squared distance over the axes done so far; a
+/// line without any stays as it is.
+fn pass_line(
+    line: &mut [u32],
+    dist: impl Fn(u32) -> u64,
+    f: &mut Vec<u64>,
+    v: &mut Vec<usize>,
+    z: &mut Vec<f64>,
+    orig: &mut Vec<u32>,
+) {
+    if line.iter().all(|&s| s == NONE) {
+        return;
+    }
+    f.clear();
+    f.extend(line.iter().map(|&s| if s == NONE { FAR } else { dist(s) }));
+    envelope(f, line, v, z, orig);
+}
 
 /// z lines per x-pass task: read together, 16 `u32` share a cache line.
 const TILE: usize = 16;
@@ -247,12 +266,7 @@ pub(super) fn transform(
     // z: contiguous columns (one with no source stays as it is).
     feat.par_chunks_mut(nz)
         .for_each_init(Scratch::default, |(f, v, zs, orig, _), col| {
-            if col.iter().all(|&s| s == NONE) {
-                return;
-            }
-            f.clear();
-            f.extend(col.iter().map(|&s| if s == NONE { FAR } else { 0 }));
-            envelope(f, col, v, zs, orig);
+            pass_line(col, |_| 0, f, v, zs, orig);
         });
     ctl.check()?;
     ctl.set(1.0 / 3.0);
@@ -262,18 +276,7 @@ pub(super) fn transform(
             for z in 0..nz {
                 line.clear();
                 line.extend((0..ny).map(|y| slab[y * nz + z]));
-                if line.iter().all(|&s| s == NONE) {
-                    continue;
-                }
-                f.clear();
-                f.extend(line.iter().map(|&s| {
-                    if s == NONE {
-                        FAR
-                    } else {
-                        d(z as u32, at[s as usize][2])
-                    }
-                }));
-                envelope(f, line, v, zs, orig);
+                pass_line(line, |s| d(z as u32, at[s as usize][2]), f, v, zs, orig);
                 for (y, &s) in line.iter().enumerate() {
                     slab[y * nz + z] = s;
                 }
@@ -319,19 +322,11 @@ pub(super) fn transform(
             for j in (0..width).filter(|&j| want(z0 + j)) {
                 let z = (z0 + j) as u32;
                 let col = &mut block[j * nx..(j + 1) * nx];
-                if col.iter().all(|&s| s == NONE) {
-                    continue;
-                }
-                f.clear();
-                f.extend(col.iter().map(|&s| {
-                    if s == NONE {
-                        FAR
-                    } else {
-                        let p = at[s as usize];
-                        d(y as u32, p[1]) + d(z, p[2])
-                    }
-                }));
-                envelope(f, col, v, zs, orig);
+                let dist = |s: u32| {
+                    let p = at[s as usize];
+                    d(y as u32, p[1]) + d(z, p[2])
+                };
+                pass_line(col, dist, f, v, zs, orig);
             }
             for x in 0..nx {
                 for j in 0..width {
