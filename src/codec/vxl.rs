@@ -218,6 +218,7 @@ pub fn encode(
     if let Some(len) = streamed {
         let mut enc = zstd::Encoder::new(out, ZSTD_LEVEL).expect("zstd encoder");
         enc.include_checksum(true).expect("zstd option");
+        enc.multithread(zstd_workers()).expect("zstd option");
         enc.set_pledged_src_size(Some(len as u64))
             .expect("zstd option");
         match v {
@@ -247,6 +248,7 @@ pub fn encode(
     }
     let mut enc = zstd::Encoder::new(out, ZSTD_LEVEL).expect("zstd encoder");
     enc.include_checksum(true).expect("zstd option");
+    enc.multithread(zstd_workers()).expect("zstd option");
     enc.set_pledged_src_size(Some(payload.len() as u64))
         .expect("zstd option");
     std::io::Write::write_all(&mut enc, payload).expect("writing to memory");
@@ -258,6 +260,13 @@ pub fn encode(
 /// 18 µs); larger ones are streamed, so no buffer of their compressed bound is allocated up
 /// front. Both make the same frame: content size and checksum included.
 const ONE_SHOT_MAX: usize = 4 << 20;
+
+/// Threads compressing a payload larger than [`ONE_SHOT_MAX`] (zstd's own, beside the
+/// caller's): one a core, at most four. zstd's multithreaded frames are the same bytes for any
+/// number of workers (its jobs do not depend on it), one frame any zstd decoder reads.
+fn zstd_workers() -> u32 {
+    std::thread::available_parallelism().map_or(1, |n| n.get().min(4) as u32)
+}
 
 thread_local! {
     static ONE_SHOT: std::cell::RefCell<Option<zstd::bulk::Compressor<'static>>> =

@@ -99,20 +99,27 @@ fn touch(t: &[[i32; 3]; 3], bd: [u32; 3], mut f: impl FnMut(u64)) {
     }
 }
 
-/// The candidate bricks of the band `r`, counted (keys sorted and deduplicated, 8 bytes a
-/// pair while counting).
+/// The candidate bricks of the band `r`, counted: one bit a brick position, set by every
+/// triangle's bricks (a pass over the triangles, no list of pairs).
 pub fn count(tris: &[[[i32; 3]; 3]], bd: [u32; 3], r: i64) -> u64 {
-    let mut keys: Vec<u64> = tris
-        .par_iter()
-        .flat_map_iter(|t| {
-            let mut out = Vec::new();
-            reach(t, bd, r, |k| out.push(k));
-            out
-        })
-        .collect();
-    keys.par_sort_unstable();
-    keys.dedup();
-    keys.len() as u64
+    use std::sync::atomic::{AtomicU64, Ordering};
+    let total = bd.iter().map(|&d| d as usize).product::<usize>();
+    let bits: Vec<AtomicU64> = (0..total.div_ceil(64)).map(|_| AtomicU64::new(0)).collect();
+    tris.par_iter()
+        .with_min_len(crate::PAR_PIECE)
+        .for_each(|t| {
+            reach(t, bd, r, |k| {
+                let w = &bits[(k / 64) as usize];
+                let b = 1u64 << (k % 64);
+                // Most keys repeat (neighbouring triangles share bricks): a load before the write.
+                if w.load(Ordering::Relaxed) & b == 0 {
+                    w.fetch_or(b, Ordering::Relaxed);
+                }
+            })
+        });
+    bits.iter()
+        .map(|w| u64::from(w.load(Ordering::Relaxed).count_ones()))
+        .sum()
 }
 
 /// Triangle lists by brick.
@@ -125,30 +132,59 @@ pub struct Bins {
 impl Bins {
     /// The triangles that may reach each brick within `r`.
     pub fn new(tris: &[[[i32; 3]; 3]], bd: [u32; 3], r: i64) -> Bins {
-        Bins::build(tris, |t, f| reach(t, bd, r, f))
+        Bins::build(tris, bd, |t, f| reach(t, bd, r, f))
     }
 
     /// The triangles whose box meets each brick's box (for the ring search of `band=all`).
     pub fn all(tris: &[[[i32; 3]; 3]], bd: [u32; 3]) -> Bins {
-        Bins::build(tris, |t, f| touch(t, bd, f))
+        Bins::build(tris, bd, |t, f| touch(t, bd, f))
     }
 
     fn build(
         tris: &[[[i32; 3]; 3]],
+        bd: [u32; 3],
         each: impl Fn(&[[i32; 3]; 3], &mut dyn FnMut(u64)) + Sync,
     ) -> Bins {
         // (key, triangle) packed as key·2³² + triangle: keys are below 2²⁷ (at most 512
         // bricks an axis, 4096³ voxels), triangles below 2³²; one u64 sorts faster than a pair.
-        let mut pairs: Vec<u64> = tris
-            .par_iter()
+        // Gathered a piece of triangles at a time, spread by brick slab (bx) into one list, and
+        // each slab sorted on its own (in cache, in parallel).
+        let pieces: Vec<Vec<u64>> = tris
+            .par_chunks(crate::PAR_PIECE)
             .enumerate()
-            .flat_map_iter(|(i, t)| {
-                let mut out = Vec::new();
-                each(t, &mut |k| out.push(k << 32 | i as u64));
+            .map(|(c, chunk)| {
+                let mut out = Vec::with_capacity(chunk.len() * 6);
+                for (j, t) in chunk.iter().enumerate() {
+                    let i = (c * crate::PAR_PIECE + j) as u64;
+                    each(t, &mut |k| out.push(k << 32 | i));
+                }
                 out
             })
             .collect();
-        pairs.par_sort_unstable();
+        let slab = u64::from(bd[1]) * u64::from(bd[2]);
+        let slabs = bd[0] as usize;
+        let mut start = vec![0usize; slabs + 1];
+        for p in pieces.iter().flatten() {
+            start[((p >> 32) / slab) as usize + 1] += 1;
+        }
+        for i in 0..slabs {
+            start[i + 1] += start[i];
+        }
+        let mut pairs = vec![0u64; start[slabs]];
+        let mut at = start.clone();
+        for p in pieces.into_iter().flatten() {
+            let s = ((p >> 32) / slab) as usize;
+            pairs[at[s]] = p;
+            at[s] += 1;
+        }
+        let mut parts = Vec::with_capacity(slabs);
+        let mut rest = pairs.as_mut_slice();
+        for i in 0..slabs {
+            let (part, tail) = rest.split_at_mut(start[i + 1] - start[i]);
+            parts.push(part);
+            rest = tail;
+        }
+        parts.into_par_iter().for_each(|p| p.sort_unstable());
         let mut groups = Vec::new();
         let mut list = Vec::with_capacity(pairs.len());
         let mut start = 0;

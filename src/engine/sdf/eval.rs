@@ -118,6 +118,7 @@ fn lower(
 fn lower_local(
     best2: &mut [f64; BRICK_VOXELS],
     rowmax: &mut [f64; 64],
+    idx: &mut [u16; BRICK_VOXELS + 8],
     l: &Local,
     n: [u32; 3],
     slack: i64,
@@ -140,6 +141,8 @@ fn lower_local(
     // A degenerate triangle has no plane: a zero normal makes its bound −1e-3, which culls
     // nothing.
     let u = l.unit;
+    let mut cnt = 0usize;
+    let mut hit = 0u64;
     for x in range[0].0..=range[0].1 {
         let px = f64::from(x) * f;
         let dx = gap(0, px);
@@ -172,6 +175,18 @@ fn lower_local(
                 pass |= u32::from(k) << z;
             }
             pass &= zmask;
+            if l.exact {
+                // Compacted: the passing voxels' indices appended without a branch each (all
+                // eight lanes written, the count advanced by the passing ones).
+                let offs = &SPREAD[pass as usize];
+                for k in 0..8 {
+                    idx[cnt + k] = base as u16 + u16::from(offs[k]);
+                }
+                cnt += pass.count_ones() as usize;
+                hit |= u64::from(pass != 0) << row;
+                continue;
+            }
+            // A triangle too large for the local f64 evaluation: exactly, voxel by voxel.
             let mut lowered = false;
             while pass != 0 {
                 let z = pass.trailing_zeros();
@@ -190,7 +205,60 @@ fn lower_local(
             }
         }
     }
+    if cnt == 0 {
+        return;
+    }
+    // The passing voxels, four at a time (the last group padded with its last voxel: a second
+    // minimum with the same value changes nothing).
+    let last = idx[cnt - 1];
+    for k in cnt..cnt.next_multiple_of(LN) {
+        idx[k] = last;
+    }
+    for g in idx[..cnt.next_multiple_of(LN)].chunks_exact(LN) {
+        let mut p = [[0.0f64; LN]; 3];
+        for k in 0..LN {
+            let i = u32::from(g[k]);
+            p[0][k] = f64::from(i / 64) * f;
+            p[1][k] = f64::from(i / 8 % 8) * f;
+            p[2][k] = f64::from(i % 8) * f;
+        }
+        let d = l.distance2_lanes(&p);
+        for k in 0..LN {
+            let b = &mut best2[g[k] as usize];
+            *b = if d[k] < *b { d[k] } else { *b };
+        }
+    }
+    let nz = n[2] as usize;
+    while hit != 0 {
+        let row = hit.trailing_zeros() as usize;
+        hit &= hit - 1;
+        let base = row * BRICK as usize;
+        rowmax[row] = best2[base..base + nz]
+            .iter()
+            .fold(0.0, |m, &v| f64::max(m, v));
+    }
 }
+
+const LN: usize = 8;
+
+/// For each 8-bit mask, the positions of its set bits, in order (then zeros).
+static SPREAD: [[u8; 8]; 256] = {
+    let mut t = [[0u8; 8]; 256];
+    let mut m = 0;
+    while m < 256 {
+        let mut k = 0;
+        let mut z = 0;
+        while z < 8 {
+            if m & (1 << z) != 0 {
+                t[m][k] = z as u8;
+                k += 1;
+            }
+            z += 1;
+        }
+        m += 1;
+    }
+    t
+};
 
 /// Voxel centres along a brick row (local lattice units).
 const Z: [f64; 8] = [0.0, 256.0, 512.0, 768.0, 1024.0, 1280.0, 1536.0, 1792.0];
@@ -244,9 +312,10 @@ fn band_brick_body(
     let s2 = (slack * slack) as f64;
     let mut best2 = [s2; BRICK_VOXELS];
     let mut rowmax = [s2; 64];
+    let mut idx = [0u16; BRICK_VOXELS + 8];
     for &t in list {
         let l = Local::new(&tris[t as usize], &planes[t as usize], at);
-        lower_local(&mut best2, &mut rowmax, &l, n, slack);
+        lower_local(&mut best2, &mut rowmax, &mut idx, &l, n, slack);
     }
     let mask = signs.mask(at);
     let (any_in, all_in) = signs.brick(at);

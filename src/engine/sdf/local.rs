@@ -160,6 +160,41 @@ impl<'a> Local<'a> {
         let plane = q * q / self.nn;
         if inside { best.min(plane) } else { best }
     }
+
+    /// [`Local::distance2`] at `L` points (`p[a][k]`: coordinate a of point k) of an exact
+    /// triangle ([`Local::exact`]): the same operations on the same values lane by lane, so
+    /// the same bits, in the shape that vectorizes.
+    #[inline(always)]
+    pub fn distance2_lanes<const L: usize>(&self, p: &[[f64; L]; 3]) -> [f64; L] {
+        debug_assert!(self.exact);
+        let mut best = [f64::INFINITY; L];
+        let mut inside = [self.nn > 0.0; L];
+        for i in 0..3 {
+            let (v, e, ne) = (self.v[i], self.e[i], self.ne[i]);
+            for k in 0..L {
+                let w = [p[0][k] - v[0], p[1][k] - v[1], p[2][k] - v[2]];
+                let d = dot(w, w);
+                let wd = dot(w, e);
+                let c = cross(w, e);
+                let edge = dot(c, c) / self.ee[i];
+                let on_edge = (wd > 0.0) & (wd < self.ee[i]);
+                let m = if d < best[k] { d } else { best[k] };
+                best[k] = if on_edge & (edge < m) { edge } else { m };
+                inside[k] &= dot(w, ne) >= 0.0;
+            }
+        }
+        let v0 = self.v[0];
+        for k in 0..L {
+            let q = dot(self.n, [p[0][k] - v0[0], p[1][k] - v0[1], p[2][k] - v0[2]]);
+            let plane = q * q / self.nn;
+            best[k] = if inside[k] & (plane < best[k]) {
+                plane
+            } else {
+                best[k]
+            };
+        }
+        best
+    }
 }
 
 #[cfg(test)]
@@ -203,6 +238,23 @@ mod tests {
                 let g = [0, 1, 2].map(|a| o[a] * FIXED_ONE + l.origin[a]);
                 let want = lattice::distance2(g, &tri);
                 assert_eq!(l.distance2(p).to_bits(), want.to_bits(), "{tri:?} at {g:?}");
+            }
+            // The lanes, on eight scattered centres at a time, have the same bits too.
+            if l.exact {
+                for first in (0..512).step_by(8) {
+                    let at = |k: i64| (first + k * 67) % 512;
+                    let p: [[f64; 8]; 3] = std::array::from_fn(|a| {
+                        std::array::from_fn(|k| {
+                            let i = at(k as i64);
+                            ([i / 64, i / 8 % 8, i % 8][a] * FIXED_ONE) as f64
+                        })
+                    });
+                    let got = l.distance2_lanes(&p);
+                    for (k, d) in got.iter().enumerate() {
+                        let q = [p[0][k], p[1][k], p[2][k]];
+                        assert_eq!(d.to_bits(), l.distance2(q).to_bits(), "{tri:?} lane {k}");
+                    }
+                }
             }
         }
         assert!(exact > 2000 && not > 500, "{exact} exact, {not} not");
