@@ -147,40 +147,54 @@ impl Bins {
     ) -> Bins {
         // (key, triangle) packed as key·2³² + triangle: keys are below 2²⁷ (at most 512
         // bricks an axis, 4096³ voxels), triangles below 2³²; one u64 sorts faster than a pair.
-        // Gathered a piece of triangles at a time, spread by brick slab (bx) into one list, and
-        // each slab sorted on its own (in cache, in parallel).
-        let pieces: Vec<Vec<u64>> = tris
-            .par_chunks(crate::PAR_PIECE)
-            .enumerate()
-            .map(|(c, chunk)| {
-                let mut out = Vec::with_capacity(chunk.len() * 6);
-                for (j, t) in chunk.iter().enumerate() {
-                    let i = (c * crate::PAR_PIECE + j) as u64;
-                    each(t, &mut |k| out.push(k << 32 | i));
-                }
-                out
-            })
-            .collect();
+        // Counted by piece of triangles and brick slab (bx), then written straight to their
+        // places (slab by slab, piece by piece: no second list of pairs), and each slab sorted
+        // on its own (in cache, in parallel).
         let slab = u64::from(bd[1]) * u64::from(bd[2]);
         let slabs = bd[0] as usize;
-        let mut start = vec![0usize; slabs + 1];
-        for p in pieces.iter().flatten() {
-            start[((p >> 32) / slab) as usize + 1] += 1;
+        let counts: Vec<Vec<usize>> = tris
+            .par_chunks(crate::PAR_PIECE)
+            .map(|chunk| {
+                let mut c = vec![0usize; slabs];
+                for t in chunk {
+                    each(t, &mut |k| c[(k / slab) as usize] += 1);
+                }
+                c
+            })
+            .collect();
+        let total = counts.iter().flatten().sum();
+        let mut pairs = vec![0u64; total];
+        let mut places: Vec<Vec<&mut [u64]>> = counts.iter().map(|_| Vec::new()).collect();
+        let mut slab_len = vec![0usize; slabs];
+        {
+            let mut rest = pairs.as_mut_slice();
+            for s in 0..slabs {
+                for (c, count) in counts.iter().enumerate() {
+                    let (part, tail) = std::mem::take(&mut rest).split_at_mut(count[s]);
+                    places[c].push(part);
+                    rest = tail;
+                    slab_len[s] += count[s];
+                }
+            }
         }
-        for i in 0..slabs {
-            start[i + 1] += start[i];
-        }
-        let mut pairs = vec![0u64; start[slabs]];
-        let mut at = start.clone();
-        for p in pieces.into_iter().flatten() {
-            let s = ((p >> 32) / slab) as usize;
-            pairs[at[s]] = p;
-            at[s] += 1;
-        }
+        tris.par_chunks(crate::PAR_PIECE)
+            .zip(places.into_par_iter())
+            .enumerate()
+            .for_each(|(c, (chunk, mut places))| {
+                let mut at = vec![0usize; slabs];
+                for (j, t) in chunk.iter().enumerate() {
+                    let i = (c * crate::PAR_PIECE + j) as u64;
+                    each(t, &mut |k| {
+                        let s = (k / slab) as usize;
+                        places[s][at[s]] = k << 32 | i;
+                        at[s] += 1;
+                    });
+                }
+            });
         let mut parts = Vec::with_capacity(slabs);
         let mut rest = pairs.as_mut_slice();
-        for i in 0..slabs {
-            let (part, tail) = rest.split_at_mut(start[i + 1] - start[i]);
+        for len in slab_len {
+            let (part, tail) = std::mem::take(&mut rest).split_at_mut(len);
             parts.push(part);
             rest = tail;
         }

@@ -113,7 +113,9 @@ fn lower(
 /// centres lie within `slack` of the triangle's box can be lowered and only they are visited,
 /// row (x, y) by row, a row skipped whole when the box is beyond the row's largest value
 /// (`rowmax`, kept up to date). For the rest, the distance to the box and to the triangle's
-/// plane are lower bounds that skip most exact evaluations.
+/// plane are lower bounds that skip most exact evaluations. The voxels that pass are gathered
+/// (`idx`, scratch) and evaluated eight at a time, without a branch a voxel: evaluated one by
+/// one as they were found, the unpredictable branches cost a third of the whole `sdf` command.
 #[inline(always)]
 fn lower_local(
     best2: &mut [f64; BRICK_VOXELS],
@@ -156,7 +158,7 @@ fn lower_local(
             }
             let plane_xy = u[0] * (px - v0[0]) + u[1] * (py - v0[1]);
             // The voxels of the row that pass both culls, as bits, without a branch each (the
-            // culls' outcomes do not predict well); then the exact evaluations, bit by bit.
+            // culls' outcomes do not predict well); then gathered for the exact evaluations.
             // The distance to the box is a lower bound; so is the plane's (within 1e-6
             // lattice units of the exact one: one rounding per component of the unit normal,
             // |p − v0| < 2³¹), which culls only when even 1e-3 closer would not lower the value.
@@ -208,13 +210,13 @@ fn lower_local(
     if cnt == 0 {
         return;
     }
-    // The passing voxels, four at a time (the last group padded with its last voxel: a second
-    // minimum with the same value changes nothing).
+    // The passing voxels, LN at a time (the last group padded with its last voxel: a second
+    // minimum with the same value changes nothing). Eight lanes measured faster than four
+    // (two AVX2 vectors a step), padding included.
     let last = idx[cnt - 1];
-    for k in cnt..cnt.next_multiple_of(LN) {
-        idx[k] = last;
-    }
-    for g in idx[..cnt.next_multiple_of(LN)].chunks_exact(LN) {
+    let end = cnt.next_multiple_of(LN);
+    idx[cnt..end].fill(last);
+    for g in idx[..end].chunks_exact(LN) {
         let mut p = [[0.0f64; LN]; 3];
         for k in 0..LN {
             let i = u32::from(g[k]);
@@ -239,6 +241,7 @@ fn lower_local(
     }
 }
 
+/// Lanes of one step of the exact evaluation.
 const LN: usize = 8;
 
 /// For each 8-bit mask, the positions of its set bits, in order (then zeros).

@@ -178,6 +178,7 @@ pub fn sdf_with(
     ctl: &Control,
 ) -> Result<(Sparse<f32>, FillReport), EngineError> {
     ctl.check()?;
+    let t0 = std::time::Instant::now();
     let (solid, report) = fill::voxelize_with(
         engine,
         mesh,
@@ -189,10 +190,17 @@ pub fn sdf_with(
     )?;
     // The solid's signs by brick (a few MB), and the solid (1 GB at 2048³) dropped before the
     // distances take their memory.
+    let solid_s = t0.elapsed().as_secs_f64();
     let signs = Signs::new(&solid);
     drop(solid);
     let tris = lattice_triangles(mesh, grid, band.reach())?;
     let sparse = signed_distance(&tris, &signs, grid, band, &ctl.stage(0.2, 1.0))?;
+    tracing::debug!(
+        solid_s,
+        total_s = t0.elapsed().as_secs_f64(),
+        triangles = tris.len(),
+        "sdf"
+    );
     Ok((sparse, report))
 }
 
@@ -228,7 +236,9 @@ pub fn signed_distance(
     match band.reach() {
         Some(r) => {
             ctl.check()?;
+            let t0 = std::time::Instant::now();
             let bins = bins::Bins::new(tris, bd, r);
+            let bins_s = t0.elapsed().as_secs_f64();
             ctl.check()?;
             let planes: Vec<local::Plane> = tris
                 .par_iter()
@@ -256,6 +266,13 @@ pub fn signed_distance(
                     .collect::<Result<_, EngineError>>()?;
                 insert(near);
             }
+            tracing::debug!(
+                bins_s,
+                near_s = t0.elapsed().as_secs_f64() - bins_s,
+                bricks = bins.len(),
+                pairs = bins.tris().len(),
+                "sdf band"
+            );
             insert(far_bricks(
                 signs,
                 dims,
