@@ -152,16 +152,29 @@ impl Bins {
         // on its own (in cache, in parallel).
         let slab = u64::from(bd[1]) * u64::from(bd[2]);
         let slabs = bd[0] as usize;
-        let counts: Vec<Vec<usize>> = tris
+        // Each piece's keys (4 bytes a pair: keys are below 2²⁷) and its triangles' key counts
+        // are kept from the counting pass, so the bricks of a triangle are found once.
+        type Piece = (Vec<usize>, Vec<u32>, Vec<u32>);
+        let found: Vec<Piece> = tris
             .par_chunks(crate::PAR_PIECE)
             .map(|chunk| {
                 let mut c = vec![0usize; slabs];
+                let mut keys = Vec::with_capacity(chunk.len() * 6);
+                let mut per = Vec::with_capacity(chunk.len());
                 for t in chunk {
-                    each(t, &mut |k| c[(k / slab) as usize] += 1);
+                    let before = keys.len();
+                    each(t, &mut |k| {
+                        debug_assert!(k < 1 << 27, "brick keys fit 27 bits");
+                        c[(k / slab) as usize] += 1;
+                        keys.push(k as u32);
+                    });
+                    per.push((keys.len() - before) as u32);
                 }
-                c
+                (c, keys, per)
             })
             .collect();
+        let (counts, found): (Vec<Vec<usize>>, Vec<(Vec<u32>, Vec<u32>)>) =
+            found.into_iter().map(|(c, k, p)| (c, (k, p))).unzip();
         let total = counts.iter().flatten().sum();
         let mut pairs = vec![0u64; total];
         let mut places: Vec<Vec<&mut [u64]>> = counts.iter().map(|_| Vec::new()).collect();
@@ -177,18 +190,21 @@ impl Bins {
                 }
             }
         }
-        tris.par_chunks(crate::PAR_PIECE)
+        found
+            .into_par_iter()
             .zip(places.into_par_iter())
             .enumerate()
-            .for_each(|(c, (chunk, mut places))| {
+            .for_each(|(c, ((keys, per), mut places))| {
                 let mut at = vec![0usize; slabs];
-                for (j, t) in chunk.iter().enumerate() {
+                let mut next = keys.iter();
+                for (j, &m) in per.iter().enumerate() {
                     let i = (c * crate::PAR_PIECE + j) as u64;
-                    each(t, &mut |k| {
+                    for &k in next.by_ref().take(m as usize) {
+                        let k = u64::from(k);
                         let s = (k / slab) as usize;
                         places[s][at[s]] = k << 32 | i;
                         at[s] += 1;
-                    });
+                    }
                 }
             });
         let mut parts = Vec::with_capacity(slabs);
