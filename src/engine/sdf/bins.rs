@@ -173,8 +173,14 @@ impl Bins {
                 (c, keys, per)
             })
             .collect();
-        let (counts, found): (Vec<Vec<usize>>, Vec<(Vec<u32>, Vec<u32>)>) =
-            found.into_iter().map(|(c, k, p)| (c, (k, p))).unzip();
+        let mut counts = Vec::with_capacity(found.len());
+        let found: Vec<(Vec<u32>, Vec<u32>)> = found
+            .into_iter()
+            .map(|(c, k, p)| {
+                counts.push(c);
+                (k, p)
+            })
+            .collect();
         let total = counts.iter().flatten().sum();
         let mut pairs = vec![0u64; total];
         let mut places: Vec<Vec<&mut [u64]>> = counts.iter().map(|_| Vec::new()).collect();
