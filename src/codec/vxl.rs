@@ -216,11 +216,7 @@ pub fn encode(
     out.extend_from_slice(&(json.len() as u32).to_le_bytes());
     out.extend_from_slice(&json);
     if let Some(len) = streamed {
-        let mut enc = zstd::Encoder::new(out, ZSTD_LEVEL).expect("zstd encoder");
-        enc.include_checksum(true).expect("zstd option");
-        enc.multithread(zstd_workers()).expect("zstd option");
-        enc.set_pledged_src_size(Some(len as u64))
-            .expect("zstd option");
+        let mut enc = streaming_encoder(out, len);
         match v {
             Volume::SparseDistance(s) => write_sparse(s, &mut enc),
             Volume::SparseMaterial(s) => write_sparse(s, &mut enc),
@@ -246,11 +242,7 @@ pub fn encode(
         out.truncate(start + n);
         return Ok(out);
     }
-    let mut enc = zstd::Encoder::new(out, ZSTD_LEVEL).expect("zstd encoder");
-    enc.include_checksum(true).expect("zstd option");
-    enc.multithread(zstd_workers()).expect("zstd option");
-    enc.set_pledged_src_size(Some(payload.len() as u64))
-        .expect("zstd option");
+    let mut enc = streaming_encoder(out, payload.len());
     std::io::Write::write_all(&mut enc, payload).expect("writing to memory");
     Ok(enc.finish().expect("writing to memory"))
 }
@@ -261,11 +253,18 @@ pub fn encode(
 /// front. Both make the same frame: content size and checksum included.
 const ONE_SHOT_MAX: usize = 4 << 20;
 
-/// Threads compressing a payload larger than [`ONE_SHOT_MAX`] (zstd's own, beside the
-/// caller's): one a core, at most four. zstd's multithreaded frames are the same bytes for any
+/// The encoder of a payload of `len` bytes larger than [`ONE_SHOT_MAX`], appending to `out`:
+/// content size and checksum, like the one-shot frames, compressed by zstd's own threads
+/// (beside the caller's: one a core, at most four). Its frames are the same bytes for any
 /// number of workers (its jobs do not depend on it), one frame any zstd decoder reads.
-fn zstd_workers() -> u32 {
-    std::thread::available_parallelism().map_or(1, |n| n.get().min(4) as u32)
+fn streaming_encoder(out: Vec<u8>, len: usize) -> zstd::Encoder<'static, Vec<u8>> {
+    let workers = std::thread::available_parallelism().map_or(1, |n| n.get().min(4) as u32);
+    let mut enc = zstd::Encoder::new(out, ZSTD_LEVEL).expect("zstd encoder");
+    enc.include_checksum(true).expect("zstd option");
+    enc.multithread(workers).expect("zstd option");
+    enc.set_pledged_src_size(Some(len as u64))
+        .expect("zstd option");
+    enc
 }
 
 thread_local! {

@@ -173,22 +173,14 @@ impl Bins {
                 (c, keys, per)
             })
             .collect();
-        let mut counts = Vec::with_capacity(found.len());
-        let found: Vec<(Vec<u32>, Vec<u32>)> = found
-            .into_iter()
-            .map(|(c, k, p)| {
-                counts.push(c);
-                (k, p)
-            })
-            .collect();
-        let total = counts.iter().flatten().sum();
+        let total = found.iter().flat_map(|f| &f.0).sum();
         let mut pairs = vec![0u64; total];
-        let mut places: Vec<Vec<&mut [u64]>> = counts.iter().map(|_| Vec::new()).collect();
+        let mut places: Vec<Vec<&mut [u64]>> = found.iter().map(|_| Vec::new()).collect();
         let mut slab_len = vec![0usize; slabs];
         {
             let mut rest = pairs.as_mut_slice();
             for s in 0..slabs {
-                for (c, count) in counts.iter().enumerate() {
+                for (c, (count, _, _)) in found.iter().enumerate() {
                     let (part, tail) = std::mem::take(&mut rest).split_at_mut(count[s]);
                     places[c].push(part);
                     rest = tail;
@@ -200,7 +192,7 @@ impl Bins {
             .into_par_iter()
             .zip(places.into_par_iter())
             .enumerate()
-            .for_each(|(c, ((keys, per), mut places))| {
+            .for_each(|(c, ((_, keys, per), mut places))| {
                 let mut at = vec![0usize; slabs];
                 let mut next = keys.iter();
                 for (j, &m) in per.iter().enumerate() {

@@ -141,29 +141,14 @@ impl<'a> Local<'a> {
             let g = [0, 1, 2].map(|a| p[a] as i64 + self.origin[a]);
             return lattice::distance2(g, self.tri);
         }
-        // Every candidate computed, the valid ones selected without a branch (which feature
-        // is nearest does not predict well); the same operations on the same values as
-        // lattice::distance2, so the same bits.
-        let mut best = f64::INFINITY;
-        let mut inside = self.nn > 0.0;
-        for i in 0..3 {
-            let w = sub(p, self.v[i]);
-            best = best.min(dot(w, w));
-            let wd = dot(w, self.e[i]);
-            let c = cross(w, self.e[i]);
-            let edge = dot(c, c) / self.ee[i];
-            let on_edge = (wd > 0.0) & (wd < self.ee[i]);
-            best = if on_edge { best.min(edge) } else { best };
-            inside &= dot(w, self.ne[i]) >= 0.0;
-        }
-        let q = dot(self.n, sub(p, self.v[0]));
-        let plane = q * q / self.nn;
-        if inside { best.min(plane) } else { best }
+        self.distance2_lanes(&[[p[0]], [p[1]], [p[2]]])[0]
     }
 
     /// [`Local::distance2`] at `L` points (`p[a][k]`: coordinate a of point k) of an exact
-    /// triangle ([`Local::exact`]): the same operations on the same values lane by lane, so
-    /// the same bits, in the shape that vectorizes.
+    /// triangle ([`Local::exact`]), in the shape that vectorizes: every candidate computed and
+    /// the valid ones selected without a branch (which feature is nearest does not predict
+    /// well); the same operations on the same values as `lattice::distance2`, lane by lane, so
+    /// the same bits.
     #[inline(always)]
     pub fn distance2_lanes<const L: usize>(&self, p: &[[f64; L]; 3]) -> [f64; L] {
         debug_assert!(self.exact);
@@ -239,7 +224,7 @@ mod tests {
                 let want = lattice::distance2(g, &tri);
                 assert_eq!(l.distance2(p).to_bits(), want.to_bits(), "{tri:?} at {g:?}");
             }
-            // The lanes, on eight scattered centres at a time, have the same bits too.
+            // Eight lanes at a time, on scattered centres, have the same bits too.
             if l.exact {
                 for first in (0..512).step_by(8) {
                     let at = |k: i64| (first + k * 67) % 512;
@@ -251,8 +236,9 @@ mod tests {
                     });
                     let got = l.distance2_lanes(&p);
                     for (k, d) in got.iter().enumerate() {
-                        let q = [p[0][k], p[1][k], p[2][k]];
-                        assert_eq!(d.to_bits(), l.distance2(q).to_bits(), "{tri:?} lane {k}");
+                        let g = [0, 1, 2].map(|a| p[a][k] as i64 + l.origin[a]);
+                        let want = lattice::distance2(g, &tri);
+                        assert_eq!(d.to_bits(), want.to_bits(), "{tri:?} lane {k}");
                     }
                 }
             }

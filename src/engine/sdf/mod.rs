@@ -188,9 +188,9 @@ pub fn sdf_with(
         diagnostics,
         &ctl.stage(0.0, 0.2),
     )?;
+    let solid_s = t0.elapsed().as_secs_f64();
     // The solid's signs by brick (a few MB), and the solid (1 GB at 2048³) dropped before the
     // distances take their memory.
-    let solid_s = t0.elapsed().as_secs_f64();
     let signs = Signs::new(&solid);
     drop(solid);
     let tris = lattice_triangles(mesh, grid, band.reach())?;
