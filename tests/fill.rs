@@ -264,6 +264,50 @@ fn winding_equals_parity_on_a_watertight_mesh() {
     assert_eq!(first_difference(&w, &p), None);
 }
 
+/// Closed shells that overlap (winding number 2 where two outward boxes meet) or are nested the
+/// other way round (an inward box inside an outward one: 0, a cavity): closed as chains, so
+/// the winding fill counts signed crossings alone, with no caps. Checked against the exact
+/// winding number at every voxel; parity, which sees 2 as outside, must differ somewhere.
+#[test]
+fn winding_counts_overlapping_and_nested_closed_shells() {
+    let mut parity_differs = 0;
+    for seed in 0..8u64 {
+        let mut rng = Rng::new(7700 + seed);
+        let dims = [0, 1, 2].map(|_| 14 + rng.below(8) as u32);
+        let (mut p, mut t) = (vec![], vec![]);
+        for b in 0..4 {
+            let lo = dims.map(|d| rng.range(1.0, 1.0 + d as f64 * 0.4));
+            let hi = [0, 1, 2].map(|a| rng.range(lo[a] + 2.0, dims[a] as f64 - 1.0));
+            let first = t.len();
+            push_box(&mut p, &mut t, lo, hi);
+            // Every other box inward (after the first): a cavity where it lies inside another.
+            if b % 2 == 1 {
+                for tri in &mut t[first..] {
+                    tri.swap(1, 2);
+                }
+            }
+        }
+        let mesh = Mesh::new(p, t).unwrap();
+        let g = unit_grid(dims);
+        let (got, stats) = solid(&CpuEngine, &mesh, &g, Fill::Winding).unwrap();
+        assert_eq!(
+            stats.unwrap().cap_triangles,
+            0,
+            "seed {seed}: closed shells need no caps"
+        );
+        let truth = exact_truth(&mesh, &g, all_voxels(dims), 0.01);
+        let wrong = disagreements(&got, &truth);
+        assert!(
+            wrong.is_empty(),
+            "seed {seed}: {:?}",
+            &wrong[..wrong.len().min(5)]
+        );
+        let parity = solid(&CpuEngine, &mesh, &g, Fill::Parity).unwrap().0;
+        parity_differs += disagreements(&parity, &truth).len();
+    }
+    assert!(parity_differs > 20, "{parity_differs}");
+}
+
 /// A fine sphere with single triangles (smaller than a voxel) removed: vote, flood and winding
 /// all agree with the exact winding number away from the surface; parity does not.
 #[test]

@@ -8,6 +8,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::Mesh;
+use super::edges::{edge_groups, sort_group};
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct MeshDiagnostics {
@@ -183,9 +184,9 @@ fn first_equal_by_sorting(positions: &[[f64; 3]]) -> (Vec<u32>, bool) {
 /// `ids` (below `n`; the indices themselves when `distinct`); an edge whose two ends are one
 /// vertex is no edge.
 ///
-/// Edges are bucketed by their lower end (counted, then placed: no sort of all of them), each
-/// bucket holding the higher ends, a few per vertex, sorted to count repeats. The range of lower
-/// ends is split among the threads; each goes through all triangles for its own edges.
+/// Edges are grouped by their lower end ([`edge_groups`]: counted, then placed, no sort of all of
+/// them), each group holding the higher ends, a few per vertex, sorted to count repeats. The
+/// range of lower ends is split among the threads.
 fn edge_counts(
     triangles: &[[u32; 3]],
     ids: &[u32],
@@ -208,71 +209,29 @@ fn edge_counts_by(
     n: usize,
     parts: usize,
 ) -> (usize, usize) {
-    let parts = parts.max(1);
-    let per = n.div_ceil(parts).max(1);
-    (0..parts)
-        .into_par_iter()
-        .map(|k| {
-            let (first, end) = ((k * per).min(n), ((k + 1) * per).min(n));
-            let mut start = vec![0usize; end - first + 1];
-            edges_from(triangles, id, first..end, |lo, _| start[lo + 1] += 1);
-            for i in 1..start.len() {
-                start[i] += start[i - 1];
-            }
-            // Placing an edge moves its bucket's start up by one: once all are placed, a
-            // bucket starts where the one before it did and ends where its own start is.
-            let mut higher = vec![0u32; start[end - first]];
-            edges_from(triangles, id, first..end, |lo, hi| {
-                higher[start[lo]] = hi;
-                start[lo] += 1;
-            });
-            let (mut boundary, mut non_manifold) = (0, 0);
-            let mut from = 0;
-            for &to in &start[..end - first] {
-                let bucket = &mut higher[from..to];
-                from = to;
-                // A few entries each (about six on a closed mesh): sorted by insertion here.
-                if bucket.len() <= 16 {
-                    for i in 1..bucket.len() {
-                        let mut j = i;
-                        while j > 0 && bucket[j - 1] > bucket[j] {
-                            bucket.swap(j - 1, j);
-                            j -= 1;
-                        }
-                    }
-                } else {
-                    bucket.sort_unstable();
-                }
-                for run in bucket.chunk_by(|a, b| a == b) {
-                    match run.len() {
-                        1 => boundary += 1,
-                        2 => {}
-                        _ => non_manifold += 1,
-                    }
+    // Each edge by its higher end; the edges of one group with the same higher end are one
+    // edge, used that many times.
+    let counts = edge_groups(
+        triangles,
+        id,
+        n,
+        parts,
+        |p, q| p.max(q),
+        || (0, 0),
+        |(boundary, non_manifold), _, group| {
+            sort_group(group);
+            for run in group.chunk_by(|a, b| a == b) {
+                match run.len() {
+                    1 => *boundary += 1,
+                    2 => {}
+                    _ => *non_manifold += 1,
                 }
             }
-            (boundary, non_manifold)
-        })
-        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
-}
-
-/// Calls `f(lower end - lower.start, higher end)` for every edge whose lower end is in `lower`.
-#[inline]
-fn edges_from(
-    triangles: &[[u32; 3]],
-    id: impl Fn(u32) -> u32,
-    lower: std::ops::Range<usize>,
-    mut f: impl FnMut(usize, u32),
-) {
-    for t in triangles {
-        let m = t.map(&id);
-        for (p, q) in [(m[0], m[1]), (m[1], m[2]), (m[2], m[0])] {
-            let lo = p.min(q) as usize;
-            if p != q && lower.contains(&lo) {
-                f(lo - lower.start, p.max(q));
-            }
-        }
-    }
+        },
+    );
+    counts
+        .into_iter()
+        .fold((0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
 }
 
 impl MeshDiagnostics {

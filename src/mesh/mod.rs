@@ -8,6 +8,7 @@ pub mod binary;
 pub mod cost;
 mod degenerate;
 mod diagnostics;
+mod edges;
 mod gltf;
 mod gltf_materials;
 mod obj;
@@ -27,6 +28,7 @@ use stream::Stream;
 pub use attributes::{Attributes, Material};
 pub use diagnostics::MeshDiagnostics;
 pub(crate) use diagnostics::merged_ids;
+pub(crate) use edges::{edge_groups, sort_group};
 
 /// Coordinates beyond this magnitude are refused: f64 has no sub-unit precision left there and
 /// such values are almost always garbage (uninitialised floats, unit mix-ups).

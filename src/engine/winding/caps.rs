@@ -8,20 +8,24 @@
 //! Not here: what the fill does with the caps (their hierarchy, [`super::trees`]; the intervals
 //! of their winding number, [`super::certifier`]).
 
-use rayon::prelude::*;
+use std::borrow::Cow;
 
-use crate::mesh::{Mesh, merged_ids};
+use crate::mesh::{Mesh, edge_groups, merged_ids, sort_group};
 
 /// The mesh closed by its caps ([`closing_caps`]: their apexes follow the mesh's positions, their
-/// triangles its triangles), and the caps.
-pub(super) fn closed_by_caps(mesh: &Mesh) -> (Mesh, Vec<[u32; 3]>) {
+/// triangles its triangles), and the caps. A mesh that needs none (closed, its edges' uses
+/// cancelling) is itself, not a copy.
+pub(super) fn closed_by_caps(mesh: &Mesh) -> (Cow<'_, Mesh>, Vec<[u32; 3]>) {
     let (apexes, caps) = closing_caps(mesh);
+    if caps.is_empty() && apexes.is_empty() {
+        return (Cow::Borrowed(mesh), caps);
+    }
     let mut positions = mesh.positions().to_vec();
     positions.extend_from_slice(&apexes);
     let mut triangles = mesh.triangles().to_vec();
     triangles.extend_from_slice(&caps);
     let closed = Mesh::new(positions, triangles).expect("caps index the mesh's own positions");
-    (closed, caps)
+    (Cow::Owned(closed), caps)
 }
 
 /// Triangles (and their apex positions, to be appended after the mesh's positions) whose boundary
@@ -35,30 +39,41 @@ pub fn closing_caps(mesh: &Mesh) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
             rep[id as usize] = i as u32;
         }
     }
-    // Directed edges as (low, high, ±1), summed per undirected edge.
-    let mut edges: Vec<(u64, i32)> = mesh
-        .triangles()
-        .par_iter()
-        .flat_map_iter(|t| {
-            let m = t.map(|i| ids[i as usize]);
-            [(m[0], m[1]), (m[1], m[2]), (m[2], m[0])]
-                .into_iter()
-                .filter(|(a, b)| a != b)
-                .map(|(a, b)| {
-                    let key = ((a.min(b) as u64) << 32) | a.max(b) as u64;
-                    (key, if a < b { 1 } else { -1 })
-                })
-        })
-        .collect();
-    edges.par_sort_unstable_by_key(|e| e.0);
-    // The boundary chain as directed edges with multiplicity, in an adjacency list.
+    // The directed uses of each undirected edge, summed: grouped by the lower end
+    // ([`edge_groups`]), each entry the higher end and one bit for the direction (set: from the
+    // higher end), so that sorting a group puts an edge's uses together.
+    let n = rep.len();
+    let parts = if mesh.triangles().len() < 1 << 16 {
+        1
+    } else {
+        rayon::current_num_threads()
+    };
+    let chains = edge_groups(
+        mesh.triangles(),
+        |i| ids[i as usize],
+        n,
+        parts,
+        |p, q| (u64::from(p.max(q)) << 1) | u64::from(p > q),
+        Vec::new,
+        |chain: &mut Vec<(u32, u32, u32)>, lo, group| {
+            sort_group(group);
+            for run in group.chunk_by(|a, b| a >> 1 == b >> 1) {
+                let back = run.iter().map(|e| (e & 1) as i64).sum::<i64>();
+                let net = run.len() as i64 - 2 * back;
+                let hi = (run[0] >> 1) as u32;
+                if net != 0 {
+                    let (from, to) = if net > 0 { (lo, hi) } else { (hi, lo) };
+                    chain.push((from, to, net.unsigned_abs() as u32));
+                }
+            }
+        },
+    );
+    // The boundary chain as directed edges with multiplicity, in an adjacency list (in the
+    // order of (lower, higher) end).
     let mut out: std::collections::HashMap<u32, Vec<u32>> = std::collections::HashMap::new();
     let mut remaining = 0usize;
-    for run in edges.chunk_by(|a, b| a.0 == b.0) {
-        let net: i32 = run.iter().map(|e| e.1).sum();
-        let (lo, hi) = ((run[0].0 >> 32) as u32, run[0].0 as u32);
-        let (from, to) = if net > 0 { (lo, hi) } else { (hi, lo) };
-        for _ in 0..net.unsigned_abs() {
+    for &(from, to, times) in chains.iter().flatten() {
+        for _ in 0..times {
             out.entry(from).or_default().push(to);
             remaining += 1;
         }

@@ -431,6 +431,25 @@ fn count_crossings(
         if count.check().is_err() {
             return;
         }
+        if block_codes.is_empty() {
+            // Nothing decided by blocks (a closed mesh): inside ⇔ N ≠ 0, set a run of voxels
+            // between two crossings at a time.
+            for y in 0..ny {
+                let out = &mut words[y as usize * wpc..(y as usize + 1) * wpc];
+                let (mut n, mut from) = (0, 0);
+                for &(k, s) in crossings.column(y) {
+                    if n != 0 {
+                        set_run(out, from, k as u32);
+                    }
+                    n += s;
+                    from = k as u32;
+                }
+                if n != 0 {
+                    set_run(out, from, nz);
+                }
+            }
+            return;
+        }
         let bx = x / BLOCK;
         let mut run = [0i32; BLOCK as usize];
         for y in 0..ny {
@@ -484,4 +503,22 @@ fn count_crossings(
             }
         }
     })
+}
+
+/// Sets bits `lo..hi` of a column's words.
+fn set_run(words: &mut [u64], lo: u32, hi: u32) {
+    if lo >= hi {
+        return;
+    }
+    let (lo, hi) = (lo as usize, hi as usize);
+    let (first, last) = (lo / 64, (hi - 1) / 64);
+    let head = u64::MAX << (lo % 64);
+    let tail = u64::MAX >> (63 - (hi - 1) % 64);
+    if first == last {
+        words[first] |= head & tail;
+    } else {
+        words[first] |= head;
+        words[first + 1..last].fill(u64::MAX);
+        words[last] |= tail;
+    }
 }
