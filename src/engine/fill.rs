@@ -156,7 +156,18 @@ pub fn voxelize_with(
     // The surface of conservative and interior is the cheap part.
     let with_surface = matches!(method, Method::Conservative | Method::Interior);
     let split = if with_surface { 0.9 } else { 1.0 };
-    let (mut s, stats) = solid_with(engine, mesh, grid, report.used, &ctl.stage(0.0, split))?;
+    // The diagnosis says whether the winding fill's caps are needed (it counts the edges they
+    // would close).
+    let known_closed = diagnostics.unoriented_edges == Some(0)
+        && diagnostics.triangles == mesh.triangles().len();
+    let (mut s, stats) = solid_inner(
+        engine,
+        mesh,
+        grid,
+        report.used,
+        known_closed,
+        &ctl.stage(0.0, split),
+    )?;
     report.winding = stats;
     if with_surface {
         engine.apply_surface(
@@ -189,6 +200,18 @@ pub fn solid_with(
     fill: Fill,
     ctl: &Control,
 ) -> Result<(BitVolume, Option<WindingStats>), EngineError> {
+    solid_inner(engine, mesh, grid, fill, false, ctl)
+}
+
+/// [`solid_with`]; `known_closed`: the mesh needs no caps to close it (for the winding fill).
+fn solid_inner(
+    engine: &dyn Engine,
+    mesh: &Mesh,
+    grid: &Grid,
+    fill: Fill,
+    known_closed: bool,
+    ctl: &Control,
+) -> Result<(BitVolume, Option<WindingStats>), EngineError> {
     ctl.check()?;
     let out = match fill {
         Fill::Parity => (
@@ -205,7 +228,11 @@ pub fn solid_with(
             (flood_with(&surface, &ctl.stage(0.5, 1.0))?, None)
         }
         Fill::Winding | Fill::Auto => {
-            let (v, stats) = winding::solid_with(mesh, grid, ctl)?;
+            let (v, stats) = if known_closed {
+                winding::solid_of_closed_with(mesh, grid, ctl)?
+            } else {
+                winding::solid_with(mesh, grid, ctl)?
+            };
             (v, Some(stats))
         }
     };

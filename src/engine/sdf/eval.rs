@@ -181,8 +181,11 @@ fn lower_local(
                 // Compacted: the passing voxels' indices appended without a branch each (all
                 // eight lanes written, the count advanced by the passing ones).
                 let offs = &SPREAD[pass as usize];
+                let dst: &mut [u16; 8] = (&mut idx[cnt..cnt + 8])
+                    .try_into()
+                    .expect("idx keeps eight spare entries");
                 for k in 0..8 {
-                    idx[cnt + k] = base as u16 + u16::from(offs[k]);
+                    dst[k] = base as u16 + u16::from(offs[k]);
                 }
                 cnt += pass.count_ones() as usize;
                 hit |= u64::from(pass != 0) << row;

@@ -98,26 +98,43 @@ impl<'a> Local<'a> {
     /// voxel `8·at`).
     #[inline(always)]
     pub fn new(tri: &'a [[i32; 3]; 3], plane: &Plane, at: [u32; 3]) -> Local<'a> {
-        let origin = at.map(|c| i64::from(c * BRICK) * FIXED_ONE + FIXED_HALF);
-        let rel = tri.map(|p| [0, 1, 2].map(|a| i64::from(p[a]) - origin[a]));
+        // Written out with loops rather than nested `map`s: the compiler left those as calls,
+        // and this runs once per (brick, triangle) pair (millions of them).
+        let mut origin = [0i64; 3];
+        let mut rel = [[0i64; 3]; 3];
+        let mut v = [[0.0f64; 3]; 3];
+        for a in 0..3 {
+            origin[a] = i64::from(at[a] * BRICK) * FIXED_ONE + FIXED_HALF;
+            for c in 0..3 {
+                rel[c][a] = i64::from(tri[c][a]) - origin[a];
+                v[c][a] = rel[c][a] as f64;
+            }
+        }
         let span = (i64::from(BRICK) - 1) * FIXED_ONE;
-        let exact = (0..3).all(|a| {
-            let lo = rel.iter().map(|p| p[a]).min().unwrap_or(0).min(0);
-            let hi = rel.iter().map(|p| p[a]).max().unwrap_or(0).max(span);
-            hi - lo <= D
-        });
-        let v = rel.map(|p| p.map(|c| c as f64));
-        let lo = [0, 1, 2].map(|a| v[0][a].min(v[1][a]).min(v[2][a]));
-        let hi = [0, 1, 2].map(|a| v[0][a].max(v[1][a]).max(v[2][a]));
+        let (mut lo, mut hi) = ([0.0f64; 3], [0.0f64; 3]);
+        let mut exact = true;
+        for a in 0..3 {
+            let rlo = rel[0][a].min(rel[1][a]).min(rel[2][a]);
+            let rhi = rel[0][a].max(rel[1][a]).max(rel[2][a]);
+            exact &= rhi.max(span) - rlo.min(0) <= D;
+            lo[a] = v[0][a].min(v[1][a]).min(v[2][a]);
+            hi[a] = v[0][a].max(v[1][a]).max(v[2][a]);
+        }
         let nf = plane.n;
-        let e = [0, 1, 2].map(|i| sub(v[(i + 1) % 3], v[i]));
+        let mut e = [[0.0f64; 3]; 3];
+        let (mut ee, mut ne) = ([0.0f64; 3], [[0.0f64; 3]; 3]);
+        for i in 0..3 {
+            e[i] = sub(v[(i + 1) % 3], v[i]);
+            ee[i] = dot(e[i], e[i]);
+            ne[i] = cross(nf, e[i]);
+        }
         Local {
             tri,
             origin,
             v,
             e,
-            ee: e.map(|x| dot(x, x)),
-            ne: e.map(|x| cross(nf, x)),
+            ee,
+            ne,
             n: nf,
             nn: plane.nn,
             lo,

@@ -177,7 +177,17 @@ pub fn solid_with(
     grid: &Grid,
     ctl: &Control,
 ) -> Result<(BitVolume, WindingStats), EngineError> {
-    solid_impl(mesh, grid, ctl, true)
+    solid_impl(mesh, grid, ctl, true, false)
+}
+
+/// [`solid_with`] for a mesh known to need no caps (its diagnosis counts no unoriented edge:
+/// closed, every edge used as often in each direction), which skips looking for them.
+pub fn solid_of_closed_with(
+    mesh: &Mesh,
+    grid: &Grid,
+    ctl: &Control,
+) -> Result<(BitVolume, WindingStats), EngineError> {
+    solid_impl(mesh, grid, ctl, true, true)
 }
 
 /// How the voxels of one `BLOCK`³ block are decided.
@@ -234,7 +244,8 @@ struct Decided {
     counts: [u64; 6],
 }
 
-/// [`solid_with`]; `blocks` off decides every voxel near the caps one by one (the tests compare).
+/// [`solid_with`]; `blocks` off decides every voxel near the caps one by one (the tests compare);
+/// `known_closed`: the mesh needs no caps (not looked for).
 /// The phases, in order: close the mesh by its caps, certify the blocks ([`certify_blocks`]),
 /// settle the voxels at a cap's tie by the mesh's own winding number ([`settle_ties`]), count
 /// the crossings and apply the decisions ([`count_crossings`]).
@@ -243,6 +254,7 @@ fn solid_impl(
     grid: &Grid,
     ctl: &Control,
     blocks: bool,
+    known_closed: bool,
 ) -> Result<(BitVolume, WindingStats), EngineError> {
     // Shares of the progress: certifying blocks (and evaluating the voxels that need it), the
     // tie voxels, the counting pass.
@@ -251,7 +263,11 @@ fn solid_impl(
         ctl.stage(0.8, 0.85),
         ctl.stage(0.85, 1.0),
     );
-    let (closed, caps) = closed_by_caps(mesh);
+    let (closed, caps) = if known_closed {
+        (std::borrow::Cow::Borrowed(mesh), Vec::new())
+    } else {
+        closed_by_caps(mesh)
+    };
     let gm = GridMesh::new(&closed, grid)?;
     let nb = grid.dims.map(|d| d.div_ceil(BLOCK));
     let mut decided = Decided::default();

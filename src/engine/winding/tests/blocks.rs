@@ -22,8 +22,8 @@ fn blocks_decide_as_voxel_by_voxel_evaluation_does() {
         .iter()
         .flat_map(|&g| holey_meshes().into_iter().map(move |m| (g, m)));
     for (i, (grid, mesh)) in cases.enumerate() {
-        let (a, sa) = solid_impl(&mesh, &grid, &Control::none(), true).unwrap();
-        let (b, sb) = solid_impl(&mesh, &grid, &Control::none(), false).unwrap();
+        let (a, sa) = solid_impl(&mesh, &grid, &Control::none(), true, false).unwrap();
+        let (b, sb) = solid_impl(&mesh, &grid, &Control::none(), false, false).unwrap();
         assert_eq!(sa.voxels(), grid.voxel_count());
         assert_eq!(sb.voxels(), grid.voxel_count());
         assert_eq!(sb.cap_block_voxels + sb.mesh_block_voxels, 0);
