@@ -158,8 +158,8 @@ pub fn voxelize_with(
     let split = if with_surface { 0.9 } else { 1.0 };
     // The diagnosis says whether the winding fill's caps are needed (it counts the edges they
     // would close).
-    let known_closed = diagnostics.unoriented_edges == Some(0)
-        && diagnostics.triangles == mesh.triangles().len();
+    let known_closed =
+        diagnostics.unoriented_edges == Some(0) && diagnostics.triangles == mesh.triangles().len();
     let (mut s, stats) = solid_inner(
         engine,
         mesh,
