@@ -423,6 +423,16 @@ mod tests {
             (4, 0, 0, 0)
         );
         assert!(d.watertight);
+        assert_eq!(d.unoriented_edges, Some(0));
+        // One face flipped: still watertight, but its three edges are used twice the same way.
+        let m = Mesh::new(
+            m.positions.clone(),
+            vec![[0, 1, 2], [4, 1, 3], [0, 3, 2], [1, 2, 3]],
+        )
+        .unwrap();
+        let d = m.diagnostics();
+        assert!(d.watertight);
+        assert_eq!(d.unoriented_edges, Some(3));
     }
 
     #[test]
@@ -442,6 +452,8 @@ mod tests {
         assert_eq!(d.boundary_edges, 8);
         assert_eq!(d.degenerate_triangles, 1);
         assert!(!d.watertight);
+        // The eight boundary edges, and 0-1: four uses from 0.
+        assert_eq!(d.unoriented_edges, Some(9));
     }
 
     /// Random meshes made to have what the diagnosis counts: coordinates from a few values

@@ -21,6 +21,9 @@ class VolumeDiagnosticsType0:
         boundary_edges (int | Unset):
         non_manifold_edges (int | Unset):
         watertight (bool | Unset):
+        unoriented_edges (int | Unset): edges their triangles do not use as often in one direction as in the other
+            (boundary edges, edges between triangles of opposite orientation); 0 on a closed, consistently oriented mesh;
+            absent from volumes made before it was counted
         bbox_min (list[float] | Unset):
         bbox_max (list[float] | Unset):
         dropped_triangles (int | Unset): degenerate triangles (a repeated vertex or position) dropped at load as copies
@@ -33,6 +36,7 @@ class VolumeDiagnosticsType0:
     boundary_edges: int | Unset = UNSET
     non_manifold_edges: int | Unset = UNSET
     watertight: bool | Unset = UNSET
+    unoriented_edges: int | Unset = UNSET
     bbox_min: list[float] | Unset = UNSET
     bbox_max: list[float] | Unset = UNSET
     dropped_triangles: int | Unset = UNSET
@@ -50,6 +54,8 @@ class VolumeDiagnosticsType0:
         non_manifold_edges = self.non_manifold_edges
 
         watertight = self.watertight
+
+        unoriented_edges = self.unoriented_edges
 
         bbox_min: list[float] | Unset = UNSET
         if not isinstance(self.bbox_min, Unset):
@@ -76,6 +82,8 @@ class VolumeDiagnosticsType0:
             field_dict["non_manifold_edges"] = non_manifold_edges
         if watertight is not UNSET:
             field_dict["watertight"] = watertight
+        if unoriented_edges is not UNSET:
+            field_dict["unoriented_edges"] = unoriented_edges
         if bbox_min is not UNSET:
             field_dict["bbox_min"] = bbox_min
         if bbox_max is not UNSET:
@@ -100,6 +108,8 @@ class VolumeDiagnosticsType0:
 
         watertight = d.pop("watertight", UNSET)
 
+        unoriented_edges = d.pop("unoriented_edges", UNSET)
+
         bbox_min = cast(list[float], d.pop("bbox_min", UNSET))
 
         bbox_max = cast(list[float], d.pop("bbox_max", UNSET))
@@ -113,6 +123,7 @@ class VolumeDiagnosticsType0:
             boundary_edges=boundary_edges,
             non_manifold_edges=non_manifold_edges,
             watertight=watertight,
+            unoriented_edges=unoriented_edges,
             bbox_min=bbox_min,
             bbox_max=bbox_max,
             dropped_triangles=dropped_triangles,
