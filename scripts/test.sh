@@ -78,8 +78,10 @@ TARGET=${CARGO_TARGET_DIR:-target}
 cargo fmt --all -- --check
 cargo clippy --locked --all-targets --quiet -- -D warnings
 # The CPU-only build (features gpu, s3 and redis off: no wgpu, object_store or redis) must keep
-# compiling; built once here, before the tests build the default binary.
-cargo build --locked --no-default-features --quiet
+# compiling: checked (type-checked, no code generated), which keeps its own copies of the
+# dependencies to metadata and leaves the disk to the tests (SeaweedFS takes no writes with under
+# 1% of it free).
+cargo check --locked --no-default-features --all-targets --quiet
 # --show-output: skip notices (e.g. ../shared/meshes absent) stay visible. fault-injection: the
 # crash test (tests/crash.rs) aborts the server inside store writes (VOXD_FAULT; inert otherwise).
 # The free space of the scratch directory and of the target directory, for a failure that
