@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::Mesh;
-use super::edges::{edge_groups, sort_group};
+use super::edges::{EdgeUses, edge_groups, threads_for};
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct MeshDiagnostics {
@@ -76,17 +76,6 @@ pub(crate) fn merged_ids(mesh: &Mesh) -> Vec<u32> {
 /// classes found by sorting instead: the same ids, in O(n log n) whatever the positions.
 fn first_equal(positions: &[[f64; 3]], parts: Option<usize>) -> (Vec<u32>, bool) {
     first_equal_within(positions, 16, parts)
-}
-
-/// The threads a diagnosis pass over `items` positions or triangles is split among: one below
-/// 64 Ki items, since each part goes through all of them, so splitting a small mesh among
-/// threads that are busy with other meshes (a service's small jobs) only multiplies the work.
-fn threads_for(items: usize) -> usize {
-    if items < 1 << 16 {
-        1
-    } else {
-        rayon::current_num_threads()
-    }
 }
 
 /// [`first_equal`], falling back to sorting once a part probes more than `budget` slots per
@@ -191,8 +180,7 @@ fn first_equal_by_sorting(positions: &[[f64; 3]]) -> (Vec<u32>, bool) {
 /// indices themselves when `distinct`); an edge whose two ends are one vertex is no edge.
 ///
 /// Edges are grouped by their lower end ([`edge_groups`]: counted, then placed, no sort of all of
-/// them), each group holding the higher ends (and the direction of each use), a few per vertex,
-/// sorted to count repeats. The range of lower ends is split among the threads.
+/// them), the range of lower ends split among the threads.
 fn edge_counts(
     triangles: &[[u32; 3]],
     ids: &[u32],
@@ -200,43 +188,27 @@ fn edge_counts(
     n: usize,
     parts: Option<usize>,
 ) -> (usize, usize, usize) {
-    // One part per thread; one for a small mesh (`parts` overrides, for the tests).
-    let parts = parts.unwrap_or_else(|| threads_for(triangles.len()));
-    if distinct {
-        edge_counts_by(triangles, |i| i, n, parts)
+    let count = |(boundary, non_manifold, unoriented): &mut (usize, usize, usize), e: EdgeUses| {
+        match e.uses {
+            1 => *boundary += 1,
+            2 => {}
+            _ => *non_manifold += 1,
+        }
+        *unoriented += usize::from(e.net != 0);
+    };
+    // `parts` overrides the split, for the tests.
+    let counts = if distinct {
+        edge_groups(triangles, |i| i, n, parts, || (0, 0, 0), count)
     } else {
-        edge_counts_by(triangles, |i| ids[i as usize], n, parts)
-    }
-}
-
-fn edge_counts_by(
-    triangles: &[[u32; 3]],
-    id: impl Fn(u32) -> u32 + Copy + Sync,
-    n: usize,
-    parts: usize,
-) -> (usize, usize, usize) {
-    // Each use of an edge by its higher end and a bit for its direction (set: from the higher
-    // end); the uses of one group with the same higher end are one edge.
-    let counts = edge_groups(
-        triangles,
-        id,
-        n,
-        parts,
-        |p, q| (u64::from(p.max(q)) << 1) | u64::from(p > q),
-        || (0, 0, 0),
-        |(boundary, non_manifold, unoriented), _, group| {
-            sort_group(group);
-            for run in group.chunk_by(|a, b| a >> 1 == b >> 1) {
-                match run.len() {
-                    1 => *boundary += 1,
-                    2 => {}
-                    _ => *non_manifold += 1,
-                }
-                let back = run.iter().filter(|&&e| e & 1 == 1).count();
-                *unoriented += usize::from(2 * back != run.len());
-            }
-        },
-    );
+        edge_groups(
+            triangles,
+            |i| ids[i as usize],
+            n,
+            parts,
+            || (0, 0, 0),
+            count,
+        )
+    };
     counts
         .into_iter()
         .fold((0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2))

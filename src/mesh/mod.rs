@@ -28,7 +28,7 @@ use stream::Stream;
 pub use attributes::{Attributes, Material};
 pub use diagnostics::MeshDiagnostics;
 pub(crate) use diagnostics::merged_ids;
-pub(crate) use edges::{edge_groups, sort_group};
+pub(crate) use edges::edge_groups;
 
 /// Coordinates beyond this magnitude are refused: f64 has no sub-unit precision left there and
 /// such values are almost always garbage (uninitialised floats, unit mix-ups).

@@ -10,7 +10,7 @@
 
 use std::borrow::Cow;
 
-use crate::mesh::{Mesh, edge_groups, merged_ids, sort_group};
+use crate::mesh::{Mesh, edge_groups, merged_ids};
 
 /// The mesh closed by its caps ([`closing_caps`]: their apexes follow the mesh's positions, their
 /// triangles its triangles), and the caps. A mesh that needs none (closed, its edges' uses
@@ -39,32 +39,22 @@ pub fn closing_caps(mesh: &Mesh) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
             rep[id as usize] = i as u32;
         }
     }
-    // The directed uses of each undirected edge, summed: grouped by the lower end
-    // ([`edge_groups`]), each entry the higher end and one bit for the direction (set: from the
-    // higher end), so that sorting a group puts an edge's uses together.
-    let n = rep.len();
-    let parts = if mesh.triangles().len() < 1 << 16 {
-        1
-    } else {
-        rayon::current_num_threads()
-    };
+    // The directed uses of each undirected edge, summed ([`edge_groups`]): those whose uses do
+    // not cancel are the boundary chain.
     let chains = edge_groups(
         mesh.triangles(),
         |i| ids[i as usize],
-        n,
-        parts,
-        |p, q| (u64::from(p.max(q)) << 1) | u64::from(p > q),
+        rep.len(),
+        None,
         Vec::new,
-        |chain: &mut Vec<(u32, u32, u32)>, lo, group| {
-            sort_group(group);
-            for run in group.chunk_by(|a, b| a >> 1 == b >> 1) {
-                let back = run.iter().map(|e| (e & 1) as i64).sum::<i64>();
-                let net = run.len() as i64 - 2 * back;
-                let hi = (run[0] >> 1) as u32;
-                if net != 0 {
-                    let (from, to) = if net > 0 { (lo, hi) } else { (hi, lo) };
-                    chain.push((from, to, net.unsigned_abs() as u32));
-                }
+        |chain: &mut Vec<(u32, u32, u32)>, e| {
+            if e.net != 0 {
+                let (from, to) = if e.net > 0 {
+                    (e.lo, e.hi)
+                } else {
+                    (e.hi, e.lo)
+                };
+                chain.push((from, to, e.net.unsigned_abs() as u32));
             }
         },
     );
