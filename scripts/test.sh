@@ -82,11 +82,11 @@ cargo clippy --locked --all-targets --quiet -- -D warnings
 # dependencies to metadata and leaves the disk to the tests (SeaweedFS takes no writes with under
 # 1% of it free).
 cargo check --locked --no-default-features --all-targets --quiet
-# --show-output: skip notices (e.g. ../shared/meshes absent) stay visible. fault-injection: the
-# crash test (tests/crash.rs) aborts the server inside store writes (VOXD_FAULT; inert otherwise).
 # The free space of the scratch directory and of the target directory, for a failure that
 # comes from a full disk (SeaweedFS, for one, takes no writes with under 1% free).
-df -h "${TMPDIR:-/tmp}" target | sed 's/^/disk: /'
+df -h "${TMPDIR:-/tmp}" "$TARGET" | sed 's/^/disk: /'
+# --show-output: skip notices (e.g. ../shared/meshes absent) stay visible. fault-injection: the
+# crash test (tests/crash.rs) aborts the server inside store writes (VOXD_FAULT; inert otherwise).
 cargo test --locked --features fault-injection -- --show-output
 ./scripts/fuzz.sh 15    # every fuzz target of fuzz/ for 15 s
 # The contract check runs the binary `cargo test` built (fault injection is inert without

@@ -326,48 +326,42 @@ fn band_brick_body(
     let mask = signs.mask(at);
     let (any_in, all_in) = signs.brick(at);
     let rf = r as f64;
+    // `distance` is within 2⁻⁵⁰ of the exact value: far from r, the f64 decides.
     let (near_lo, near_hi) = (rf * (1.0 - 1e-9), rf * (1.0 + 1e-9));
+    let value = |in_band: bool, inside: bool, d: f64| {
+        let out = if in_band {
+            (d * scale) as f32
+        } else {
+            background
+        };
+        if inside { -out } else { out }
+    };
     let mut values = Box::new([background; BRICK_VOXELS]);
     // Every voxel as if the f64 decided its band (no branch: this vectorizes), counting those
-    // it cannot decide; they are few (a billionth of the band's width from its edge) and are
-    // settled exactly after. Voxels beyond the grid (a brick at its far faces) stay background.
+    // it cannot decide: they are few (a billionth of the band's width from its edge) and are
+    // settled exactly after, with the voxels beyond the grid (a brick at its far faces: never
+    // lowered, so never in band), which stay background.
     let mut any_band = false;
     let mut undecided = 0u32;
     for i in 0..BRICK_VOXELS {
-        let inside = Signs::inside(&mask, i);
         let d = best2[i].sqrt();
         let in_band = d < near_lo;
         undecided += u32::from((d >= near_lo) & (d <= near_hi));
         any_band |= in_band;
-        let dv = (d * scale) as f32;
-        let out = if in_band { dv } else { background };
-        values[i] = if inside { -out } else { out };
+        values[i] = value(in_band, Signs::inside(&mask, i), d);
     }
-    let whole = n == [BRICK; 3];
-    if !whole || undecided > 0 {
-        any_band = false;
+    if undecided > 0 || n != [BRICK; 3] {
         for (i, &b2) in best2.iter().enumerate() {
             let Some(vx) = voxel(at, i, dims) else {
                 values[i] = background;
                 continue;
             };
-            let inside = Signs::inside(&mask, i);
             let d = b2.sqrt();
-            // `distance` is within 2⁻⁵⁰ of the exact value: far from r, the f64 decides.
-            let in_band = if d < near_lo {
-                true
-            } else if d > near_hi {
-                false
-            } else {
-                in_band_exact(tris, list, centre(vx), r)
-            };
-            any_band |= in_band;
-            values[i] = match (in_band, inside) {
-                (true, false) => (d * scale) as f32,
-                (true, true) => (-(d * scale)) as f32,
-                (false, false) => background,
-                (false, true) => -background,
-            };
+            if (d >= near_lo) & (d <= near_hi) {
+                let in_band = in_band_exact(tris, list, centre(vx), r);
+                any_band |= in_band;
+                values[i] = value(in_band, Signs::inside(&mask, i), d);
+            }
         }
     }
     if any_band || (any_in && !all_in) {
