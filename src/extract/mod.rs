@@ -23,6 +23,7 @@ pub mod marching_cubes;
 pub mod measure;
 mod pinches;
 pub mod qef;
+mod relax;
 mod slabs;
 pub mod surface_nets;
 mod untangle;

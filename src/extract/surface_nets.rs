@@ -39,9 +39,6 @@ const RUN_FACES: usize = 1 << 17;
 /// Rounds of constrained relaxation for bit volumes.
 pub const RELAX: usize = 12;
 
-/// Taubin's λ and μ (λ = 0.5, 1/λ + 1/μ = 0.1: the pass band of his paper's examples).
-const TAUBIN: (f64, f64) = (0.5, -0.5263157894736842);
-
 /// The scalar field a mesh is taken from: inside voxels, and for distance and density volumes
 /// a value per voxel whose zero is the surface (negative inside).
 pub struct Field<'a> {
@@ -558,7 +555,8 @@ pub(super) fn corners_by_vertex(n: usize, quads: &[[u32; 4]]) -> (Vec<u32>, Vec<
 }
 
 /// Gibson's constrained relaxation: `rounds` times, every vertex to the mean of its quad
-/// neighbours, clamped to its dual cell (the unit cube about its lattice point) shrunk by 1/16.
+/// neighbours, clamped to its dual cell (the unit cube about its lattice point) shrunk by 1/16
+/// (run by `relax::relax`).
 fn relax(
     positions: &mut [[f64; 3]],
     quads: &[[u32; 4]],
@@ -566,93 +564,33 @@ fn relax(
     rounds: usize,
     ctl: &Control,
 ) -> Result<(), Canceled> {
-    let n = positions.len();
-    let (start, corners) = corners_by_vertex(n, quads);
-    // Each neighbour once: the mesh is closed and consistently oriented, so each edge v → w
-    // is in exactly one quad.
-    let adj: Vec<u32> = corners
-        .iter()
-        .map(|&c| quads[c as usize / 4][(c as usize % 4 + 1) % 4])
-        .collect();
-    // The sum of each vertex's neighbours' lattice points less its own (the neighbours are
-    // in the next cells: −1, 0 or 1 on each axis, and a vertex has at most 12 of them), as
-    // bytes: a quarter of f32s' memory traffic in the passes.
-    let mut steps = vec![[0i8; 4]; n];
-    for (v, step) in steps.iter_mut().enumerate() {
-        for &w in &adj[start[v] as usize..start[v + 1] as usize] {
-            for k in 0..3 {
-                step[k] += (i64::from(cells[w as usize][k]) - i64::from(cells[v][k])) as i8;
-            }
-        }
-    }
-    let counter = ctl.counter(rounds as u64);
+    let t0 = std::time::Instant::now();
+    let graph = super::relax::Graph::of(quads, cells);
     // The rounds work on each vertex's offset from its lattice point, in f32: half the memory
-    // traffic of f64 positions (the passes are bound by it), with a rounding error of at most
-    // 2⁻²⁴ voxel per step, whatever the grid's size.
-    let m = 0.5f32 - 1.0 / 16.0;
+    // traffic of f64 positions, with a rounding error of at most 2⁻²⁴ voxel per step, whatever
+    // the grid's size.
     let mut now: Vec<[f32; 4]> = positions
         .iter()
         .zip(cells)
         .map(|(p, c)| {
-            [0, 1, 2, 3].map(|k| {
-                if k < 3 {
-                    (p[k] - f64::from(c[k])) as f32
-                } else {
-                    0.0
-                }
-            })
+            [
+                (p[0] - f64::from(c[0])) as f32,
+                (p[1] - f64::from(c[1])) as f32,
+                (p[2] - f64::from(c[2])) as f32,
+                0.0,
+            ]
         })
         .collect();
-    let mut next = vec![[0.0f32; 4]; n];
-    // Vertices per parallel task: enough to make a task's overhead small.
-    const CHUNK: usize = 8192;
-    const INVERSE: [f32; 16] = {
-        let mut t = [0.0f32; 16];
-        let mut i = 1;
-        while i < 16 {
-            t[i] = 1.0 / i as f32;
-            i += 1;
-        }
-        t
-    };
-    for _ in 0..rounds {
-        counter.check()?;
-        // Taubin's pair of steps: towards the neighbours' mean (λ), then away from it (μ), so
-        // that the surface is smoothed without shrinking.
-        for factor in [TAUBIN.0 as f32, TAUBIN.1 as f32] {
-            let (now_ref, adj, steps, start) = (&now, &adj, &steps, &start);
-            next.par_chunks_mut(CHUNK)
-                .enumerate()
-                .for_each(|(chunk, out)| {
-                    let first = chunk * CHUNK;
-                    for (j, out) in out.iter_mut().enumerate() {
-                        let v = first + j;
-                        let (lo, hi) = (start[v] as usize, start[v + 1] as usize);
-                        // The neighbours' offsets, plus their lattice points' from this one's.
-                        let mut s = steps[v].map(f32::from);
-                        for &w in &adj[lo..hi] {
-                            let p = now_ref[w as usize];
-                            for k in 0..4 {
-                                s[k] += p[k];
-                            }
-                        }
-                        // 1/valence from a table: a division per vertex stalled the pass.
-                        let inv = INVERSE
-                            .get(hi - lo)
-                            .copied()
-                            .unwrap_or(1.0 / (hi - lo) as f32);
-                        let p = now_ref[v];
-                        out[0] = (p[0] + factor * (s[0] * inv - p[0])).clamp(-m, m);
-                        out[1] = (p[1] + factor * (s[1] * inv - p[1])).clamp(-m, m);
-                        out[2] = (p[2] + factor * (s[2] * inv - p[2])).clamp(-m, m);
-                    }
-                });
-            std::mem::swap(&mut now, &mut next);
-        }
-        counter.add(1);
-    }
+    let t1 = std::time::Instant::now();
+    let threads = rayon::current_num_threads();
+    super::relax::relax(&graph, &mut now, rounds, threads, ctl)?;
     for ((p, c), o) in positions.iter_mut().zip(cells).zip(&now) {
         *p = [0, 1, 2].map(|k| f64::from(c[k]) + f64::from(o[k]));
     }
+    tracing::debug!(
+        graph_s = (t1 - t0).as_secs_f64(),
+        steps_s = t1.elapsed().as_secs_f64(),
+        "relax"
+    );
     Ok(())
 }

@@ -1,0 +1,468 @@
+//! Surface nets' constrained relaxation of a bit volume's vertices (the module doc of
+//! [`surface_nets`](super::surface_nets) defines it): `rounds` of Taubin's two steps, each
+//! step every vertex towards the mean of its quad neighbours (all read before any is moved:
+//! a Jacobi step), clamped to its dual cell shrunk by 1/16 voxel.
+//!
+//! **Schedule.** A vertex's neighbours lie in its own and the two next lattice slabs (x ± 1),
+//! and the vertices are numbered slab by slab, so step `p + 1` of slab `x` needs only step `p`
+//! of slabs `x − 1 ..= x + 1`. The steps are therefore run as a wavefront over the slabs
+//! (time skewing): in sweep `t`, step `p + 1` is computed for slab `t − 2p`, for every step
+//! at once. The slabs a sweep touches, and the vertices' neighbour lists, stay in the caches
+//! across all the steps, where step after step over the whole mesh streamed every array
+//! through memory 24 times. Two arrays hold the positions, the even steps in one and the odd
+//! in the other: the skew of two slabs per step is what lets step `p + 1` overwrite step
+//! `p − 1` of its slab (every read of it is done by then).
+//!
+//! **Threads.** The steps are cut into one consecutive run per thread (a pipeline): each
+//! thread runs the wavefront of its steps, and before its sweep `t` waits until the thread of
+//! the steps before has finished its last step on slabs `..= t + 1` (a counter it publishes
+//! after each sweep). Nothing else needs waiting for: what a thread overwrites was last read
+//! by its own earlier steps, or by the threads before it, which are done with that slab by
+//! then. Each vertex's arithmetic is the same, in the same order, as in step-by-step passes,
+//! so the result is too, bit for bit, on any number of threads.
+
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+
+use crate::cancel::{Canceled, Control};
+
+/// Taubin's λ and μ (λ = 0.5, 1/λ + 1/μ = 0.1: the pass band of his paper's examples).
+pub(super) const TAUBIN: (f64, f64) = (0.5, -0.5263157894736842);
+
+/// Half the side of a vertex's box about its lattice point: the cell shrunk by 1/16 voxel.
+const HALF: f32 = 0.5 - 1.0 / 16.0;
+
+/// Neighbour slots per vertex held inline (a vertex has 3 to 6 on smooth surfaces; up to 12,
+/// the internal faces of its block, in the rest).
+pub(super) const SLOTS: usize = 6;
+
+/// The mesh the steps run on.
+///
+/// * `adj[v]`: vertex v's first [`SLOTS`] neighbours, in the order of its quads, the unused
+///   slots holding `n` (the vertex count), whose entry in the position arrays is kept zero, so
+///   every vertex adds the same number of entries and no loop's length depends on its valence
+///   (a branch per vertex the processor could not predict: valences 3, 4, 5 and 6 are all
+///   common);
+/// * `extra`: the vertices with more neighbours, in order, with the rest of them;
+/// * `steps[v]`: the sum of its neighbours' lattice points less its own (at most 12 × ±1 on an
+///   axis, exact in f32), and in `steps[v][3]` 1 / its valence;
+/// * `slabs`: the first vertex of each lattice slab, then the vertex count.
+pub(super) struct Graph {
+    pub adj: Vec<[u32; SLOTS]>,
+    pub extra: Vec<(u32, Vec<u32>)>,
+    pub steps: Vec<[f32; 4]>,
+    pub slabs: Vec<usize>,
+}
+
+impl Graph {
+    /// The graph of a closed, consistently oriented quad mesh whose vertices are numbered
+    /// slab by slab (`cells`: each vertex's lattice point): each edge v → w is in exactly one
+    /// quad, so each neighbour is counted once.
+    pub(super) fn of(quads: &[[u32; 4]], cells: &[[u32; 3]]) -> Graph {
+        let n = cells.len();
+        let pad = u32::try_from(n).expect("vertex numbers fit in u32");
+        let mut adj = vec![[pad; SLOTS]; n];
+        let mut sums = vec![[0i8; 4]; n];
+        let mut more: Vec<(u32, u32)> = Vec::new();
+        for q in quads {
+            for j in 0..4 {
+                let (v, w) = (q[j] as usize, q[(j + 1) % 4]);
+                let step = &mut sums[v];
+                let k = step[3] as usize;
+                assert!(k < 12, "at most 12 neighbours");
+                if k < SLOTS {
+                    adj[v][k] = w;
+                } else {
+                    more.push((v as u32, w));
+                }
+                step[3] += 1;
+                for a in 0..3 {
+                    let d = i64::from(cells[w as usize][a]) - i64::from(cells[v][a]);
+                    assert!(d.abs() <= 1, "a neighbour in the next cells");
+                    step[a] += d as i8;
+                }
+            }
+        }
+        let steps = sums
+            .iter()
+            .map(|s| {
+                assert!(s[3] > 0, "every vertex in a quad");
+                [
+                    f32::from(s[0]),
+                    f32::from(s[1]),
+                    f32::from(s[2]),
+                    1.0 / f32::from(s[3]),
+                ]
+            })
+            .collect();
+        // By vertex, each vertex's in the order of its quads (a stable sort).
+        more.sort_by_key(|&(v, _)| v);
+        let mut extra: Vec<(u32, Vec<u32>)> = Vec::new();
+        for (v, w) in more {
+            match extra.last_mut() {
+                Some((u, ws)) if *u == v => ws.push(w),
+                _ => extra.push((v, vec![w])),
+            }
+        }
+        // The first vertex of each lattice slab (the wavefront's unit).
+        let slab_count = cells.last().map_or(0, |c| c[0] as usize + 1);
+        let mut slabs = vec![0usize; slab_count + 1];
+        for (v, c) in cells.iter().enumerate() {
+            assert!(
+                v == 0 || cells[v - 1][0] <= c[0],
+                "vertices numbered slab by slab"
+            );
+            slabs[c[0] as usize + 1] = v + 1;
+        }
+        for x in 1..=slab_count {
+            slabs[x] = slabs[x].max(slabs[x - 1]);
+        }
+        Graph {
+            adj,
+            extra,
+            steps,
+            slabs,
+        }
+    }
+}
+
+/// The positions of one step, shared by the threads.
+#[derive(Clone, Copy)]
+struct Buffer(*mut [f32; 4]);
+// SAFETY: the threads write and read disjoint parts, in the order the module doc gives.
+unsafe impl Sync for Buffer {}
+unsafe impl Send for Buffer {}
+
+/// One Jacobi step of slab `vertices` from `from` into `to`, moving by `factor`.
+///
+/// # Safety
+/// `from` and `to` hold `graph.steps.len() + 1` entries, the last zero; `vertices` is a slab,
+/// every entry of `from` at the slab's vertices' neighbours and at the slab itself holds its
+/// step and no thread writes it meanwhile, and no thread reads or writes `to` at the slab
+/// meanwhile.
+unsafe fn step(
+    graph: &Graph,
+    vertices: std::ops::Range<usize>,
+    from: Buffer,
+    to: Buffer,
+    factor: f32,
+) {
+    let first = vertices.start;
+    // The vertices of the slab with more than SLOTS neighbours.
+    let mut extra = graph.extra[graph.extra.partition_point(|&(v, _)| (v as usize) < first)..]
+        .iter()
+        .peekable();
+    let slab = graph.adj[vertices.clone()]
+        .iter()
+        .zip(&graph.steps[vertices]);
+    for (i, (adj, steps)) in slab.enumerate() {
+        let v = first + i;
+        // The neighbours' offsets, plus their lattice points' from this one's. All four
+        // lanes are computed alike (so each line is one vector operation), the fourth from
+        // zeros: it stays zero (left to the neighbours' sums it grew into subnormal numbers,
+        // which took the pass twice as long).
+        let mut s = [steps[0], steps[1], steps[2], 0.0];
+        for &w in adj {
+            debug_assert!((w as usize) <= graph.steps.len());
+            // SAFETY: a neighbour's entry of `from` (or the zero one), as the caller promises.
+            let p = unsafe { *from.0.add(w as usize) };
+            for k in 0..4 {
+                s[k] += p[k];
+            }
+        }
+        if extra.peek().is_some_and(|(u, _)| *u as usize == v) {
+            let (_, more) = extra.next().expect("peeked");
+            for &w in more {
+                // SAFETY: as above.
+                let p = unsafe { *from.0.add(w as usize) };
+                for k in 0..4 {
+                    s[k] += p[k];
+                }
+            }
+        }
+        let inv = steps[3];
+        // SAFETY: the vertex's own entries, as the caller promises.
+        let p = unsafe { *from.0.add(v) };
+        let mut out = [0.0f32; 4];
+        for k in 0..4 {
+            out[k] = (p[k] + factor * (s[k] * inv - p[k])).clamp(-HALF, HALF);
+        }
+        // SAFETY: as the caller promises.
+        unsafe { *to.0.add(v) = out };
+    }
+}
+
+/// What the threads of [`relax`] share: each thread's count of slabs its last step has done,
+/// and whether a thread has stopped early (canceled, or panicking).
+struct Pipeline {
+    done: Vec<AtomicUsize>,
+    stopped: AtomicBool,
+}
+
+/// Sets `stopped` unless disarmed: a thread that returns early or unwinds must not leave the
+/// next waiting for ever.
+struct StopOnDrop<'a>(&'a AtomicBool, bool);
+
+impl Drop for StopOnDrop<'_> {
+    fn drop(&mut self) {
+        if self.1 {
+            self.0.store(true, Ordering::Release);
+        }
+    }
+}
+
+/// `rounds` rounds of Taubin's two steps on `now` (each vertex's offset from its lattice
+/// point), run as the module doc's wavefront, pipelined over up to `threads` threads of the
+/// rayon pool.
+pub(super) fn relax(
+    graph: &Graph,
+    now: &mut Vec<[f32; 4]>,
+    rounds: usize,
+    threads: usize,
+    ctl: &Control,
+) -> Result<(), Canceled> {
+    let n = now.len();
+    assert_eq!(graph.steps.len(), n, "a step sum per vertex");
+    assert_eq!(graph.adj.len(), n, "neighbour slots per vertex");
+    assert_eq!(
+        graph.slabs.last().copied(),
+        Some(n),
+        "slabs cover the vertices"
+    );
+    let slabs = graph.slabs.len() - 1;
+    let passes = 2 * rounds;
+    if passes == 0 || n == 0 {
+        return Ok(());
+    }
+    // Each array with the zero entry the unused neighbour slots point to.
+    now.push([0.0; 4]);
+    let mut other = now.clone();
+    let buffers = [Buffer(now.as_mut_ptr()), Buffer(other.as_mut_ptr())];
+    // Consecutive runs of steps, one a thread (a thread with less than a round would wait
+    // more than it works).
+    let stages = threads.clamp(1, rounds);
+    let cut = |k: usize| passes * k / stages;
+    let shared = Pipeline {
+        done: (0..stages).map(|_| AtomicUsize::new(0)).collect(),
+        stopped: AtomicBool::new(false),
+    };
+    let counter = ctl.counter((stages * slabs + 2 * passes) as u64);
+    let stage = |k: usize| -> Result<(), Canceled> {
+        let mut guard = StopOnDrop(&shared.stopped, true);
+        let (a, b) = (cut(k), cut(k + 1));
+        let sweeps = slabs + 2 * (b - a - 1);
+        for t in 0..sweeps {
+            counter.check()?;
+            if k > 0 {
+                // Steps a − 1 of slabs ..= t + 1, from the thread before.
+                let need = (t + 2).min(slabs);
+                let mut spins = 0u32;
+                while shared.done[k - 1].load(Ordering::Acquire) < need {
+                    if shared.stopped.load(Ordering::Acquire) {
+                        return Err(Canceled::Canceled);
+                    }
+                    spins += 1;
+                    if spins < 256 {
+                        std::hint::spin_loop();
+                    } else {
+                        std::thread::yield_now();
+                    }
+                }
+            }
+            // Step p + 1 of slab t − 2(p − a), for the p with that slab in the grid.
+            let lo = a + (t + 1).saturating_sub(slabs).div_ceil(2);
+            let hi = (a + t / 2).min(b - 1);
+            for p in lo..=hi {
+                let x = t - 2 * (p - a);
+                // SAFETY: step p of slabs x − 1 ..= x + 1 is in buffer p % 2: from this
+                // thread's sweeps before, or (p = a) from the thread before, waited for above;
+                // no thread writes it now (the next step to be written there, p + 2, is this
+                // thread's or a later one's, after its own reads of step p + 1 of slab x); and
+                // buffer (p + 1) % 2 at slab x is written by step p alone (module doc).
+                unsafe {
+                    step(
+                        graph,
+                        graph.slabs[x]..graph.slabs[x + 1],
+                        buffers[p % 2],
+                        buffers[(p + 1) % 2],
+                        [TAUBIN.0 as f32, TAUBIN.1 as f32][p % 2],
+                    )
+                };
+            }
+            // Slabs done by the last step, b − 1.
+            let last = (t + 1).saturating_sub(2 * (b - 1 - a)).min(slabs);
+            shared.done[k].store(last, Ordering::Release);
+            counter.add(1);
+        }
+        guard.1 = false;
+        Ok(())
+    };
+    // Stage k on this thread, the later ones offered to the pool's other threads (rayon's
+    // join): a stage waits only for the one before, which has started by then (stage 0 never
+    // waits), so no wait can be for a stage that never runs; a stage no other thread takes
+    // runs here after the one before has finished, without waiting.
+    fn from<F: Fn(usize) -> Result<(), Canceled> + Sync>(
+        k: usize,
+        stages: usize,
+        stage: &F,
+    ) -> Result<(), Canceled> {
+        if k + 1 == stages {
+            return stage(k);
+        }
+        let (r, rest) = rayon::join(|| stage(k), || from(k + 1, stages, stage));
+        r.and(rest)
+    }
+    let result = from(0, stages, &stage);
+    drop(other);
+    now.pop();
+    result
+}
+
+/// The steps one after another, each over every vertex, each vertex's neighbours taken from
+/// the quads (`w` follows `v` in a quad): the definition the wavefront must equal (the tests'
+/// reference).
+#[cfg(test)]
+pub(super) fn relax_in_passes(
+    quads: &[[u32; 4]],
+    cells: &[[u32; 3]],
+    now: &mut Vec<[f32; 4]>,
+    rounds: usize,
+) {
+    let mut nb = vec![Vec::new(); now.len()];
+    for q in quads {
+        for j in 0..4 {
+            nb[q[j] as usize].push(q[(j + 1) % 4] as usize);
+        }
+    }
+    for _ in 0..rounds {
+        for factor in [TAUBIN.0 as f32, TAUBIN.1 as f32] {
+            let mut next = now.clone();
+            for (v, out) in next.iter_mut().enumerate() {
+                let mut s = [0.0f32; 3];
+                for k in 0..3 {
+                    let lattice: i64 = nb[v]
+                        .iter()
+                        .map(|&w| i64::from(cells[w][k]) - i64::from(cells[v][k]))
+                        .sum();
+                    s[k] = lattice as f32;
+                }
+                for &w in &nb[v] {
+                    for k in 0..3 {
+                        s[k] += now[w][k];
+                    }
+                }
+                let inv = 1.0 / nb[v].len() as f32;
+                let p = now[v];
+                for k in 0..3 {
+                    out[k] = (p[k] + factor * (s[k] * inv - p[k])).clamp(-HALF, HALF);
+                }
+            }
+            *now = next;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testkit::Rng;
+
+    /// Random quads on random vertices numbered slab by slab, each quad's consecutive corners
+    /// in the next cells (what `Graph::of` requires of a net), valences up to 12, so the
+    /// neighbour slots, the extra lists and the zero entry are all used.
+    fn random_net(rng: &mut Rng, n: usize, slabs: u32) -> (Vec<[u32; 4]>, Vec<[u32; 3]>) {
+        let mut cells: Vec<[u32; 3]> = (0..n)
+            .map(|_| {
+                [
+                    rng.below(slabs as usize) as u32,
+                    rng.below(3) as u32,
+                    rng.below(3) as u32,
+                ]
+            })
+            .collect();
+        cells.sort_unstable();
+        let near = |a: [u32; 3], b: [u32; 3]| (0..3).all(|k| a[k].abs_diff(b[k]) <= 1);
+        let mut valence = vec![0usize; n];
+        let mut quads = Vec::new();
+        for _ in 0..40 * n {
+            let q: [u32; 4] = std::array::from_fn(|_| rng.below(n) as u32);
+            let c = q.map(|v| cells[v as usize]);
+            let distinct = (0..4).all(|i| (0..i).all(|j| q[i] != q[j]));
+            if distinct
+                && (0..4).all(|j| near(c[j], c[(j + 1) % 4]))
+                && q.iter().all(|&v| valence[v as usize] < 12)
+            {
+                for &v in &q {
+                    valence[v as usize] += 1;
+                }
+                quads.push(q);
+            }
+        }
+        // Only the vertices in a quad (a net's every vertex is), numbered in the same order.
+        let mut number = vec![u32::MAX; n];
+        let mut kept = Vec::new();
+        for v in 0..n {
+            if valence[v] > 0 {
+                number[v] = kept.len() as u32;
+                kept.push(cells[v]);
+            }
+        }
+        for q in &mut quads {
+            *q = q.map(|v| number[v as usize]);
+        }
+        (quads, kept)
+    }
+
+    #[test]
+    fn the_pipelined_wavefront_equals_the_steps_one_after_another() {
+        let mut rng = Rng::new(33);
+        let mut saw_extra = false;
+        for case in 0..40 {
+            let n = 20 + rng.below(200);
+            let (quads, cells) = random_net(&mut rng, n, 1 + (case % 9) as u32);
+            let n = cells.len();
+            let graph = Graph::of(&quads, &cells);
+            saw_extra |= !graph.extra.is_empty();
+            let start: Vec<[f32; 4]> = (0..n)
+                .map(|_| {
+                    let o = rng.point(-f64::from(HALF), f64::from(HALF));
+                    [o[0] as f32, o[1] as f32, o[2] as f32, 0.0]
+                })
+                .collect();
+            let rounds = 1 + case % 7;
+            let mut want = start.clone();
+            relax_in_passes(&quads, &cells, &mut want, rounds);
+            for threads in [1, 2, 3, 5] {
+                let mut got = start.clone();
+                relax(&graph, &mut got, rounds, threads, &Control::none()).unwrap();
+                assert_eq!(got.len(), n);
+                for (v, (g, w)) in got.iter().zip(&want).enumerate() {
+                    for k in 0..3 {
+                        assert_eq!(
+                            g[k].to_bits(),
+                            w[k].to_bits(),
+                            "case {case}, {threads} threads, vertex {v}, axis {k}"
+                        );
+                    }
+                }
+                // Something moved (the test would pass on a no-op otherwise).
+                assert!(rounds == 0 || got != start || quads.is_empty());
+            }
+        }
+        assert!(saw_extra, "no vertex had more than SLOTS neighbours");
+    }
+
+    #[test]
+    fn a_canceled_relaxation_stops_with_the_positions_it_was_given_back() {
+        let mut rng = Rng::new(7);
+        let (quads, cells) = random_net(&mut rng, 300, 20);
+        let n = cells.len();
+        let graph = Graph::of(&quads, &cells);
+        let ctl = Control::new();
+        ctl.cancel();
+        for threads in [1, 2, 4] {
+            let mut now = vec![[0.1f32, 0.0, 0.0, 0.0]; n];
+            assert!(relax(&graph, &mut now, 12, threads, &ctl).is_err());
+            assert_eq!(now.len(), n, "the zero entry is taken off again");
+        }
+    }
+}
