@@ -34,7 +34,7 @@ use crate::volume::BitVolume;
 /// lattice units.
 pub fn dual_contouring(bits: &BitVolume, h: &Hermite, ctl: &Control) -> Result<TriMesh, Canceled> {
     let field = Field::bits(Cow::Borrowed(bits));
-    let n = net(&field, &ctl.stage(0.0, 0.6))?;
+    let n = net(&field, true, &ctl.stage(0.0, 0.6))?;
     let ctl2 = ctl.stage(0.6, 1.0);
     let counter = ctl2.counter(n.faces.len() as u64);
     // Each face's crossing (lattice units) and normal.

@@ -24,7 +24,7 @@ use crate::cancel::{Canceled, Control};
 
 /// The marching cubes mesh of `field`, in lattice units.
 pub fn marching_cubes(field: &Field<'_>, ctl: &Control) -> Result<TriMesh, Canceled> {
-    let n = net(field, &ctl.stage(0.0, 0.7))?;
+    let n = net(field, true, &ctl.stage(0.0, 0.7))?;
     let ctl = ctl.stage(0.7, 1.0);
     let nv = n.vertices;
     let mut across: HashMap<(u32, u32), u32, foldhash::fast::RandomState> =

@@ -23,6 +23,8 @@
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
+use rayon::prelude::*;
+
 use crate::cancel::{Canceled, Control};
 
 /// Taubin's λ and μ (λ = 0.5, 1/λ + 1/μ = 0.1: the pass band of his paper's examples).
@@ -61,48 +63,24 @@ impl Graph {
         let n = cells.len();
         let pad = u32::try_from(n).expect("vertex numbers fit in u32");
         let mut adj = vec![[pad; SLOTS]; n];
-        let mut sums = vec![[0i8; 4]; n];
-        let mut more: Vec<(u32, u32)> = Vec::new();
-        for q in quads {
-            for j in 0..4 {
-                let (v, w) = (q[j] as usize, q[(j + 1) % 4]);
-                let step = &mut sums[v];
-                let k = step[3] as usize;
-                assert!(k < 12, "at most 12 neighbours");
-                if k < SLOTS {
-                    adj[v][k] = w;
-                } else {
-                    more.push((v as u32, w));
-                }
-                step[3] += 1;
-                for a in 0..3 {
-                    let d = i64::from(cells[w as usize][a]) - i64::from(cells[v][a]);
-                    assert!(d.abs() <= 1, "a neighbour in the next cells");
-                    step[a] += d as i8;
-                }
-            }
+        let mut steps = vec![[0.0f32; 4]; n];
+        // The vertices in one part per thread, each part reading all the quads for its own
+        // vertices' corners.
+        let parts = rayon::current_num_threads().clamp(1, n.max(1));
+        let mut jobs = Vec::with_capacity(parts);
+        let (mut adj_rest, mut steps_rest) = (&mut adj[..], &mut steps[..]);
+        for r in 0..parts {
+            let (lo, hi) = (n * r / parts, n * (r + 1) / parts);
+            let (a, ar) = std::mem::take(&mut adj_rest).split_at_mut(hi - lo);
+            let (s, sr) = std::mem::take(&mut steps_rest).split_at_mut(hi - lo);
+            (adj_rest, steps_rest) = (ar, sr);
+            jobs.push((lo, a, s));
         }
-        let steps = sums
-            .iter()
-            .map(|s| {
-                assert!(s[3] > 0, "every vertex in a quad");
-                [
-                    f32::from(s[0]),
-                    f32::from(s[1]),
-                    f32::from(s[2]),
-                    1.0 / f32::from(s[3]),
-                ]
-            })
+        let extras: Vec<Vec<(u32, Vec<u32>)>> = jobs
+            .into_par_iter()
+            .map(|(lo, adj, steps)| part(quads, cells, lo, adj, steps))
             .collect();
-        // By vertex, each vertex's in the order of its quads (a stable sort).
-        more.sort_by_key(|&(v, _)| v);
-        let mut extra: Vec<(u32, Vec<u32>)> = Vec::new();
-        for (v, w) in more {
-            match extra.last_mut() {
-                Some((u, ws)) if *u == v => ws.push(w),
-                _ => extra.push((v, vec![w])),
-            }
-        }
+        let extra = extras.concat();
         // The first vertex of each lattice slab (the wavefront's unit).
         let slab_count = cells.last().map_or(0, |c| c[0] as usize + 1);
         let mut slabs = vec![0usize; slab_count + 1];
@@ -123,6 +101,61 @@ impl Graph {
             slabs,
         }
     }
+}
+
+/// `Graph::of` for the vertices `lo..lo + adj.len()`: their neighbour slots and step sums into
+/// `adj` and `steps`; returns their extra neighbours.
+fn part(
+    quads: &[[u32; 4]],
+    cells: &[[u32; 3]],
+    lo: usize,
+    adj: &mut [[u32; SLOTS]],
+    steps: &mut [[f32; 4]],
+) -> Vec<(u32, Vec<u32>)> {
+    let hi = lo + adj.len();
+    let mut sums = vec![[0i8; 4]; adj.len()];
+    let mut more: Vec<(u32, u32)> = Vec::new();
+    for q in quads {
+        for j in 0..4 {
+            let (v, w) = (q[j] as usize, q[(j + 1) % 4]);
+            if v < lo || v >= hi {
+                continue;
+            }
+            let step = &mut sums[v - lo];
+            let k = step[3] as usize;
+            assert!(k < 12, "at most 12 neighbours");
+            if k < SLOTS {
+                adj[v - lo][k] = w;
+            } else {
+                more.push((v as u32, w));
+            }
+            step[3] += 1;
+            for a in 0..3 {
+                let d = i64::from(cells[w as usize][a]) - i64::from(cells[v][a]);
+                assert!(d.abs() <= 1, "a neighbour in the next cells");
+                step[a] += d as i8;
+            }
+        }
+    }
+    for (out, s) in steps.iter_mut().zip(&sums) {
+        assert!(s[3] > 0, "every vertex in a quad");
+        *out = [
+            f32::from(s[0]),
+            f32::from(s[1]),
+            f32::from(s[2]),
+            1.0 / f32::from(s[3]),
+        ];
+    }
+    // By vertex, each vertex's in the order of its quads (a stable sort).
+    more.sort_by_key(|&(v, _)| v);
+    let mut extra: Vec<(u32, Vec<u32>)> = Vec::new();
+    for (v, w) in more {
+        match extra.last_mut() {
+            Some((u, ws)) if *u == v => ws.push(w),
+            _ => extra.push((v, vec![w])),
+        }
+    }
+    extra
 }
 
 /// The positions of one step, shared by the threads.

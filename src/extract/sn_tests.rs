@@ -307,9 +307,14 @@ fn a_net_built_in_runs_is_the_net_built_in_one() {
     volumes.push(Volume::Distance(d));
     for (case, v) in volumes.iter().enumerate() {
         let field = Field::of(v);
-        let one = net_in_runs(&field, &Control::none(), usize::MAX).unwrap();
+        let one = net_in_runs(&field, true, &Control::none(), usize::MAX).unwrap();
+        // Without the crossings: the same net, the crossings left out.
+        let bare = net_in_runs(&field, false, &Control::none(), 50).unwrap();
+        assert!(bare.crossings.is_empty() && !one.crossings.is_empty() == !one.faces.is_empty());
+        assert_eq!(bare.quads, one.quads, "case {case}");
+        assert_eq!(bare.cells, one.cells, "case {case}");
         for run_faces in [1, 7, 50] {
-            let runs = net_in_runs(&field, &Control::none(), run_faces).unwrap();
+            let runs = net_in_runs(&field, true, &Control::none(), run_faces).unwrap();
             assert_eq!(runs.vertices, one.vertices, "case {case}");
             assert_eq!(runs.quads, one.quads, "case {case}");
             assert_eq!(runs.cells, one.cells, "case {case}");

@@ -206,13 +206,34 @@ impl Face {
     }
 }
 
-/// Every unit boundary face of `bits`, from its column words.
+/// Every unit boundary face of `bits`, from its column words, in order of their lowest
+/// lattice x (runs of planes x on the pool's threads, joined in order).
 fn faces(bits: &BitVolume, ctl: &Control) -> Result<Vec<Face>, Canceled> {
     let d = bits.dims();
-    let counter = ctl.counter(u64::from(d[0]));
-    let mut out = Vec::new();
+    let counter = ctl.counter(u64::from(d[0]) + 1);
+    let planes = d[0] as usize + 1;
+    let runs = (4 * rayon::current_num_threads()).clamp(1, planes);
+    let parts = (0..runs)
+        .into_par_iter()
+        .map(|r| {
+            let (lo, hi) = (planes * r / runs, planes * (r + 1) / runs);
+            let mut out = Vec::new();
+            for x in lo as u32..hi as u32 {
+                counter.check()?;
+                faces_at(bits, x, &mut out);
+                counter.add(1);
+            }
+            Ok(out)
+        })
+        .collect::<Result<Vec<Vec<Face>>, Canceled>>()?;
+    Ok(parts.concat())
+}
+
+/// The faces whose lowest lattice x is `x`, appended to `out`.
+fn faces_at(bits: &BitVolume, x: u32, out: &mut Vec<Face>) {
+    let d = bits.dims();
     let wpc = bits.words_per_column();
-    let zero = vec![0u64; wpc];
+    let zero = [0u64; 0];
     let col = |x: i64, y: i64| -> &[u64] {
         if x < 0 || y < 0 || x >= i64::from(d[0]) || y >= i64::from(d[1]) {
             &zero
@@ -220,72 +241,69 @@ fn faces(bits: &BitVolume, ctl: &Control) -> Result<Vec<Face>, Canceled> {
             bits.column(x as u32, y as u32)
         }
     };
-    for x in 0..=d[0] {
-        counter.check()?;
-        for y in 0..=d[1] {
-            let c = col(i64::from(x), i64::from(y));
-            let cx = col(i64::from(x) - 1, i64::from(y));
-            let cy = col(i64::from(x), i64::from(y) - 1);
-            for w in 0..wpc {
-                let base = (w * 64) as u32;
-                // Across x at plane x (voxel x − 1 below), and across y at plane y.
-                for (a, below) in [(0, cx[w]), (1, cy[w])] {
-                    let mut t = below ^ c[w];
-                    while t != 0 {
-                        let z = base + t.trailing_zeros();
-                        t &= t - 1;
-                        let plus = below >> (z - base) & 1 == 1;
-                        let (u, v) = if a == 0 { (y, z) } else { (z, x) };
-                        if (a == 0 && y < d[1]) || (a == 1 && x < d[0]) {
-                            out.push(Face {
-                                a,
-                                k: if a == 0 { x } else { y },
-                                u,
-                                v,
-                                plus,
-                            });
-                        }
-                    }
-                }
-                // Across z, within the column (x, y) when it is in the grid.
-                if x < d[0] && y < d[1] {
-                    let carry = if w > 0 { c[w - 1] >> 63 } else { 0 };
-                    let below = c[w] << 1 | carry;
-                    let mut t = below ^ c[w];
-                    while t != 0 {
-                        let k = base + t.trailing_zeros();
-                        t &= t - 1;
+    let word = |c: &[u64], w: usize| c.get(w).copied().unwrap_or(0);
+    for y in 0..=d[1] {
+        let c = col(i64::from(x), i64::from(y));
+        let cx = col(i64::from(x) - 1, i64::from(y));
+        let cy = col(i64::from(x), i64::from(y) - 1);
+        for w in 0..wpc {
+            let base = (w * 64) as u32;
+            let cw = word(c, w);
+            // Across x at plane x (voxel x − 1 below), and across y at plane y.
+            for (a, below) in [(0, word(cx, w)), (1, word(cy, w))] {
+                let mut t = below ^ cw;
+                while t != 0 {
+                    let z = base + t.trailing_zeros();
+                    t &= t - 1;
+                    let plus = below >> (z - base) & 1 == 1;
+                    let (u, v) = if a == 0 { (y, z) } else { (z, x) };
+                    if (a == 0 && y < d[1]) || (a == 1 && x < d[0]) {
                         out.push(Face {
-                            a: 2,
-                            k,
-                            u: x,
-                            v: y,
-                            plus: below >> (k - base) & 1 == 1,
-                        });
-                    }
-                    // The top face of the last voxel.
-                    if w + 1 == wpc && d[2].is_multiple_of(64) && c[w] >> 63 == 1 {
-                        out.push(Face {
-                            a: 2,
-                            k: d[2],
-                            u: x,
-                            v: y,
-                            plus: true,
+                            a,
+                            k: if a == 0 { x } else { y },
+                            u,
+                            v,
+                            plus,
                         });
                     }
                 }
             }
+            // Across z, within the column (x, y) when it is in the grid.
+            if x < d[0] && y < d[1] {
+                let carry = if w > 0 { c[w - 1] >> 63 } else { 0 };
+                let below = cw << 1 | carry;
+                let mut t = below ^ cw;
+                while t != 0 {
+                    let k = base + t.trailing_zeros();
+                    t &= t - 1;
+                    out.push(Face {
+                        a: 2,
+                        k,
+                        u: x,
+                        v: y,
+                        plus: below >> (k - base) & 1 == 1,
+                    });
+                }
+                // The top face of the last voxel.
+                if w + 1 == wpc && d[2].is_multiple_of(64) && cw >> 63 == 1 {
+                    out.push(Face {
+                        a: 2,
+                        k: d[2],
+                        u: x,
+                        v: y,
+                        plus: true,
+                    });
+                }
+            }
         }
-        counter.add(1);
     }
-    Ok(out)
 }
 
 /// The surface nets mesh of `field`, in lattice units.
 pub fn surface_nets(field: &Field<'_>, ctl: &Control) -> Result<TriMesh, Canceled> {
     let Net {
         cells, quads, sums, ..
-    } = net(field, &ctl.stage(0.0, 0.7))?;
+    } = net(field, false, &ctl.stage(0.0, 0.7))?;
     // Cells: each vertex's lattice point, for the clamp (recovered from its faces below).
     let mut positions: Vec<[f64; 3]> = sums
         .iter()
@@ -328,6 +346,7 @@ pub fn surface_nets(field: &Field<'_>, ctl: &Control) -> Result<TriMesh, Cancele
 pub(super) struct Net {
     pub faces: Vec<Face>,
     pub quads: Vec<[u32; 4]>,
+    /// Each face's crossing point (empty unless asked for).
     pub crossings: Vec<[f64; 3]>,
     pub(super) sums: Vec<[f64; 4]>,
     /// Each vertex's lattice point (the centre of its dual cell).
@@ -335,14 +354,16 @@ pub(super) struct Net {
     pub vertices: usize,
 }
 
-/// The [`Net`] of `field`.
-pub(super) fn net(field: &Field<'_>, ctl: &Control) -> Result<Net, Canceled> {
-    net_in_runs(field, ctl, RUN_FACES)
+/// The [`Net`] of `field`; its `crossings` are left empty unless `with_crossings` (surface
+/// nets needs only their sums).
+pub(super) fn net(field: &Field<'_>, with_crossings: bool, ctl: &Control) -> Result<Net, Canceled> {
+    net_in_runs(field, with_crossings, ctl, RUN_FACES)
 }
 
 /// The [`Net`] of `field`, built in runs of about `run_faces` faces.
 pub(super) fn net_in_runs(
     field: &Field<'_>,
+    with_crossings: bool,
     ctl: &Control,
     run_faces: usize,
 ) -> Result<Net, Canceled> {
@@ -376,12 +397,13 @@ pub(super) fn net_in_runs(
     let last = bits.dims()[0];
     // Each run fills its faces' quads and crossings in place.
     let mut quads = vec![[0u32; 4]; faces.len()];
-    let mut crossings = vec![[0.0f64; 3]; faces.len()];
+    let mut crossings = vec![[0.0f64; 3]; if with_crossings { faces.len() } else { 0 }];
     let mut jobs = Vec::new();
     let (mut q_rest, mut c_rest) = (&mut quads[..], &mut crossings[..]);
     for w in cuts.windows(2) {
         let (q, qr) = std::mem::take(&mut q_rest).split_at_mut(w[1] - w[0]);
-        let (c, cr) = std::mem::take(&mut c_rest).split_at_mut(w[1] - w[0]);
+        let (c, cr) =
+            std::mem::take(&mut c_rest).split_at_mut(if with_crossings { w[1] - w[0] } else { 0 });
         (q_rest, c_rest) = (qr, cr);
         jobs.push((w[0]..w[1], q, c));
     }
@@ -459,7 +481,7 @@ struct Run {
 
 /// The [`Run`] of `faces` (whole slabs, in order), numbering the slabs from the first face's
 /// up to `upto`; their quads (vertices numbered from the run's first) and crossings go to
-/// `quads` and `crossings`.
+/// `quads` and `crossings` (unless it is empty).
 fn run(
     field: &Field<'_>,
     joins: &super::pinches::Joins,
@@ -501,7 +523,9 @@ fn run(
             let ci = f64::from(inn[f.a] as i32) + 0.5;
             c[f.a] = ci + t * if f.plus { 1.0 } else { -1.0 };
         }
-        crossings[i] = c;
+        if !crossings.is_empty() {
+            crossings[i] = c;
+        }
         // Corners counter-clockwise seen from +a; at corner (u + du, v + dv) the face is the
         // block's internal face across a between the octants with bits (1 − du, 1 − dv).
         let mut ring = [(0, 0), (1, 0), (1, 1), (0, 1)].map(|(du, dv)| {
