@@ -1,7 +1,8 @@
 //! Accepted jobs survive the process (issue 30, defect 4): the in-process queue keeps a job
 //! answered `202` (its mesh in the store's `uploads/`, its request in its record) until it ends,
 //! and a restart runs queued and interrupted jobs again, each start counted against
-//! `--max-attempts`; uploads that no job refers to are swept after `--upload-grace`. The real
+//! `--max-attempts`; uploads that no job refers to are swept after `--upload-grace`, and at
+//! once when their job has ended. The real
 //! `voxd serve` on 127.0.0.1, killed with SIGKILL; every wait bounded.
 
 use std::path::Path;
@@ -145,5 +146,38 @@ fn uploads_that_no_job_refers_to_are_swept_after_the_grace() {
         std::thread::sleep(Duration::from_millis(50));
     }
     assert!(young.exists(), "an upload within its grace was swept");
+    drop(srv);
+}
+
+#[test]
+fn the_upload_of_an_ended_job_is_swept_at_the_start_whatever_its_age() {
+    // What a SIGKILL between recording a job's end and deleting its upload leaves: the job's
+    // final record and a young upload. Made here by putting the upload back after the job
+    // ended, so the order of the kill does not decide what is tested.
+    let dir = Scratch::new("durable-ended");
+    let srv = Server::start(&dir, &["--workers", "1"]);
+    let id = submit(&srv, 64);
+    assert_eq!(final_state(&srv, &id)["state"], "succeeded");
+    until_no_uploads(&dir);
+    drop(srv);
+    let ended = dir.join("uploads").join(&id);
+    std::fs::write(&ended, b"the upload of an ended job").unwrap();
+    // And one of a job not recorded (yet): within its grace, kept.
+    let young = dir.join("uploads/fedcba9876543210");
+    std::fs::write(&young, b"an upload being stored for a job").unwrap();
+    let srv = Server::start(&dir, &["--workers", "1", "--upload-grace", "3600"]);
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while ended.exists() {
+        assert!(
+            Instant::now() < deadline,
+            "the ended job's upload was not swept"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    assert!(
+        young.exists(),
+        "an unknown job's upload within its grace was swept"
+    );
+    assert_eq!(final_state(&srv, &id)["state"], "succeeded");
     drop(srv);
 }

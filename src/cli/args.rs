@@ -436,8 +436,8 @@ pub struct ServeArgs {
     /// then it fails.
     #[arg(long, env = "VOXD_MAX_ATTEMPTS", default_value_t = voxd::limits::serve::MAX_ATTEMPTS)]
     pub max_attempts: u32,
-    /// Seconds after which a job's upload that no queued or running job refers to is deleted
-    /// (swept at start and periodically).
+    /// Seconds after which an upload whose job is unknown is deleted (swept at start and
+    /// periodically; an ended job's upload goes at the next sweep).
     #[arg(
         long,
         env = "VOXD_UPLOAD_GRACE",

@@ -1,9 +1,12 @@
 //! The sweep of uploads no job refers to: a job's upload (`uploads/{id}` in the store) lives
-//! while the job is queued or running and is deleted when it ends; one left behind (its
-//! process killed between storing it and recording the job, or before deleting it, a job
-//! forgotten) is deleted once older than a grace period (`--upload-grace`), at start and
-//! periodically, whichever queue and store the process uses. The grace covers an upload being
-//! stored for a job not yet recorded: keep it above the time a submit takes.
+//! while the job is queued or running and is deleted when it ends. One left behind is deleted
+//! at start and periodically, whichever queue and store the process uses:
+//! * at once when the queue knows its job as ended (the process was killed between recording
+//!   the job's end and deleting the upload: nothing will read it again);
+//! * once older than a grace period (`--upload-grace`) when the queue does not know its job
+//!   (killed between storing it and recording the job, or the job forgotten). The grace
+//!   covers an upload being stored for a job not yet recorded: keep it above the time a
+//!   submit takes.
 
 use std::sync::Arc;
 use std::time::{Duration, SystemTime};
@@ -14,8 +17,8 @@ use super::super::store::VolumeStore;
 /// `--upload-grace` by default: an hour.
 pub const UPLOAD_GRACE_S: u64 = 3600;
 
-/// Deletes the uploads in `store` older than `grace` whose job `queue` does not know as
-/// queued or running; how many.
+/// Deletes the uploads in `store` whose job `queue` knows as ended, and those older than
+/// `grace` whose job it does not know; how many.
 pub async fn sweep(store: &dyn VolumeStore, queue: &dyn JobQueue, grace: Duration) -> usize {
     let uploads = match store.list_uploads().await {
         Ok(u) => u,
@@ -27,12 +30,14 @@ pub async fn sweep(store: &dyn VolumeStore, queue: &dyn JobQueue, grace: Duratio
     let now = SystemTime::now();
     let mut swept = 0;
     for (id, written) in uploads {
-        if now.duration_since(written).unwrap_or_default() < grace {
-            continue;
-        }
+        let young = now.duration_since(written).unwrap_or_default() < grace;
         match queue.get(&id).await {
             Ok(Some(r)) if !r.state.is_final() => continue,
-            Ok(_) => {}
+            // Its job has ended, whatever the upload's age.
+            Ok(Some(_)) => {}
+            // Perhaps a job about to be recorded.
+            Ok(None) if young => continue,
+            Ok(None) => {}
             // Not known whether a job needs it: kept.
             Err(_) => continue,
         }
