@@ -304,32 +304,39 @@ pub fn surface_nets(field: &Field<'_>, ctl: &Control) -> Result<TriMesh, Cancele
     let Net {
         cells, quads, sums, ..
     } = net(field, false, &ctl.stage(0.0, 0.7))?;
-    // Cells: each vertex's lattice point, for the clamp (recovered from its faces below).
+    // Each vertex's mean of its crossings.
     let mut positions: Vec<[f64; 3]> = sums
-        .iter()
+        .par_iter()
         .map(|s| [s[0] / s[3], s[1] / s[3], s[2] / s[3]])
         .collect();
+    drop(sums);
     let t0 = std::time::Instant::now();
     if field.value.is_none() {
         relax(&mut positions, &quads, &cells, RELAX, &ctl.stage(0.7, 0.95))?;
     }
     let t1 = std::time::Instant::now();
-    let mut out = TriMesh {
+    // Each quad split along its shorter diagonal (the first when they are equal).
+    let mut triangles = vec![[0u32; 3]; 2 * quads.len()];
+    triangles
+        .par_chunks_mut(2)
+        .zip(quads.par_iter())
+        .for_each(|(pair, q)| {
+            let p = q.map(|i| positions[i as usize]);
+            let d2 =
+                |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>();
+            if d2(p[0], p[2]) <= d2(p[1], p[3]) {
+                pair[0] = [q[0], q[1], q[2]];
+                pair[1] = [q[0], q[2], q[3]];
+            } else {
+                pair[0] = [q[0], q[1], q[3]];
+                pair[1] = [q[1], q[2], q[3]];
+            }
+        });
+    let out = TriMesh {
         positions,
-        triangles: Vec::with_capacity(2 * quads.len()),
+        triangles,
         colors: vec![],
     };
-    for q in &quads {
-        let p = q.map(|i| out.positions[i as usize]);
-        let d2 = |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>();
-        if d2(p[0], p[2]) <= d2(p[1], p[3]) {
-            out.triangles.push([q[0], q[1], q[2]]);
-            out.triangles.push([q[0], q[2], q[3]]);
-        } else {
-            out.triangles.push([q[0], q[1], q[3]]);
-            out.triangles.push([q[1], q[2], q[3]]);
-        }
-    }
     tracing::debug!(
         relax_s = (t1 - t0).as_secs_f64(),
         split_s = t1.elapsed().as_secs_f64(),
@@ -594,7 +601,7 @@ fn relax(
     // traffic of f64 positions, with a rounding error of at most 2⁻²⁴ voxel per step, whatever
     // the grid's size.
     let mut now: Vec<[f32; 4]> = positions
-        .iter()
+        .par_iter()
         .zip(cells)
         .map(|(p, c)| {
             [
@@ -608,9 +615,11 @@ fn relax(
     let t1 = std::time::Instant::now();
     let threads = rayon::current_num_threads();
     super::relax::relax(&graph, &mut now, rounds, threads, ctl)?;
-    for ((p, c), o) in positions.iter_mut().zip(cells).zip(&now) {
-        *p = [0, 1, 2].map(|k| f64::from(c[k]) + f64::from(o[k]));
-    }
+    positions
+        .par_iter_mut()
+        .zip(cells)
+        .zip(&now)
+        .for_each(|((p, c), o)| *p = [0, 1, 2].map(|k| f64::from(c[k]) + f64::from(o[k])));
     tracing::debug!(
         graph_s = (t1 - t0).as_secs_f64(),
         steps_s = t1.elapsed().as_secs_f64(),
