@@ -322,8 +322,7 @@ pub fn surface_nets(field: &Field<'_>, ctl: &Control) -> Result<TriMesh, Cancele
         .zip(quads.par_iter())
         .for_each(|(pair, q)| {
             let p = q.map(|i| positions[i as usize]);
-            let d2 =
-                |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>();
+            let d2 = |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>();
             if d2(p[0], p[2]) <= d2(p[1], p[3]) {
                 pair[0] = [q[0], q[1], q[2]];
                 pair[1] = [q[0], q[2], q[3]];
