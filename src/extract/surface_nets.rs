@@ -172,7 +172,7 @@ impl<'a> Field<'a> {
 
 /// A unit boundary face: across axis `a` at plane `k`, cell (u, v) on axes a+1, a+2; `plus`:
 /// the inside voxel is below (facing +a).
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Default)]
 pub(super) struct Face {
     pub(super) a: usize,
     k: u32,
@@ -206,27 +206,22 @@ impl Face {
     }
 }
 
-/// Every unit boundary face of `bits`, from its column words, in order of their lowest
-/// lattice x (runs of planes x on the pool's threads, joined in order).
-fn faces(bits: &BitVolume, ctl: &Control) -> Result<Vec<Face>, Canceled> {
+/// How many unit boundary faces of `bits` have lowest lattice x = x, for each plane x
+/// (0 ..= dims x), counted on the pool's threads.
+fn face_counts(bits: &BitVolume, ctl: &Control) -> Result<Vec<usize>, Canceled> {
     let d = bits.dims();
     let counter = ctl.counter(u64::from(d[0]) + 1);
-    let planes = d[0] as usize + 1;
-    let runs = (4 * rayon::current_num_threads()).clamp(1, planes);
-    let parts = (0..runs)
+    (0..d[0] + 1)
         .into_par_iter()
-        .map(|r| {
-            let (lo, hi) = (planes * r / runs, planes * (r + 1) / runs);
-            let mut out = Vec::new();
-            for x in lo as u32..hi as u32 {
-                counter.check()?;
-                faces_at(bits, x, &mut out);
-                counter.add(1);
-            }
-            Ok(out)
+        .with_min_len(8)
+        .map_init(Vec::new, |buf, x| {
+            counter.check()?;
+            buf.clear();
+            faces_at(bits, x, buf);
+            counter.add(1);
+            Ok(buf.len())
         })
-        .collect::<Result<Vec<Vec<Face>>, Canceled>>()?;
-    Ok(parts.concat())
+        .collect()
 }
 
 /// The faces whose lowest lattice x is `x`, appended to `out`.
@@ -360,64 +355,81 @@ pub(super) struct Net {
     pub vertices: usize,
 }
 
-/// The [`Net`] of `field`; its `crossings` are left empty unless `with_crossings` (surface
-/// nets needs only their sums).
-pub(super) fn net(field: &Field<'_>, with_crossings: bool, ctl: &Control) -> Result<Net, Canceled> {
-    net_in_runs(field, with_crossings, ctl, RUN_FACES)
+/// The [`Net`] of `field`; its `faces` and `crossings` are left empty unless `full` (surface
+/// nets needs only the quads and the crossings' sums).
+pub(super) fn net(field: &Field<'_>, full: bool, ctl: &Control) -> Result<Net, Canceled> {
+    net_in_runs(field, full, ctl, RUN_FACES)
 }
 
 /// The [`Net`] of `field`, built in runs of about `run_faces` faces.
 pub(super) fn net_in_runs(
     field: &Field<'_>,
-    with_crossings: bool,
+    full: bool,
     ctl: &Control,
     run_faces: usize,
 ) -> Result<Net, Canceled> {
     let bits: &BitVolume = &field.inside;
     let t0 = std::time::Instant::now();
-    let faces = faces(bits, &ctl.stage(0.0, 0.4))?;
+    // The faces are counted plane by plane first (and found again by each run, where they are
+    // used at once: no array of them unless asked for); the pinches are decided meanwhile.
+    let (counts, joins) = rayon::join(
+        || face_counts(bits, &ctl.stage(0.0, 0.2)),
+        || super::pinches::Joins::decide(bits),
+    );
+    let counts = counts?;
     let t1 = std::time::Instant::now();
-    let joins = super::pinches::Joins::decide(bits);
-    let t2 = std::time::Instant::now();
-    let ctl2 = ctl.stage(0.4, 1.0);
-    let counter = ctl2.counter(faces.len() as u64);
+    // Faces before each plane.
+    let mut before = Vec::with_capacity(counts.len() + 1);
+    before.push(0usize);
+    for c in &counts {
+        before.push(before.last().expect("a count") + c);
+    }
+    let total = *before.last().expect("a count");
+    let ctl2 = ctl.stage(0.2, 1.0);
+    let counter = ctl2.counter(total as u64);
     // The faces in runs of whole lattice slabs, one run a task: each numbers its vertices from
     // its first slab on, and the runs are joined where they share a slab. The runs depend on
     // the faces only, not on the threads, so the sums (and the mesh) are the same on any
-    // machine.
-    let x_of = |f: &Face| f.point(0, 0)[0];
-    let runs = faces.len().div_ceil(run_faces.max(1)).max(1);
-    let mut cuts = vec![0];
+    // machine. A cut is a plane: the first at or after the run's share of the faces, and no
+    // run is empty (no faces: no runs).
+    let runs = total.div_ceil(run_faces.max(1)).max(1);
+    let mut cuts = vec![0usize];
     for r in 1..runs {
-        let mut i = (faces.len() * r / runs).max(*cuts.last().expect("a cut"));
-        while i > 0 && i < faces.len() && x_of(&faces[i]) == x_of(&faces[i - 1]) {
-            i += 1;
-        }
-        if i < faces.len() && i > *cuts.last().expect("a cut") {
-            cuts.push(i);
+        let i = total * r / runs;
+        let x = before.partition_point(|&b| b < i);
+        if before[x] < total && before[x] > before[*cuts.last().expect("a cut")] {
+            cuts.push(x);
         }
     }
-    cuts.push(faces.len());
-    // No empty run (no faces: no runs).
-    cuts.dedup();
-    let last = bits.dims()[0];
-    // Each run fills its faces' quads and crossings in place.
-    let mut quads = vec![[0u32; 4]; faces.len()];
-    let mut crossings = vec![[0.0f64; 3]; if with_crossings { faces.len() } else { 0 }];
+    let planes = counts.len();
+    if before[*cuts.last().expect("a cut")] < total {
+        cuts.push(planes);
+    }
+    if total == 0 {
+        cuts.truncate(1);
+    }
+    // Each run fills its faces' quads (and faces and crossings) in place.
+    let mut quads = vec![[0u32; 4]; total];
+    let mut faces = vec![Face::default(); if full { total } else { 0 }];
+    let mut crossings = vec![[0.0f64; 3]; if full { total } else { 0 }];
     let mut jobs = Vec::new();
-    let (mut q_rest, mut c_rest) = (&mut quads[..], &mut crossings[..]);
+    let (mut q_rest, mut f_rest, mut c_rest) = (&mut quads[..], &mut faces[..], &mut crossings[..]);
     for w in cuts.windows(2) {
-        let (q, qr) = std::mem::take(&mut q_rest).split_at_mut(w[1] - w[0]);
-        let (c, cr) =
-            std::mem::take(&mut c_rest).split_at_mut(if with_crossings { w[1] - w[0] } else { 0 });
-        (q_rest, c_rest) = (qr, cr);
-        jobs.push((w[0]..w[1], q, c));
+        let len = before[w[1]] - before[w[0]];
+        let (q, qr) = std::mem::take(&mut q_rest).split_at_mut(len);
+        let (f, fr) = std::mem::take(&mut f_rest).split_at_mut(if full { len } else { 0 });
+        let (c, cr) = std::mem::take(&mut c_rest).split_at_mut(if full { len } else { 0 });
+        (q_rest, f_rest, c_rest) = (qr, fr, cr);
+        jobs.push((w[0] as u32..w[1] as u32, q, f, c));
     }
+    let t2 = std::time::Instant::now();
+    let last = bits.dims()[0];
     let parts = jobs
         .into_par_iter()
-        .map(|(range, q, c)| {
-            let upto = faces.get(range.end).map_or(last, x_of);
-            run(field, &joins, &faces[range], upto, q, c, &counter)
+        .map(|(planes, q, f, c)| {
+            // Numbered up to the next run's first slab.
+            let upto = planes.end.min(last);
+            run(field, &joins, planes, upto, q, f, c, &counter)
         })
         .collect::<Result<Vec<Run>, Canceled>>()?;
     let t3 = std::time::Instant::now();
@@ -449,7 +461,7 @@ pub(super) fn net_in_runs(
     let mut q_rest = &mut quads[..];
     let mut jobs = Vec::new();
     for (w, &offset) in cuts.windows(2).zip(&offsets) {
-        let (q, qr) = std::mem::take(&mut q_rest).split_at_mut(w[1] - w[0]);
+        let (q, qr) = std::mem::take(&mut q_rest).split_at_mut(before[w[1]] - before[w[0]]);
         q_rest = qr;
         jobs.push((q, offset));
     }
@@ -459,11 +471,11 @@ pub(super) fn net_in_runs(
         }
     });
     tracing::debug!(
-        faces_s = (t1 - t0).as_secs_f64(),
-        pinches_s = (t2 - t1).as_secs_f64(),
+        counts_and_pinches_s = (t1 - t0).as_secs_f64(),
+        cuts_s = (t2 - t1).as_secs_f64(),
         runs_s = (t3 - t2).as_secs_f64(),
         join_s = t3.elapsed().as_secs_f64(),
-        faces = faces.len(),
+        faces = total,
         "net"
     );
     ctl.complete();
@@ -485,72 +497,84 @@ struct Run {
     shared: usize,
 }
 
-/// The [`Run`] of `faces` (whole slabs, in order), numbering the slabs from the first face's
-/// up to `upto`; their quads (vertices numbered from the run's first) and crossings go to
-/// `quads` and `crossings` (unless it is empty).
+/// The [`Run`] of the faces of lattice planes `planes` (found here, plane by plane),
+/// numbering the slabs from the first plane's up to `upto`; their quads (vertices numbered
+/// from the run's first) go to `quads`, and the faces and crossings to `faces` and
+/// `crossings` unless they are empty.
+#[allow(clippy::too_many_arguments)]
 fn run(
     field: &Field<'_>,
     joins: &super::pinches::Joins,
-    faces: &[Face],
+    planes: std::ops::Range<u32>,
     upto: u32,
     quads: &mut [[u32; 4]],
+    faces: &mut [Face],
     crossings: &mut [[f64; 3]],
     counter: &crate::cancel::Counter,
 ) -> Result<Run, Canceled> {
-    let mut slabs = Slabs::new(&field.inside, joins, faces[0].point(0, 0)[0]);
+    let mut slabs = Slabs::new(&field.inside, joins, planes.start);
     let mut sums: Vec<[f64; 4]> = Vec::new();
-    for (i, f) in faces.iter().enumerate() {
-        if i % 65536 == 0 {
-            counter.check()?;
-            counter.add(65536.min((faces.len() - i) as u64));
-        }
-        // The face's corners are in lattice slabs x and x + 1 (faces come in order of x).
-        slabs.reach(f.point(0, 0)[0] + 1);
+    let mut plane = Vec::new();
+    let mut i = 0;
+    for x in planes {
+        counter.check()?;
+        plane.clear();
+        faces_at(&field.inside, x, &mut plane);
+        counter.add(plane.len() as u64);
+        // The faces' corners are in lattice slabs x and x + 1.
+        slabs.reach(x + 1);
         if sums.len() < slabs.points.len() {
             sums.resize(slabs.points.len(), [0.0; 4]);
         }
-        // The crossing point on the segment between the face's two voxel centres.
-        let mut c = [0.0; 3];
-        c[(f.a + 1) % 3] = f64::from(f.u) + 0.5;
-        c[(f.a + 2) % 3] = f64::from(f.v) + 0.5;
-        c[f.a] = f64::from(f.k);
-        if field.value.is_some() {
-            let inn = f.inside().map(i64::from);
-            let mut out = inn;
-            out[f.a] += if f.plus { 1 } else { -1 };
-            let (vi, vo) = (field.value(inn), field.value(out));
-            let t = if vo.is_infinite() {
-                0.5
-            } else {
-                let (a, b) = (vi.abs(), vo.abs());
-                if a + b > 0.0 { a / (a + b) } else { 0.5 }
-            };
-            let t = t.clamp(1.0 / 64.0, 63.0 / 64.0);
-            let ci = f64::from(inn[f.a] as i32) + 0.5;
-            c[f.a] = ci + t * if f.plus { 1.0 } else { -1.0 };
-        }
-        if !crossings.is_empty() {
-            crossings[i] = c;
-        }
-        // Corners counter-clockwise seen from +a; at corner (u + du, v + dv) the face is the
-        // block's internal face across a between the octants with bits (1 − du, 1 − dv).
-        let mut ring = [(0, 0), (1, 0), (1, 1), (0, 1)].map(|(du, dv)| {
-            let id = slabs.vertex(
-                f.point(du, dv),
-                f.a * 4 + (1 - du as usize) + 2 * (1 - dv as usize),
-            );
-            let sum = &mut sums[id as usize];
-            for k in 0..3 {
-                sum[k] += c[k];
+        for f in &plane {
+            if !faces.is_empty() {
+                faces[i] = *f;
             }
-            sum[3] += 1.0;
-            id
-        });
-        if !f.plus {
-            ring.reverse();
+            // The crossing point on the segment between the face's two voxel centres.
+            let mut c = [0.0; 3];
+            c[(f.a + 1) % 3] = f64::from(f.u) + 0.5;
+            c[(f.a + 2) % 3] = f64::from(f.v) + 0.5;
+            c[f.a] = f64::from(f.k);
+            if field.value.is_some() {
+                let inn = f.inside().map(i64::from);
+                let mut out = inn;
+                out[f.a] += if f.plus { 1 } else { -1 };
+                let (vi, vo) = (field.value(inn), field.value(out));
+                let t = if vo.is_infinite() {
+                    0.5
+                } else {
+                    let (a, b) = (vi.abs(), vo.abs());
+                    if a + b > 0.0 { a / (a + b) } else { 0.5 }
+                };
+                let t = t.clamp(1.0 / 64.0, 63.0 / 64.0);
+                let ci = f64::from(inn[f.a] as i32) + 0.5;
+                c[f.a] = ci + t * if f.plus { 1.0 } else { -1.0 };
+            }
+            if !crossings.is_empty() {
+                crossings[i] = c;
+            }
+            // Corners counter-clockwise seen from +a; at corner (u + du, v + dv) the face is the
+            // block's internal face across a between the octants with bits (1 − du, 1 − dv).
+            let mut ring = [(0, 0), (1, 0), (1, 1), (0, 1)].map(|(du, dv)| {
+                let id = slabs.vertex(
+                    f.point(du, dv),
+                    f.a * 4 + (1 - du as usize) + 2 * (1 - dv as usize),
+                );
+                let sum = &mut sums[id as usize];
+                for k in 0..3 {
+                    sum[k] += c[k];
+                }
+                sum[3] += 1.0;
+                id
+            });
+            if !f.plus {
+                ring.reverse();
+            }
+            quads[i] = ring;
+            i += 1;
         }
-        quads[i] = ring;
     }
+    debug_assert_eq!(i, quads.len(), "the planes' faces fill the run");
     slabs.reach(upto);
     sums.resize(slabs.points.len(), [0.0; 4]);
     // The last slab numbered is `upto` (the faces' slabs are below it).
