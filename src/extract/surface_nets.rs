@@ -345,6 +345,7 @@ pub fn surface_nets(field: &Field<'_>, ctl: &Control) -> Result<TriMesh, Cancele
 /// each face's crossing point, and each vertex's sum of its faces' crossing points (and their
 /// count).
 pub(super) struct Net {
+    /// The boundary faces, in order of their lowest lattice x (empty unless asked for).
     pub faces: Vec<Face>,
     pub quads: Vec<[u32; 4]>,
     /// Each face's crossing point (empty unless asked for).
