@@ -64,6 +64,15 @@ fn until_no_uploads(dir: &Path) {
     }
 }
 
+/// Waits (10 s at most) until the sweep has deleted `upload`; `what` names it in the failure.
+fn until_swept(upload: &Path, what: &str) {
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while upload.exists() {
+        assert!(Instant::now() < deadline, "{what} was not swept");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
 #[test]
 fn accepted_jobs_survive_a_sigkill_and_finish_after_the_restart() {
     let dir = Scratch::new("durable-kill");
@@ -137,14 +146,7 @@ fn uploads_that_no_job_refers_to_are_swept_after_the_grace() {
     let young = dir.join("uploads/fedcba9876543210");
     std::fs::write(&young, b"an upload being stored for a job").unwrap();
     let srv = Server::start(&dir, &["--upload-grace", "3600"]);
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while orphan.exists() {
-        assert!(
-            Instant::now() < deadline,
-            "the orphaned upload was not swept"
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    }
+    until_swept(&orphan, "the orphaned upload");
     assert!(young.exists(), "an upload within its grace was swept");
     drop(srv);
 }
@@ -166,14 +168,7 @@ fn the_upload_of_an_ended_job_is_swept_at_the_start_whatever_its_age() {
     let young = dir.join("uploads/fedcba9876543210");
     std::fs::write(&young, b"an upload being stored for a job").unwrap();
     let srv = Server::start(&dir, &["--workers", "1", "--upload-grace", "3600"]);
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while ended.exists() {
-        assert!(
-            Instant::now() < deadline,
-            "the ended job's upload was not swept"
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    }
+    until_swept(&ended, "the ended job's upload");
     assert!(
         young.exists(),
         "an unknown job's upload within its grace was swept"

@@ -28,14 +28,14 @@ use rayon::prelude::*;
 use crate::cancel::{Canceled, Control};
 
 /// Taubin's λ and μ (λ = 0.5, 1/λ + 1/μ = 0.1: the pass band of his paper's examples).
-pub(super) const TAUBIN: (f64, f64) = (0.5, -0.5263157894736842);
+const TAUBIN: (f64, f64) = (0.5, -0.5263157894736842);
 
 /// Half the side of a vertex's box about its lattice point: the cell shrunk by 1/16 voxel.
 const HALF: f32 = 0.5 - 1.0 / 16.0;
 
 /// Neighbour slots per vertex held inline (a vertex has 3 to 6 on smooth surfaces; up to 12,
 /// the internal faces of its block, in the rest).
-pub(super) const SLOTS: usize = 6;
+const SLOTS: usize = 6;
 
 /// The mesh the steps run on.
 ///
@@ -49,10 +49,10 @@ pub(super) const SLOTS: usize = 6;
 ///   axis, exact in f32), and in `steps[v][3]` 1 / its valence;
 /// * `slabs`: the first vertex of each lattice slab, then the vertex count.
 pub(super) struct Graph {
-    pub adj: Vec<[u32; SLOTS]>,
-    pub extra: Vec<(u32, Vec<u32>)>,
-    pub steps: Vec<[f32; 4]>,
-    pub slabs: Vec<usize>,
+    adj: Vec<[u32; SLOTS]>,
+    extra: Vec<(u32, Vec<u32>)>,
+    steps: Vec<[f32; 4]>,
+    slabs: Vec<usize>,
 }
 
 impl Graph {
@@ -278,7 +278,8 @@ pub(super) fn relax(
         done: (0..stages).map(|_| AtomicUsize::new(0)).collect(),
         stopped: AtomicBool::new(false),
     };
-    let counter = ctl.counter((stages * slabs + 2 * passes) as u64);
+    // Stage k runs slabs + 2·(its steps − 1) sweeps.
+    let counter = ctl.counter((stages * slabs + 2 * (passes - stages)) as u64);
     let stage = |k: usize| -> Result<(), Canceled> {
         let mut guard = StopOnDrop(&shared.stopped, true);
         let (a, b) = (cut(k), cut(k + 1));

@@ -406,9 +406,6 @@ pub(super) fn net_in_runs(
     if before[*cuts.last().expect("a cut")] < total {
         cuts.push(planes);
     }
-    if total == 0 {
-        cuts.truncate(1);
-    }
     // Each run fills its faces' quads (and faces and crossings) in place.
     let mut quads = vec![[0u32; 4]; total];
     let mut faces = vec![Face::default(); if full { total } else { 0 }];
