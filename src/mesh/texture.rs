@@ -142,14 +142,30 @@ pub fn decode(bytes: &[u8], budget: u64, what: &str) -> Result<Image, MeshError>
     })
 }
 
+/// Byte i / 255 for each of the 256 bytes (alpha is linear).
+const UNIT: [f32; 256] = {
+    let mut t = [0.0f32; 256];
+    let mut i = 0;
+    while i < 256 {
+        t[i] = i as f32 / 255.0;
+        i += 1;
+    }
+    t
+};
+
 /// A texel's sRGB bytes in linear light (alpha as it is).
 fn linear(c: [u8; 4]) -> [f32; 4] {
-    let lin = srgb_to_linear_table();
+    linear_by(srgb_to_linear_table(), c)
+}
+
+/// [`linear`] with the table at hand.
+#[inline(always)]
+fn linear_by(lin: &[f32; 256], c: [u8; 4]) -> [f32; 4] {
     [
         lin[c[0] as usize],
         lin[c[1] as usize],
         lin[c[2] as usize],
-        f32::from(c[3]) / 255.0,
+        UNIT[c[3] as usize],
     ]
 }
 
@@ -174,7 +190,38 @@ impl Image {
 
     /// The linear RGBA at texture coordinates (u, v) through `t`'s sampler. Coordinates that
     /// are not finite read texel (0, 0).
+    #[inline]
     pub fn sample(&self, u: f64, v: f64, t: &TextureRef) -> [f32; 4] {
+        if t.filter == Filter::Linear {
+            // Between four texel centres inside the image (nearly every sample): nothing to
+            // wrap, and u, v in (0, 1), where every wrap mode leaves them as they are, so the
+            // result is `sample_any`'s, without its floors and remainders.
+            let (w, h) = (f64::from(self.width), f64::from(self.height));
+            let (x, y) = (u * w - 0.5, v * h - 0.5);
+            if x >= 0.0 && y >= 0.0 && x < w - 1.0 && y < h - 1.0 {
+                let (i, j) = (x as usize, y as usize);
+                let (fx, fy) = ((x - i as f64) as f32, (y - j as f64) as f32);
+                let w = self.width as usize;
+                let at = j * w + i;
+                let lin = srgb_to_linear_table();
+                let (top, bottom) = (&self.texels[at..at + 2], &self.texels[at + w..at + w + 2]);
+                return bilinear(
+                    [
+                        linear_by(lin, top[0]),
+                        linear_by(lin, top[1]),
+                        linear_by(lin, bottom[0]),
+                        linear_by(lin, bottom[1]),
+                    ],
+                    fx,
+                    fy,
+                );
+            }
+        }
+        self.sample_any(u, v, t)
+    }
+
+    /// [`Image::sample`] anywhere.
+    fn sample_any(&self, u: f64, v: f64, t: &TextureRef) -> [f32; 4] {
         let (u, v) = if u.is_finite() && v.is_finite() {
             (u, v)
         } else {
@@ -207,14 +254,21 @@ impl Image {
                     [(i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)]
                         .map(|(i, j)| self.texel(i, j, t))
                 };
-                std::array::from_fn(|k| {
-                    let top = a[k] + (b[k] - a[k]) * fx;
-                    let bottom = c[k] + (d[k] - c[k]) * fx;
-                    top + (bottom - top) * fy
-                })
+                bilinear([a, b, c, d], fx, fy)
             }
         }
     }
+}
+
+/// Bilinear interpolation between texels `[a, b, c, d]` (top left, top right, bottom left,
+/// bottom right) at fractions `fx`, `fy`.
+#[inline(always)]
+fn bilinear([a, b, c, d]: [[f32; 4]; 4], fx: f32, fy: f32) -> [f32; 4] {
+    std::array::from_fn(|k| {
+        let top = a[k] + (b[k] - a[k]) * fx;
+        let bottom = c[k] + (d[k] - c[k]) * fx;
+        top + (bottom - top) * fy
+    })
 }
 
 #[cfg(test)]
@@ -271,6 +325,39 @@ mod tests {
             img.sample(f64::NAN, 0.5, &lrep),
             img.sample(0.0, 0.0, &lrep)
         );
+    }
+
+    #[test]
+    fn the_fast_path_gives_what_the_general_sampler_gives() {
+        // Texels from a hash: neighbours differ, so a wrong texel or weight shows.
+        let img = image(37, 23, |x, y| {
+            let h = x.wrapping_mul(2654435761) ^ y.wrapping_mul(40503).rotate_left(7);
+            h.to_le_bytes()
+        });
+        let mut seed = 3u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for wrap in [Wrap::Repeat, Wrap::MirroredRepeat, Wrap::ClampToEdge] {
+            let t = TextureRef {
+                image: 0,
+                wrap: [wrap; 2],
+                filter: Filter::Linear,
+            };
+            for i in 0..4000 {
+                // Inside, on texel centres and edges, and outside the image.
+                let (u, v) = match i % 4 {
+                    0 => (rnd(), rnd()),
+                    1 => (((i % 37) as f64 + 0.5) / 37.0, (i % 23) as f64 / 23.0),
+                    2 => (rnd() * 3.0 - 1.0, rnd() * 3.0 - 1.0),
+                    _ => (0.5 / 37.0 + rnd() * 1e-12, 1.0 - 0.5 / 23.0 - rnd() * 1e-12),
+                };
+                assert_eq!(img.sample(u, v, &t), img.sample_any(u, v, &t), "{u} {v}");
+            }
+        }
     }
 
     #[test]

@@ -129,41 +129,63 @@ struct Shader<'m> {
     colors: Option<std::borrow::Cow<'m, [[f32; 4]]>>,
 }
 
-impl Shader<'_> {
-    /// Linear RGBA at barycentric weights `b` (of corners 1 and 2) of triangle `t`, without
-    /// the texture.
-    fn plain(&self, t: usize, b: [f64; 2]) -> [f64; 4] {
-        let mut c = [1.0f64; 4];
-        if let Some(m) = &self.a.material {
-            let base = self.a.materials[usize::from(m[t])].base_color;
-            c = base.map(f64::from);
-        }
-        if let Some(vc) = &self.colors {
-            let tri = self.mesh.triangles()[t];
-            let w = [1.0 - b[0] - b[1], b[0], b[1]];
-            for (k, ck) in c.iter_mut().enumerate() {
-                let v: f64 = (0..3)
-                    .map(|i| w[i] * f64::from(vc[tri[i] as usize][k]))
-                    .sum();
-                *ck *= v;
+/// What one triangle's colour needs, gathered once for all its pieces ([`Shader::prepare`]).
+struct TriShade<'m> {
+    /// The colour without the texture at corners 0, 1 and 2 (it is linear over the triangle:
+    /// the base colour times the interpolated vertex colour).
+    plain: [[f64; 4]; 3],
+    /// Whether `plain` differs between the corners (vertex colours): else it is `plain[0]`
+    /// everywhere.
+    varying: bool,
+    /// The texture: the image, its sampler, the texture coordinates of the corners.
+    texture: Option<(&'m Image, crate::mesh::texture::TextureRef, [[f64; 2]; 3])>,
+}
+
+/// `v0 + (v1 − v0)·b0 + (v2 − v0)·b1`: the value at weights `b` of something linear over a
+/// triangle, from its corners.
+#[inline(always)]
+fn interpolate<const N: usize>(c: &[[f64; N]; 3], b: [f64; 2]) -> [f64; N] {
+    std::array::from_fn(|k| c[0][k] + (c[1][k] - c[0][k]) * b[0] + (c[2][k] - c[0][k]) * b[1])
+}
+
+impl<'m> Shader<'m> {
+    /// Triangle `t`'s [`TriShade`].
+    fn prepare(&self, t: usize) -> TriShade<'m> {
+        let base = match &self.a.material {
+            Some(m) => self.a.materials[usize::from(m[t])]
+                .base_color
+                .map(f64::from),
+            None => [1.0; 4],
+        };
+        let (plain, varying) = match &self.colors {
+            Some(vc) => {
+                let tri = self.mesh.triangles()[t];
+                let plain: [[f64; 4]; 3] = std::array::from_fn(|i| {
+                    std::array::from_fn(|k| base[k] * f64::from(vc[tri[i] as usize][k]))
+                });
+                let varying = plain[1] != plain[0] || plain[2] != plain[0];
+                (plain, varying)
             }
+            None => ([base; 3], false),
+        };
+        let texture = (|| {
+            let a: &'m Attributes = self.a;
+            let m = a.material.as_ref()?[t];
+            let tex = a.materials[usize::from(m)].texture?;
+            let uv = &a.uv.as_ref()?[t];
+            Some((&a.images[tex.image], tex, uv.map(|c| c.map(f64::from))))
+        })();
+        TriShade {
+            plain,
+            varying,
+            texture,
         }
-        c
     }
 
-    /// The texture of triangle `t`'s material, with the image.
-    fn texture(
-        &self,
-        t: usize,
-    ) -> Option<(&Image, crate::mesh::texture::TextureRef, &[[f32; 2]; 3])> {
-        let m = self.a.material.as_ref()?[t];
-        let tex = self.a.materials[usize::from(m)].texture?;
-        Some((&self.a.images[tex.image], tex, &self.a.uv.as_ref()?[t]))
-    }
-
-    /// The integral of the colour over `piece` (of triangle `t`) and its area, in world units.
-    fn integrate(&self, t: usize, piece: &[Vertex], s2: f64) -> (f64, [f64; 4]) {
-        let Some((img, tex, uv)) = self.texture(t) else {
+    /// The integral of the colour over `piece` (of a triangle shaded by `sh`) and its area, in
+    /// world units.
+    fn integrate(sh: &TriShade, piece: &[Vertex], s2: f64) -> (f64, [f64; 4]) {
+        let Some((img, tex, uv)) = &sh.texture else {
             let a2 = double_area(piece);
             // The area-weighted centroid of the fan's triangles.
             let o = piece[0].b;
@@ -180,13 +202,9 @@ impl Shader<'_> {
             } else {
                 o
             };
-            let c = self.plain(t, b);
+            let c = interpolate(&sh.plain, b);
             let area = a2 / 2.0 * s2;
             return (area, c.map(|v| v * area));
-        };
-        let uv_at = |b: [f64; 2]| -> [f64; 2] {
-            let w = [1.0 - b[0] - b[1], b[0], b[1]];
-            std::array::from_fn(|k| (0..3).map(|i| w[i] * f64::from(uv[i][k])).sum())
         };
         let texels = f64::from(img.width) * f64::from(img.height);
         let mut total = 0.0;
@@ -197,7 +215,7 @@ impl Shader<'_> {
             if area <= 0.0 {
                 continue;
             }
-            let uvs = fan.map(|v| uv_at(v.b));
+            let uvs = fan.map(|v| interpolate(uv, v.b));
             let samples = ((uvs[1][0] - uvs[0][0]) * (uvs[2][1] - uvs[0][1])
                 - (uvs[2][0] - uvs[0][0]) * (uvs[1][1] - uvs[0][1]))
                 .abs()
@@ -213,18 +231,34 @@ impl Shader<'_> {
             }
             let n = 1u32 << level;
             let per = area / f64::from(n * n);
-            sub_centroids(n, |s, r| {
-                // The point at (s, r) of the fan triangle, in the triangle's weights.
-                let b: [f64; 2] = std::array::from_fn(|k| {
-                    fan[0].b[k] + (fan[1].b[k] - fan[0].b[k]) * s + (fan[2].b[k] - fan[0].b[k]) * r
+            // The samples of a fan triangle are summed in f32 (at most 4^MAX_LEVEL of values
+            // in [0, 1]: a relative error under 2^-15), the fan triangles in f64.
+            let mut part = [0.0f32; 4];
+            if sh.varying {
+                let plains = fan.map(|v| interpolate(&sh.plain, v.b));
+                sub_centroids(n, |s, r| {
+                    let [u, v] = interpolate(&uvs, [s, r]);
+                    let c = interpolate(&plains, [s, r]);
+                    let texel = img.sample(u, v, tex);
+                    for k in 0..4 {
+                        part[k] += (c[k] as f32) * texel[k];
+                    }
                 });
-                let [u, v] = uv_at(b);
-                let texel = img.sample(u, v, &tex);
-                let c = self.plain(t, b);
                 for k in 0..4 {
-                    sum[k] += per * c[k] * f64::from(texel[k]);
+                    sum[k] += per * f64::from(part[k]);
                 }
-            });
+            } else {
+                sub_centroids(n, |s, r| {
+                    let [u, v] = interpolate(&uvs, [s, r]);
+                    let texel = img.sample(u, v, tex);
+                    for k in 0..4 {
+                        part[k] += texel[k];
+                    }
+                });
+                for k in 0..4 {
+                    sum[k] += per * sh.plain[0][k] * f64::from(part[k]);
+                }
+            }
             total += area;
         }
         (total, sum)
@@ -285,18 +319,20 @@ pub fn surface(
         HashMap::with_hasher(foldhash::fast::FixedState::default());
     let n = mesh.triangles().len();
     let counter = ctl.counter(n as u64);
-    for start in (0..n).step_by(BATCH) {
-        ctl.check()?;
-        let end = (start + BATCH).min(n);
-        let mut batch: Vec<Piece> = (start..end)
+    // Each run of triangles' pieces in triangle order, the runs in order (rayon's collect keeps
+    // it): a voxel's sums are taken in triangle order, the same on every run whatever the
+    // threads did.
+    let cut = |range: std::ops::Range<usize>| -> Vec<Vec<Piece>> {
+        range
             .into_par_iter()
             .with_min_len(256)
             .fold(
                 || (Vec::new(), Clipper::default()),
                 |(mut out, mut clipper), t| {
                     let tri = mesh.triangle(t).map(to_grid);
+                    let sh = shader.prepare(t);
                     clipper.pieces(&tri, dims, |v, piece| {
-                        let (area, rgba) = shader.integrate(t, piece, s2);
+                        let (area, rgba) = Shader::integrate(&sh, piece, s2);
                         if area > 0.0 {
                             out.push(Piece {
                                 key: key(v, dims),
@@ -310,25 +346,41 @@ pub fn surface(
                 },
             )
             .map(|(out, _)| out)
-            .reduce(Vec::new, |mut a, mut b| {
-                a.append(&mut b);
-                a
-            });
-        // In triangle order within a voxel, whatever the threads did: the sums are then the
-        // same on every run.
-        batch.par_sort_unstable_by_key(|p| (p.key, p.tri));
-        for p in &batch {
+            .collect()
+    };
+    let material = a.material.as_deref().filter(|_| want.material);
+    let add = |acc: &mut HashMap<u64, Acc, _>,
+               mats: &mut HashMap<(u64, u16), f64, _>,
+               runs: Vec<Vec<Piece>>| {
+        for p in runs.iter().flatten() {
             let e = acc.entry(p.key).or_default();
             e.area += p.area;
             for k in 0..4 {
                 e.rgba[k] += p.rgba[k];
             }
-            if want.material {
-                let id = a.material.as_ref().expect("checked")[p.tri as usize];
-                *mats.entry((p.key, id)).or_default() += p.area;
+            if let Some(m) = material {
+                *mats.entry((p.key, m[p.tri as usize])).or_default() += p.area;
             }
         }
+    };
+    // Batch b's pieces are added while batch b + 1 is cut (the adding is serial).
+    let mut pending: Option<Vec<Vec<Piece>>> = None;
+    for start in (0..n).step_by(BATCH) {
+        ctl.check()?;
+        let end = (start + BATCH).min(n);
+        let (_, runs) = rayon::join(
+            || {
+                if let Some(runs) = pending.take() {
+                    add(&mut acc, &mut mats, runs);
+                }
+            },
+            || cut(start..end),
+        );
+        pending = Some(runs);
         counter.add((end - start) as u64);
+    }
+    if let Some(runs) = pending.take() {
+        add(&mut acc, &mut mats, runs);
     }
     let mut keys: Vec<u64> = acc.keys().copied().collect();
     keys.par_sort_unstable();
