@@ -266,20 +266,20 @@ impl<'m> Shader<'m> {
 }
 
 /// Calls `f(s, r)` with the centroids of the n² equal sub-triangles of the triangle with corners
-/// (0, 0), (1, 0), (0, 1) cut n times along each edge.
+/// (0, 0), (1, 0), (0, 1) cut n times along each edge (n a power of two).
 fn sub_centroids(n: u32, mut f: impl FnMut(f64, f64)) {
-    let nf = f64::from(n);
+    // n is a power of two, so multiplying by 1/n is dividing by n, exactly.
+    debug_assert!(n.is_power_of_two());
+    let inv = 1.0 / f64::from(n);
     for i in 0..n {
+        let (a1, a2) = (
+            (f64::from(i) + 1.0 / 3.0) * inv,
+            (f64::from(i) + 2.0 / 3.0) * inv,
+        );
         for j in 0..n - i {
-            f(
-                (f64::from(i) + 1.0 / 3.0) / nf,
-                (f64::from(j) + 1.0 / 3.0) / nf,
-            );
+            f(a1, (f64::from(j) + 1.0 / 3.0) * inv);
             if i + j + 1 < n {
-                f(
-                    (f64::from(i) + 2.0 / 3.0) / nf,
-                    (f64::from(j) + 2.0 / 3.0) / nf,
-                );
+                f(a2, (f64::from(j) + 2.0 / 3.0) * inv);
             }
         }
     }
@@ -325,7 +325,7 @@ pub fn surface(
     let cut = |range: std::ops::Range<usize>| -> Vec<Vec<Piece>> {
         range
             .into_par_iter()
-            .with_min_len(256)
+            .with_min_len(16)
             .fold(
                 || (Vec::new(), Clipper::default()),
                 |(mut out, mut clipper), t| {

@@ -63,42 +63,43 @@ const FAR: u64 = u64::MAX;
 
 /// One line's lower envelope: `f[q]` ([`FAR`]: no source) are the squared distances along the
 /// axes done so far; on return `feat[i]` is the feature of the q minimising f[q] + (i − q)²
-/// (the lowest q among equal ones). `v`, `z` and `orig` are scratch.
+/// (the lowest q among equal ones). `v`, `z` and `orig` are scratch: `z[k]` is where parabola
+/// `v[k]` starts to be the lowest, the fraction num / den (den > 0), compared in exact integers
+/// (no division: it was a tenth of the pass).
 fn envelope(
     f: &[u64],
     feat: &mut [u32],
     v: &mut Vec<usize>,
-    z: &mut Vec<f64>,
+    z: &mut Vec<(i64, i64)>,
     orig: &mut Vec<u32>,
 ) {
     v.clear();
     z.clear();
-    let parab = |q: usize| f[q] as f64 + (q * q) as f64;
+    let parab = |q: usize| f[q] as i64 + (q * q) as i64;
     for (q, &fq) in f.iter().enumerate() {
         if fq == FAR {
             continue;
         }
-        loop {
-            let Some(&last) = v.last() else {
-                v.push(q);
-                z.push(f64::NEG_INFINITY);
-                break;
-            };
-            let s = (parab(q) - parab(last)) / (2.0 * (q - last) as f64);
-            if s <= *z.last().expect("one per parabola") {
+        let pq = parab(q);
+        // Pop the parabolas that q's hides from where they start; the first is never popped
+        // (it starts at −∞, and its z is never read).
+        while v.len() >= 2 {
+            let last = *v.last().expect("two");
+            let (num, den) = (pq - parab(last), 2 * (q - last) as i64);
+            let (zn, zd) = *z.last().expect("one per parabola");
+            // num / den <= zn / zd, both denominators positive.
+            if i128::from(num) * i128::from(zd) <= i128::from(zn) * i128::from(den) {
                 v.pop();
                 z.pop();
-                if v.is_empty() {
-                    v.push(q);
-                    z.push(f64::NEG_INFINITY);
-                    break;
-                }
             } else {
-                v.push(q);
-                z.push(s);
                 break;
             }
         }
+        match v.last() {
+            None => z.push((-1, 0)),
+            Some(&last) => z.push((pq - parab(last), 2 * (q - last) as i64)),
+        }
+        v.push(q);
     }
     if v.is_empty() {
         return;
@@ -107,7 +108,8 @@ fn envelope(
     orig.extend(v.iter().map(|&q| feat[q]));
     let mut k = 0;
     for (i, out) in feat.iter_mut().enumerate() {
-        while k + 1 < v.len() && z[k + 1] < i as f64 {
+        // z[k + 1] < i.
+        while k + 1 < v.len() && z[k + 1].0 < i as i64 * z[k + 1].1 {
             k += 1;
         }
         *out = orig[k];
@@ -115,7 +117,7 @@ fn envelope(
 }
 
 /// Scratch of one thread's lines: f, v, z, orig and a line.
-type Scratch = (Vec<u64>, Vec<usize>, Vec<f64>, Vec<u32>, Vec<u32>);
+type Scratch = (Vec<u64>, Vec<usize>, Vec<(i64, i64)>, Vec<u32>, Vec<u32>);
 
 /// One pass over one line of features (`NONE`: none yet): each voxel takes the nearest of the
 /// line's features, `dist(feature)` being its squared distance over the axes done so far; a
@@ -125,7 +127,7 @@ fn pass_line(
     dist: impl Fn(u32) -> u64,
     f: &mut Vec<u64>,
     v: &mut Vec<usize>,
-    z: &mut Vec<f64>,
+    z: &mut Vec<(i64, i64)>,
     orig: &mut Vec<u32>,
 ) {
     if line.iter().all(|&s| s == NONE) {
