@@ -116,19 +116,32 @@ impl Clipper {
                 }
             }
         }
+        // The last plane on an axis lies past the triangle unless the grid ends first: what is
+        // left is then all below it, and is taken as it is (the cut would copy it).
+        let past: [bool; 3] = std::array::from_fn(|k| hi[k] < (last[k] + 1) as f64);
+        let cut = |rest: &mut Vec<Vertex>,
+                   axis: usize,
+                   c: i64,
+                   below: &mut Vec<Vertex>,
+                   above: &mut Vec<Vertex>| {
+            if c == last[axis] && past[axis] {
+                std::mem::swap(rest, below);
+                rest.clear();
+            } else {
+                split(rest, axis, (c + 1) as f64, below, above);
+                std::mem::swap(rest, above);
+            }
+        };
         for i in first[0]..=last[0] {
-            split(rest_x, 0, (i + 1) as f64, b0, a0);
-            std::mem::swap(rest_x, a0);
+            cut(rest_x, 0, i, b0, a0);
             if b0.len() >= 3 {
                 let rest_y = &mut *b0;
                 for j in first[1]..=last[1] {
-                    split(rest_y, 1, (j + 1) as f64, b1, a1);
-                    std::mem::swap(rest_y, a1);
+                    cut(rest_y, 1, j, b1, a1);
                     if b1.len() >= 3 {
                         let rest_z = &mut *b1;
                         for k in first[2]..=last[2] {
-                            split(rest_z, 2, (k + 1) as f64, b2, a2);
-                            std::mem::swap(rest_z, a2);
+                            cut(rest_z, 2, k, b2, a2);
                             if b2.len() >= 3 {
                                 f([i as u32, j as u32, k as u32], b2);
                             }
