@@ -198,7 +198,8 @@ pub const CHANNEL_BYTES: u64 = 6;
 /// The colour and material channels of a voxelization (`engine::colour`) on `grid`: per set
 /// voxel its values (rgba 4, material 2), its nearest-source index and proposal (8) and the
 /// copy made of them for the volume (6); per surface voxel its sums and map entry (about 96);
-/// per triangle part of a batch of 2¹⁵ triangles its record (48). Set voxels are not known
+/// per triangle part of two batches of 2¹⁵ triangles (one is added up while the next is cut)
+/// its record (56 bytes). Set voxels are not known
 /// before the bits are: the grid's voxels bound them. Surface voxels and parts are bounded by
 /// the voxels of the triangles' bounding boxes (within the grid's).
 pub fn colour_job(grid: &Grid, want: crate::engine::colour::Want, mesh: &crate::mesh::Mesh) -> u64 {
@@ -221,11 +222,20 @@ pub fn colour_job(grid: &Grid, want: crate::engine::colour::Want, mesh: &crate::
     };
     let tris = mesh.triangles();
     let surface = boxes(tris).min(grid.voxel_count());
-    let batch = tris.chunks(1 << 15).map(boxes).max().unwrap_or(0);
+    let batches: Vec<u64> = tris
+        .chunks(crate::engine::colour::BATCH)
+        .map(boxes)
+        .collect();
+    let two = batches
+        .windows(2)
+        .map(|w| w[0].saturating_add(w[1]))
+        .chain(batches.first().copied())
+        .max()
+        .unwrap_or(0);
     grid.voxel_count()
         .saturating_mul(6 + 8 + 6)
         .saturating_add(surface.saturating_mul(96))
-        .saturating_add(batch.saturating_mul(48))
+        .saturating_add(two.saturating_mul(crate::engine::colour::PIECE_BYTES))
 }
 
 /// A voxelization job on `grid` (not counting the mesh, which its loading admits): the

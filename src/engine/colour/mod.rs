@@ -118,8 +118,11 @@ struct Acc {
     rgba: [f64; 4],
 }
 
-/// Triangles a batch: the pieces of one batch are held at once.
-const BATCH: usize = 1 << 15;
+/// Bytes of a [`Piece`] (the memory estimate's, `app::cost::colour_job`).
+pub const PIECE_BYTES: u64 = std::mem::size_of::<Piece>() as u64;
+
+/// Triangles a batch: the pieces of two batches are held at once (`app::cost::colour_job`).
+pub const BATCH: usize = 1 << 15;
 
 /// Everything the colour at a point of a triangle needs.
 struct Shader<'m> {

@@ -353,26 +353,37 @@ pub(super) fn transform(
     );
     ctl.check()?;
     let t3 = std::time::Instant::now();
-    // Each set voxel's feature, by rank (x slabs on every thread, then joined in order).
-    let slabs: Vec<Vec<u32>> = (0..nx)
+    // Each set voxel's feature, by rank: the x slabs on every thread, each into its own part
+    // of the answer (no copy of it: the memory estimate counts one).
+    let words_per_slab = ny * bits.words_per_column();
+    let slab_words = |x: usize| &bits.words()[x * words_per_slab..(x + 1) * words_per_slab];
+    let counts: Vec<usize> = (0..nx)
         .into_par_iter()
-        .map(|x| {
-            let mut out = Vec::new();
-            for y in 0..ny {
-                let base = (x * ny + y) * nz;
-                for (i, &w) in bits.column(x as u32, y as u32).iter().enumerate() {
-                    let mut w = w;
-                    while w != 0 {
-                        let s = feat[base + i * 64 + w.trailing_zeros() as usize];
-                        out.push(if s == NONE { 0 } else { s });
-                        w &= w - 1;
-                    }
+        .map(|x| slab_words(x).iter().map(|w| w.count_ones() as usize).sum())
+        .collect();
+    let mut out = vec![0u32; counts.iter().sum()];
+    let mut parts = Vec::with_capacity(nx);
+    let mut rest = out.as_mut_slice();
+    for &c in &counts {
+        let (part, tail) = rest.split_at_mut(c);
+        parts.push(part);
+        rest = tail;
+    }
+    parts.into_par_iter().enumerate().for_each(|(x, part)| {
+        let mut r = 0;
+        for y in 0..ny {
+            let base = (x * ny + y) * nz;
+            for (i, &w) in bits.column(x as u32, y as u32).iter().enumerate() {
+                let mut w = w;
+                while w != 0 {
+                    let s = feat[base + i * 64 + w.trailing_zeros() as usize];
+                    part[r] = if s == NONE { 0 } else { s };
+                    r += 1;
+                    w &= w - 1;
                 }
             }
-            out
-        })
-        .collect();
-    let out = slabs.concat();
+        }
+    });
     tracing::debug!(
         setup_s = (t0 - start).as_secs_f64(),
         z_s = (t1 - t0).as_secs_f64(),
