@@ -306,6 +306,60 @@ fn new_kinds() -> Vec<Volume> {
     ]
 }
 
+/// A channel volume whose payload passes the one-shot limit (4 MiB) is streamed to the
+/// encoder from where its values lie: the same layout (the bits' words, then each channel's
+/// values), one frame, and the volume back.
+#[test]
+fn a_large_channel_volume_is_written_in_the_documented_layout() {
+    use voxd::volume::{Attributed, ChannelValues};
+    let g = Grid {
+        origin: [0.0; 3],
+        voxel_size: 1.0,
+        dims: [64, 128, 160],
+    };
+    let mut bits = BitVolume::new(g);
+    for x in 0..64 {
+        for y in 0..128 {
+            for z in 0..160 {
+                bits.set(x, y, z, (x * 7 + y * 13 + z * 3) % 5 != 0);
+            }
+        }
+    }
+    let n = bits.count_ones() as usize;
+    let rgba: Vec<[u8; 4]> = (0..n)
+        .map(|i| {
+            [
+                (i % 251) as u8,
+                (i / 251 % 253) as u8,
+                (i * 7 % 255) as u8,
+                255,
+            ]
+        })
+        .collect();
+    let ids: Vec<u16> = (0..n).map(|i| (i * 31 % 65521) as u16).collect();
+    let mut v = Attributed::new(bits.clone());
+    v.add("rgba", ChannelValues::Rgba8(rgba.clone())).unwrap();
+    v.add("material", ChannelValues::U16(ids.clone())).unwrap();
+    let vol = Volume::Channels(v);
+    let e = vxl::encode(&vol, &Default::default()).unwrap();
+    let hl = u32::from_le_bytes(e[12..16].try_into().unwrap()) as usize;
+    let raw = zstd::decode_all(&e[16 + hl..]).unwrap();
+    let mut want: Vec<u8> = bits.words().iter().flat_map(|w| w.to_le_bytes()).collect();
+    want.extend(rgba.iter().flatten());
+    want.extend(ids.iter().flat_map(|i| i.to_le_bytes()));
+    assert!(
+        want.len() > 4 << 20,
+        "{} bytes: not past the one-shot limit",
+        want.len()
+    );
+    assert_eq!(raw.len(), want.len());
+    assert!(
+        raw == want,
+        "the payload differs from the documented layout"
+    );
+    assert_eq!(vxl::decode(&e).unwrap().0, vol);
+}
+
 #[test]
 fn new_kinds_round_trip_through_vxl_version_2_and_other_formats_refuse_them() {
     for vol in new_kinds() {

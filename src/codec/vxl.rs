@@ -180,12 +180,20 @@ pub fn encode(
                     })
                     .collect(),
             );
-            let mut p = words_as_bytes(c.bits().words()).to_vec();
-            for ch in c.channels() {
-                p.extend_from_slice(&ch.values.to_le_bytes());
+            let len = channels_len(c);
+            if len <= ONE_SHOT_MAX {
+                let mut p = Vec::with_capacity(len);
+                p.extend_from_slice(words_as_bytes(c.bits().words()));
+                for ch in c.channels() {
+                    p.extend_from_slice(ch.values.le_bytes());
+                }
+                owned = p;
+                &owned
+            } else {
+                // Written to the encoder where they lie: no copy of the channels.
+                streamed = Some(len);
+                &[]
             }
-            owned = p;
-            &owned
         }
         Volume::SparseDistance(s) => {
             (header.bricks, header.tiles) = sparse_counts(s);
@@ -230,7 +238,8 @@ pub fn encode(
             Volume::SparseDistance(s) => write_sparse(s, &mut enc),
             Volume::SparseMaterial(s) => write_sparse(s, &mut enc),
             Volume::SparseColour(s) => write_sparse(s, &mut enc),
-            _ => unreachable!("only sparse payloads are streamed"),
+            Volume::Channels(c) => write_channels(c, &mut enc),
+            _ => unreachable!("only sparse and channel payloads are streamed"),
         }
         .expect("writing to memory");
         return Ok(enc.finish().expect("writing to memory"));
@@ -255,6 +264,24 @@ pub fn encode(
     let mut enc = streaming_encoder(out, payload.len(), zstd_level(kind));
     std::io::Write::write_all(&mut enc, payload).expect("writing to memory");
     Ok(enc.finish().expect("writing to memory"))
+}
+
+/// The bytes of a channel volume's payload: the bits' words, then each channel's values.
+fn channels_len(c: &Attributed) -> usize {
+    std::mem::size_of_val(c.bits().words())
+        + c.channels()
+            .iter()
+            .map(|ch| ch.values.le_bytes().len())
+            .sum::<usize>()
+}
+
+/// Writes a channel volume's payload ([`channels_len`] bytes) to `w`.
+fn write_channels(c: &Attributed, w: &mut impl std::io::Write) -> std::io::Result<()> {
+    w.write_all(words_as_bytes(c.bits().words()))?;
+    for ch in c.channels() {
+        w.write_all(ch.values.le_bytes())?;
+    }
+    Ok(())
 }
 
 /// Payloads up to this size are compressed in one call by a compressor each thread keeps (a

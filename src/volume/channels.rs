@@ -46,6 +46,16 @@ impl ChannelValues {
         }
     }
     /// The values as little-endian bytes (the `.vxl` payload's).
+    /// The values' little-endian bytes where they lie (the crate runs on little-endian
+    /// targets only: `lib.rs`), the same as [`ChannelValues::to_le_bytes`] without a copy.
+    pub fn le_bytes(&self) -> &[u8] {
+        match self {
+            ChannelValues::U8(v) => v,
+            ChannelValues::U16(v) => bytemuck::cast_slice(v),
+            ChannelValues::F32(v) => bytemuck::cast_slice(v),
+            ChannelValues::Rgba8(v) => bytemuck::cast_slice(v),
+        }
+    }
     pub fn to_le_bytes(&self) -> Vec<u8> {
         match self {
             ChannelValues::U8(v) => to_le_bytes(v),
