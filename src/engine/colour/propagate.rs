@@ -116,8 +116,8 @@ fn envelope(
     }
 }
 
-/// Scratch of one thread's lines: f, v, z, orig and a line.
-type Scratch = (Vec<u64>, Vec<usize>, Vec<(i64, i64)>, Vec<u32>, Vec<u32>);
+/// Scratch of one thread's lines: f, v, z and orig.
+type Scratch = (Vec<u64>, Vec<usize>, Vec<(i64, i64)>, Vec<u32>);
 
 /// One pass over one line of features (`NONE`: none yet): each voxel takes the nearest of the
 /// line's features, `dist(feature)` being its squared distance over the axes done so far; a
@@ -138,7 +138,7 @@ fn pass_line(
     envelope(f, line, v, z, orig);
 }
 
-/// z lines per x-pass task: read together, 16 `u32` share a cache line.
+/// z lines a task of the y and x passes handles at once: 16 `u32` share a cache line.
 const TILE: usize = 16;
 
 /// For each set voxel of `bits` (by rank: the order of [`BitVolume::iter_ones`]), the index in
@@ -260,14 +260,14 @@ pub(super) fn transform(
     let dims = bits.dims();
     let [nx, ny, nz] = dims.map(|d| d as usize);
     let n = nx * ny * nz;
-    // The sources' y and z apart: the y pass reads only the z, and small arrays stay in cache.
-    let (at_y, at_z): (Vec<u32>, Vec<u32>) = sources
+    // The sources' y and z side by side (the x pass reads both; x is never read).
+    let at: Vec<[u32; 2]> = sources
         .par_iter()
         .map(|&k| {
             let [_, y, z] = coords(k, dims);
-            (y, z)
+            [y, z]
         })
-        .unzip();
+        .collect();
     let mut feat = Vec::with_capacity(n);
     // Filled by every thread: the first touch of its pages costs as much as the filling.
     (0..n)
@@ -281,24 +281,39 @@ pub(super) fn transform(
     let t0 = std::time::Instant::now();
     // z: contiguous columns (one with no source stays as it is).
     feat.par_chunks_mut(nz)
-        .for_each_init(Scratch::default, |(f, v, zs, orig, _), col| {
+        .for_each_init(Scratch::default, |(f, v, zs, orig), col| {
             pass_line(col, |_| 0, f, v, zs, orig);
         });
     ctl.check()?;
     let t1 = std::time::Instant::now();
     ctl.set(1.0 / 3.0);
-    // y: within each x slab, lines of stride Z.
-    feat.par_chunks_mut(ny * nz)
-        .for_each_init(Scratch::default, |(f, v, zs, orig, line), slab| {
-            for z in 0..nz {
-                line.clear();
-                line.extend((0..ny).map(|y| slab[y * nz + z]));
-                pass_line(line, |s| d(z as u32, at_z[s as usize]), f, v, zs, orig);
-                for (y, &s) in line.iter().enumerate() {
-                    slab[y * nz + z] = s;
+    // y: within each x slab, lines of stride Z, TILE of them (consecutive z) at a time: read
+    // and written a row of TILE at once.
+    feat.par_chunks_mut(ny * nz).for_each_init(
+        || (Scratch::default(), vec![NONE; ny * TILE]),
+        |((f, v, zs, orig), block), slab| {
+            for z0 in (0..nz).step_by(TILE) {
+                let width = TILE.min(nz - z0);
+                for y in 0..ny {
+                    let row = &slab[y * nz + z0..y * nz + z0 + width];
+                    for (j, &s) in row.iter().enumerate() {
+                        block[j * ny + y] = s;
+                    }
+                }
+                for j in 0..width {
+                    let z = (z0 + j) as u32;
+                    let line = &mut block[j * ny..(j + 1) * ny];
+                    pass_line(line, |s| d(z, at[s as usize][1]), f, v, zs, orig);
+                }
+                for y in 0..ny {
+                    let row = &mut slab[y * nz + z0..y * nz + z0 + width];
+                    for (j, s) in row.iter_mut().enumerate() {
+                        *s = block[j * ny + y];
+                    }
                 }
             }
-        });
+        },
+    );
     ctl.check()?;
     let t2 = std::time::Instant::now();
     ctl.set(2.0 / 3.0);
@@ -321,7 +336,7 @@ pub(super) fn transform(
     let tiles = nz.div_ceil(TILE);
     (0..ny * tiles).into_par_iter().for_each_init(
         || (Scratch::default(), vec![NONE; nx * TILE]),
-        |((f, v, zs, orig, _), block), t| {
+        |((f, v, zs, orig), block), t| {
             let (y, z0) = (t / tiles, (t % tiles) * TILE);
             let width = TILE.min(nz - z0);
             let wanted = &wanted[y];
@@ -340,7 +355,10 @@ pub(super) fn transform(
             for j in (0..width).filter(|&j| want(z0 + j)) {
                 let z = (z0 + j) as u32;
                 let col = &mut block[j * nx..(j + 1) * nx];
-                let dist = |s: u32| d(y as u32, at_y[s as usize]) + d(z, at_z[s as usize]);
+                let dist = |s: u32| {
+                    let [ay, az] = at[s as usize];
+                    d(y as u32, ay) + d(z, az)
+                };
                 pass_line(col, dist, f, v, zs, orig);
             }
             for x in 0..nx {
