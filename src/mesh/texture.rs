@@ -334,13 +334,8 @@ mod tests {
             let h = x.wrapping_mul(2654435761) ^ y.wrapping_mul(40503).rotate_left(7);
             h.to_le_bytes()
         });
-        let mut seed = 3u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::testkit::Rng::new(3);
+        let mut rnd = || rng.unit();
         for wrap in [Wrap::Repeat, Wrap::MirroredRepeat, Wrap::ClampToEdge] {
             let t = TextureRef {
                 image: 0,
