@@ -183,10 +183,7 @@ pub fn encode(
             let len = channels_len(c);
             if len <= ONE_SHOT_MAX {
                 let mut p = Vec::with_capacity(len);
-                p.extend_from_slice(words_as_bytes(c.bits().words()));
-                for ch in c.channels() {
-                    p.extend_from_slice(ch.values.le_bytes());
-                }
+                write_channels(c, &mut p).expect("writing to memory");
                 owned = p;
                 &owned
             } else {

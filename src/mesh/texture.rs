@@ -201,23 +201,30 @@ impl Image {
             if x >= 0.0 && y >= 0.0 && x < w - 1.0 && y < h - 1.0 {
                 let (i, j) = (x as usize, y as usize);
                 let (fx, fy) = ((x - i as f64) as f32, (y - j as f64) as f32);
-                let w = self.width as usize;
-                let at = j * w + i;
-                let lin = srgb_to_linear_table();
-                let (top, bottom) = (&self.texels[at..at + 2], &self.texels[at + w..at + w + 2]);
-                return bilinear(
-                    [
-                        linear_by(lin, top[0]),
-                        linear_by(lin, top[1]),
-                        linear_by(lin, bottom[0]),
-                        linear_by(lin, bottom[1]),
-                    ],
-                    fx,
-                    fy,
-                );
+                return self.bilinear_inside(i, j, fx, fy);
             }
         }
         self.sample_any(u, v, t)
+    }
+
+    /// Bilinear between texels (i, j), (i + 1, j), (i, j + 1) and (i + 1, j + 1), all inside
+    /// the image, at fractions `fx`, `fy`.
+    #[inline(always)]
+    fn bilinear_inside(&self, i: usize, j: usize, fx: f32, fy: f32) -> [f32; 4] {
+        let w = self.width as usize;
+        let at = j * w + i;
+        let lin = srgb_to_linear_table();
+        let (top, bottom) = (&self.texels[at..at + 2], &self.texels[at + w..at + w + 2]);
+        bilinear(
+            [
+                linear_by(lin, top[0]),
+                linear_by(lin, top[1]),
+                linear_by(lin, bottom[0]),
+                linear_by(lin, bottom[1]),
+            ],
+            fx,
+            fy,
+        )
     }
 
     /// [`Image::sample`] anywhere.
@@ -244,17 +251,14 @@ impl Image {
                 let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
                 let (i, j) = (x0 as i64, y0 as i64);
                 let (w, h) = (i64::from(self.width), i64::from(self.height));
-                let [a, b, c, d] = if i >= 0 && j >= 0 && i + 1 < w && j + 1 < h {
+                if i >= 0 && j >= 0 && i + 1 < w && j + 1 < h {
                     // All four inside: no wrapping (what `texel` would give, without its
                     // divisions).
-                    let at = (j * w + i) as usize;
-                    let w = w as usize;
-                    [at, at + 1, at + w, at + w + 1].map(|k| linear(self.texels[k]))
-                } else {
-                    [(i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)]
-                        .map(|(i, j)| self.texel(i, j, t))
-                };
-                bilinear([a, b, c, d], fx, fy)
+                    return self.bilinear_inside(i as usize, j as usize, fx, fy);
+                }
+                let corners = [(i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)]
+                    .map(|(i, j)| self.texel(i, j, t));
+                bilinear(corners, fx, fy)
             }
         }
     }

@@ -5,7 +5,7 @@
 //! the engine's), nor dense per-voxel values (`dense.rs`).
 
 use super::BitVolume;
-use super::kind::{ValueType, Voxel, VoxelValue, to_le_bytes, valid_from_le_bytes};
+use super::kind::{ValueType, Voxel, VoxelValue, valid_from_le_bytes};
 
 /// The values of one channel, one per set voxel.
 #[derive(Clone, Debug, PartialEq)]
@@ -45,9 +45,8 @@ impl ChannelValues {
             ChannelValues::Rgba8(v) => v[i].value(),
         }
     }
-    /// The values as little-endian bytes (the `.vxl` payload's).
-    /// The values' little-endian bytes where they lie (the crate runs on little-endian
-    /// targets only: `lib.rs`), the same as [`ChannelValues::to_le_bytes`] without a copy.
+    /// The values' little-endian bytes (the `.vxl` payload's) where they lie: the crate runs
+    /// on little-endian targets only (`lib.rs`).
     pub fn le_bytes(&self) -> &[u8] {
         match self {
             ChannelValues::U8(v) => v,
@@ -56,13 +55,9 @@ impl ChannelValues {
             ChannelValues::Rgba8(v) => bytemuck::cast_slice(v),
         }
     }
+    /// [`ChannelValues::le_bytes`], copied.
     pub fn to_le_bytes(&self) -> Vec<u8> {
-        match self {
-            ChannelValues::U8(v) => to_le_bytes(v),
-            ChannelValues::U16(v) => to_le_bytes(v),
-            ChannelValues::F32(v) => to_le_bytes(v),
-            ChannelValues::Rgba8(v) => to_le_bytes(v),
-        }
+        self.le_bytes().to_vec()
     }
     /// From little-endian bytes, a whole number of values of `t` (checked by the caller); a
     /// NaN is refused ([`Voxel::is_valid`]).
