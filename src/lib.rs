@@ -15,6 +15,7 @@ compile_error!(
     "voxd stores bit volumes as little-endian words and runs on little-endian targets only"
 );
 
+pub mod alloc;
 pub mod app;
 pub mod atomic;
 pub mod cancel;

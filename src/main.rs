@@ -10,7 +10,15 @@ use clap::Parser;
 use cli::args::{Cli, Command};
 use cli::commands;
 
+/// Large blocks on transparent huge pages (`voxd::alloc`; `VOXD_HUGE_PAGES=off` turns it off).
+#[global_allocator]
+static ALLOC: voxd::alloc::HugePages = voxd::alloc::HugePages;
+
 fn main() -> ExitCode {
+    if let Err(e) = voxd::alloc::configure() {
+        eprintln!("error: {e}");
+        return ExitCode::from(2);
+    }
     if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
         // Mesa prints "XDG_RUNTIME_DIR is invalid" on every start without it; nothing is
         // written there by a compute-only device.

@@ -40,6 +40,50 @@ fn compact(set: u8, names: &[u8; 12]) -> ([u8; 12], u8) {
     (out, n)
 }
 
+/// Sheets a block has at most: each is a cycle of at least three of its 12 internal faces.
+const MAX_SHEETS: usize = 4;
+
+/// Each sheet's vertex before relaxation, for the numbering `compact` gives (`nums`, `n`): the
+/// mean of the centres of its faces, as an offset from the block's lattice point (lane 3 zero).
+/// Internal face `f` across axis `a` = f / 4 lies in the lattice point's plane of `a`, its
+/// centre half a voxel from the point along the other two axes, towards the octants named by
+/// its bits (`face_index`).
+fn sheet_offsets(nums: &[u8; 12], n: u8) -> [[f32; 4]; MAX_SHEETS] {
+    let mut sum = [[0.0f64; 4]; MAX_SHEETS];
+    for (f, &s) in nums.iter().enumerate() {
+        if s == u8::MAX {
+            continue;
+        }
+        let a = f / 4;
+        let s = &mut sum[usize::from(s)];
+        s[(a + 1) % 3] += (f & 1) as f64 - 0.5;
+        s[(a + 2) % 3] += (f >> 1 & 1) as f64 - 0.5;
+        s[3] += 1.0;
+    }
+    let mut out = [[0.0f32; 4]; MAX_SHEETS];
+    for (o, s) in out.iter_mut().zip(&sum).take(usize::from(n)) {
+        *o = [
+            (s[0] / s[3]) as f32,
+            (s[1] / s[3]) as f32,
+            (s[2] / s[3]) as f32,
+            0.0,
+        ];
+    }
+    out
+}
+
+/// [`sheet_offsets`] of each block occupancy with no pinch joined.
+static OFFSETS: OnceLock<Vec<[[f32; 4]; MAX_SHEETS]>> = OnceLock::new();
+
+fn offsets_table() -> &'static [[[f32; 4]; MAX_SHEETS]] {
+    OFFSETS.get_or_init(|| {
+        compact_table()
+            .iter()
+            .map(|(nums, n)| sheet_offsets(nums, *n))
+            .collect()
+    })
+}
+
 fn compact_table() -> &'static [([u8; 12], u8)] {
     COMPACT.get_or_init(|| {
         (0..=255u8)
@@ -62,6 +106,7 @@ pub(super) struct Slabs<'a> {
     bits: &'a BitVolume,
     joins: &'a Joins,
     table: &'static [([u8; 12], u8)],
+    offset_table: &'static [[[f32; 4]; MAX_SHEETS]],
     zero: Vec<u64>,
     /// Lattice points per slab row (dims z + 1).
     stride: usize,
@@ -73,23 +118,35 @@ pub(super) struct Slabs<'a> {
     pub points: Vec<[u32; 3]>,
     /// The first vertex of the last slab numbered.
     pub last_start: usize,
+    /// Each vertex numbered so far: [`sheet_offsets`] (filled only when asked for).
+    pub offsets: Vec<[f32; 4]>,
+    with_offsets: bool,
 }
 
 impl<'a> Slabs<'a> {
-    /// Slabs numbered from slab `from` on (its first vertex numbered 0).
-    pub(super) fn new(bits: &'a BitVolume, joins: &'a Joins, from: u32) -> Slabs<'a> {
+    /// Slabs numbered from slab `from` on (its first vertex numbered 0), with each vertex's
+    /// offset when `with_offsets`.
+    pub(super) fn new(
+        bits: &'a BitVolume,
+        joins: &'a Joins,
+        from: u32,
+        with_offsets: bool,
+    ) -> Slabs<'a> {
         let d = bits.dims();
         let n = (d[1] as usize + 1) * (d[2] as usize + 1);
         Slabs {
             bits,
             joins,
             table: compact_table(),
+            offset_table: offsets_table(),
             zero: vec![0; bits.words_per_column()],
             stride: d[2] as usize + 1,
             blocks: [vec![Block::default(); n], vec![Block::default(); n]],
             next: from,
             last_start: 0,
             points: Vec::new(),
+            offsets: Vec::new(),
+            with_offsets,
         }
     }
 
@@ -168,9 +225,19 @@ impl<'a> Slabs<'a> {
                     let z = 64 * w as u32 + t;
                     let flags = self.joins.flags([x, y, z], set);
                     let n = if flags == 0 {
+                        if self.with_offsets {
+                            let n = self.table[usize::from(set)].1;
+                            let o = &self.offset_table[usize::from(set)];
+                            self.offsets.extend_from_slice(&o[..usize::from(n)]);
+                        }
                         self.table[usize::from(set)].1
                     } else {
-                        compact(set, &sheets_for(set, flags)).1
+                        let (nums, n) = compact(set, &sheets_for(set, flags));
+                        if self.with_offsets {
+                            let o = sheet_offsets(&nums, n);
+                            self.offsets.extend_from_slice(&o[..usize::from(n)]);
+                        }
+                        n
                     };
                     let i = y as usize * self.stride + z as usize;
                     self.blocks[par][i] = Block {

@@ -320,6 +320,7 @@ fn a_net_built_in_runs_is_the_net_built_in_one() {
             assert_eq!(runs.quads, one.quads, "case {case}");
             assert_eq!(runs.cells, one.cells, "case {case}");
             assert_eq!(runs.crossings, one.crossings, "case {case}");
+            assert_eq!(runs.offsets, one.offsets, "case {case}");
             for (a, b) in runs.sums.iter().zip(&one.sums) {
                 for k in 0..4 {
                     assert!(
@@ -331,5 +332,67 @@ fn a_net_built_in_runs_is_the_net_built_in_one() {
                 assert!(a[3] >= 3.0, "case {case}");
             }
         }
+        // A valued field has sums, a bit volume offsets: each vertex's mean of the crossings
+        // (for bits, the faces' centres) of the quads it is a corner of, less its lattice
+        // point, summed here from the quads.
+        assert_eq!(
+            one.sums.len(),
+            if matches!(v, Volume::Bits(_)) {
+                0
+            } else {
+                one.vertices
+            }
+        );
+        assert_eq!(
+            one.offsets.len(),
+            if matches!(v, Volume::Bits(_)) {
+                one.vertices
+            } else {
+                0
+            }
+        );
+        if matches!(v, Volume::Bits(_)) {
+            let mut sum = vec![[0.0f64; 4]; one.vertices];
+            for (q, c) in one.quads.iter().zip(&one.crossings) {
+                for &i in q {
+                    let s = &mut sum[i as usize];
+                    for k in 0..3 {
+                        s[k] += c[k];
+                    }
+                    s[3] += 1.0;
+                }
+            }
+            for ((s, o), cell) in sum.iter().zip(&one.offsets).zip(&one.cells) {
+                let want = [0, 1, 2].map(|k| (s[k] / s[3] - f64::from(cell[k])) as f32);
+                assert_eq!(o[..3], want, "case {case}");
+                assert_eq!(o[3], 0.0);
+            }
+        }
+    }
+}
+
+#[test]
+fn the_faces_counted_are_the_faces_found() {
+    // `count_at` counts by words what `faces_at` finds bit by bit, on every plane, including
+    // grids whose z is a multiple of 64 (the top face pushed separately) and thin ones.
+    use super::surface_nets::{count_at, faces_at};
+    let mut rng = Rng::new(37);
+    for case in 0..60 {
+        let dims = [
+            1 + rng.below(9) as u32,
+            1 + rng.below(9) as u32,
+            [1, 5, 63, 64, 65, 128, 130][case % 7],
+        ];
+        let b = crate::testkit::random_bit_volume(&mut rng, grid(dims), [0.1, 0.5, 0.9][case % 3]);
+        let mut faces = Vec::new();
+        let mut total = 0;
+        for x in 0..=dims[0] {
+            faces.clear();
+            faces_at(&b, x, &mut faces);
+            assert_eq!(count_at(&b, x), faces.len(), "case {case} plane {x}");
+            total += faces.len();
+        }
+        // A volume with a set voxel has faces.
+        assert_eq!(total > 0, b.count_ones() > 0, "case {case}");
     }
 }

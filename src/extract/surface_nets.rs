@@ -214,18 +214,56 @@ fn face_counts(bits: &BitVolume, ctl: &Control) -> Result<Vec<usize>, Canceled> 
     (0..d[0] + 1)
         .into_par_iter()
         .with_min_len(8)
-        .map_init(Vec::new, |buf, x| {
+        .map(|x| {
             counter.check()?;
-            buf.clear();
-            faces_at(bits, x, buf);
+            let n = count_at(bits, x);
             counter.add(1);
-            Ok(buf.len())
+            Ok(n)
         })
         .collect()
 }
 
+/// How many faces [`faces_at`] finds at `x`, by counting the bits it visits one by one.
+pub(super) fn count_at(bits: &BitVolume, x: u32) -> usize {
+    let d = bits.dims();
+    let wpc = bits.words_per_column();
+    let zero = [0u64; 0];
+    let col = |x: i64, y: i64| -> &[u64] {
+        if x < 0 || y < 0 || x >= i64::from(d[0]) || y >= i64::from(d[1]) {
+            &zero
+        } else {
+            bits.column(x as u32, y as u32)
+        }
+    };
+    let word = |c: &[u64], w: usize| c.get(w).copied().unwrap_or(0);
+    let mut n = 0usize;
+    for y in 0..=d[1] {
+        let c = col(i64::from(x), i64::from(y));
+        let cx = col(i64::from(x) - 1, i64::from(y));
+        let cy = col(i64::from(x), i64::from(y) - 1);
+        let (across_x, across_y, within) = (y < d[1], x < d[0], x < d[0] && y < d[1]);
+        for w in 0..wpc {
+            let cw = word(c, w);
+            if across_x {
+                n += (word(cx, w) ^ cw).count_ones() as usize;
+            }
+            if across_y {
+                n += (word(cy, w) ^ cw).count_ones() as usize;
+            }
+            if within {
+                let carry = if w > 0 { c[w - 1] >> 63 } else { 0 };
+                n += ((cw << 1 | carry) ^ cw).count_ones() as usize;
+                if w + 1 == wpc && d[2].is_multiple_of(64) && cw >> 63 == 1 {
+                    n += 1;
+                }
+            }
+        }
+    }
+    n
+}
+
 /// The faces whose lowest lattice x is `x`, appended to `out`.
-fn faces_at(bits: &BitVolume, x: u32, out: &mut Vec<Face>) {
+pub(super) fn faces_at(bits: &BitVolume, x: u32, out: &mut Vec<Face>) {
     let d = bits.dims();
     let wpc = bits.words_per_column();
     let zero = [0u64; 0];
@@ -297,18 +335,22 @@ fn faces_at(bits: &BitVolume, x: u32, out: &mut Vec<Face>) {
 /// The surface nets mesh of `field`, in lattice units.
 pub fn surface_nets(field: &Field<'_>, ctl: &Control) -> Result<TriMesh, Canceled> {
     let Net {
-        cells, quads, sums, ..
+        cells,
+        quads,
+        sums,
+        offsets,
+        ..
     } = net(field, false, &ctl.stage(0.0, 0.7))?;
-    // Each vertex's mean of its crossings.
-    let mut positions: Vec<[f64; 3]> = sums
-        .par_iter()
-        .map(|s| [s[0] / s[3], s[1] / s[3], s[2] / s[3]])
-        .collect();
-    drop(sums);
     let t0 = std::time::Instant::now();
-    if field.value.is_none() {
-        relax(&mut positions, &quads, &cells, RELAX, &ctl.stage(0.7, 0.95))?;
-    }
+    let positions: Vec<[f64; 3]> = if field.value.is_none() {
+        // Each vertex's mean of its faces' centres (its offset), relaxed.
+        relax(offsets, &quads, &cells, RELAX, &ctl.stage(0.7, 0.95))?
+    } else {
+        // Each vertex's mean of its crossings.
+        sums.par_iter()
+            .map(|s| [s[0] / s[3], s[1] / s[3], s[2] / s[3]])
+            .collect()
+    };
     let t1 = std::time::Instant::now();
     // Each quad split along its shorter diagonal (the first when they are equal).
     let mut triangles = vec![[0u32; 3]; 2 * quads.len()];
@@ -340,24 +382,29 @@ pub fn surface_nets(field: &Field<'_>, ctl: &Control) -> Result<TriMesh, Cancele
     Ok(out)
 }
 
-/// The quad mesh both surface nets and marching cubes are made from: a quad per boundary face
-/// (its corners the sheets of its four lattice points, counter-clockwise seen from outside),
-/// each face's crossing point, and each vertex's sum of its faces' crossing points (and their
-/// count).
+/// The quad mesh surface nets, marching cubes and dual contouring are made from: a quad per
+/// boundary face (its corners the sheets of its four lattice points, counter-clockwise seen
+/// from outside), each face's crossing point, and for a valued field each vertex's sum of its
+/// faces' crossing points (and their count), for a bit volume each vertex's mean of its faces'
+/// centres (`slabs::sheet_offsets`).
 pub(super) struct Net {
     /// The boundary faces, in order of their lowest lattice x (empty unless asked for).
     pub faces: Vec<Face>,
     pub quads: Vec<[u32; 4]>,
     /// Each face's crossing point (empty unless asked for).
     pub crossings: Vec<[f64; 3]>,
+    /// Each vertex's sum of its crossings and their count (a valued field only, else empty).
     pub(super) sums: Vec<[f64; 4]>,
+    /// Each vertex's mean of its faces' centres less its lattice point, lane 3 zero (a bit
+    /// volume only, else empty).
+    pub(super) offsets: Vec<[f32; 4]>,
     /// Each vertex's lattice point (the centre of its dual cell).
     pub cells: Vec<[u32; 3]>,
     pub vertices: usize,
 }
 
 /// The [`Net`] of `field`; its `faces` and `crossings` are left empty unless `full` (surface
-/// nets needs only the quads and the crossings' sums).
+/// nets needs only the quads and the crossings' sums or the faces' centres).
 pub(super) fn net(field: &Field<'_>, full: bool, ctl: &Control) -> Result<Net, Canceled> {
     net_in_runs(field, full, ctl, RUN_FACES)
 }
@@ -432,33 +479,44 @@ pub(super) fn net_in_runs(
         .collect::<Result<Vec<Run>, Canceled>>()?;
     let t3 = std::time::Instant::now();
     // Join the runs: run r's vertices from `shared` on are the first of run r + 1's.
-    let mut offsets = Vec::with_capacity(parts.len());
-    let mut offset = 0u32;
+    let mut starts = Vec::with_capacity(parts.len());
+    let mut start = 0u32;
     // Allocated once (grown by `extend`, the copies took a tenth of the build).
-    let total = parts.iter().map(|p| p.sums.len()).sum::<usize>()
+    let total = parts.iter().map(|p| p.points.len()).sum::<usize>()
         - parts[..parts.len().saturating_sub(1)]
             .iter()
-            .map(|p| p.sums.len() - p.shared)
+            .map(|p| p.points.len() - p.shared)
             .sum::<usize>();
-    let (mut sums, mut cells) = (Vec::with_capacity(total), Vec::with_capacity(total));
+    let valued = field.value.is_some();
+    let (mut sums, mut cells) = (
+        Vec::with_capacity(if valued { total } else { 0 }),
+        Vec::with_capacity(total),
+    );
+    let mut offsets = Vec::with_capacity(if valued { 0 } else { total });
     let mut carry: Vec<[f64; 4]> = Vec::new();
     let n = parts.len();
     for (r, mut part) in parts.into_iter().enumerate() {
-        offsets.push(offset);
+        starts.push(start);
+        // The shared slab's sums are split between the two runs; its offsets are the same in
+        // both (they depend on the blocks only).
         for (s, c) in part.sums.iter_mut().zip(&carry) {
             *s = [0, 1, 2, 3].map(|k| c[k] + s[k]);
         }
         if r + 1 < n {
-            carry = part.sums.split_off(part.shared);
+            if valued {
+                carry = part.sums.split_off(part.shared);
+            }
             part.points.truncate(part.shared);
-            offset += part.shared as u32;
+            part.offsets.truncate(part.shared);
+            start += part.shared as u32;
         }
         sums.extend(part.sums);
         cells.extend(part.points);
+        offsets.extend(part.offsets);
     }
     let mut q_rest = &mut quads[..];
     let mut jobs = Vec::new();
-    for (w, &offset) in cuts.windows(2).zip(&offsets) {
+    for (w, &offset) in cuts.windows(2).zip(&starts) {
         let (q, qr) = std::mem::take(&mut q_rest).split_at_mut(before[w[1]] - before[w[0]]);
         q_rest = qr;
         jobs.push((q, offset));
@@ -481,15 +539,19 @@ pub(super) fn net_in_runs(
         faces,
         quads,
         crossings,
-        vertices: sums.len(),
+        vertices: cells.len(),
         sums,
+        offsets,
         cells,
     })
 }
 
 /// A run of faces' part of a [`Net`], its vertices numbered from its first slab on.
 struct Run {
-    pub(super) sums: Vec<[f64; 4]>,
+    /// Each vertex's sum of crossings (a valued field only).
+    sums: Vec<[f64; 4]>,
+    /// Each vertex's offset (a bit volume only).
+    offsets: Vec<[f32; 4]>,
     points: Vec<[u32; 3]>,
     /// The first vertex of slab `upto` (shared with the next run).
     shared: usize,
@@ -510,7 +572,8 @@ fn run(
     crossings: &mut [[f64; 3]],
     counter: &crate::cancel::Counter,
 ) -> Result<Run, Canceled> {
-    let mut slabs = Slabs::new(&field.inside, joins, planes.start);
+    let valued = field.value.is_some();
+    let mut slabs = Slabs::new(&field.inside, joins, planes.start, !valued);
     let mut sums: Vec<[f64; 4]> = Vec::new();
     let mut plane = Vec::new();
     let mut i = 0;
@@ -521,7 +584,7 @@ fn run(
         counter.add(plane.len() as u64);
         // The faces' corners are in lattice slabs x and x + 1.
         slabs.reach(x + 1);
-        if sums.len() < slabs.points.len() {
+        if valued && sums.len() < slabs.points.len() {
             sums.resize(slabs.points.len(), [0.0; 4]);
         }
         for f in &plane {
@@ -558,11 +621,13 @@ fn run(
                     f.point(du, dv),
                     f.a * 4 + (1 - du as usize) + 2 * (1 - dv as usize),
                 );
-                let sum = &mut sums[id as usize];
-                for k in 0..3 {
-                    sum[k] += c[k];
+                if valued {
+                    let sum = &mut sums[id as usize];
+                    for k in 0..3 {
+                        sum[k] += c[k];
+                    }
+                    sum[3] += 1.0;
                 }
-                sum[3] += 1.0;
                 id
             });
             if !f.plus {
@@ -574,10 +639,13 @@ fn run(
     }
     debug_assert_eq!(i, quads.len(), "the planes' faces fill the run");
     slabs.reach(upto);
-    sums.resize(slabs.points.len(), [0.0; 4]);
+    if valued {
+        sums.resize(slabs.points.len(), [0.0; 4]);
+    }
     // The last slab numbered is `upto` (the faces' slabs are below it).
     Ok(Run {
         sums,
+        offsets: slabs.offsets,
         shared: slabs.last_start,
         points: slabs.points,
     })
@@ -610,41 +678,29 @@ pub(super) fn corners_by_vertex(n: usize, quads: &[[u32; 4]]) -> (Vec<u32>, Vec<
 /// neighbours, clamped to its dual cell (the unit cube about its lattice point) shrunk by 1/16
 /// (run by `relax::relax`).
 fn relax(
-    positions: &mut [[f64; 3]],
+    mut now: Vec<[f32; 4]>,
     quads: &[[u32; 4]],
     cells: &[[u32; 3]],
     rounds: usize,
     ctl: &Control,
-) -> Result<(), Canceled> {
+) -> Result<Vec<[f64; 3]>, Canceled> {
     let t0 = std::time::Instant::now();
     let graph = super::relax::Graph::of(quads, cells);
+    let t1 = std::time::Instant::now();
     // The rounds work on each vertex's offset from its lattice point, in f32: half the memory
     // traffic of f64 positions, with a rounding error of at most 2⁻²⁴ voxel per step, whatever
     // the grid's size.
-    let mut now: Vec<[f32; 4]> = positions
-        .par_iter()
-        .zip(cells)
-        .map(|(p, c)| {
-            [
-                (p[0] - f64::from(c[0])) as f32,
-                (p[1] - f64::from(c[1])) as f32,
-                (p[2] - f64::from(c[2])) as f32,
-                0.0,
-            ]
-        })
-        .collect();
-    let t1 = std::time::Instant::now();
     let threads = rayon::current_num_threads();
     super::relax::relax(&graph, &mut now, rounds, threads, ctl)?;
-    positions
-        .par_iter_mut()
+    let positions = now
+        .par_iter()
         .zip(cells)
-        .zip(&now)
-        .for_each(|((p, c), o)| *p = [0, 1, 2].map(|k| f64::from(c[k]) + f64::from(o[k])));
+        .map(|(o, c)| [0, 1, 2].map(|k| f64::from(c[k]) + f64::from(o[k])))
+        .collect();
     tracing::debug!(
         graph_s = (t1 - t0).as_secs_f64(),
         steps_s = t1.elapsed().as_secs_f64(),
         "relax"
     );
-    Ok(())
+    Ok(positions)
 }
