@@ -273,44 +273,49 @@ pub(super) fn pinched_edges(bits: &BitVolume) -> Vec<([u32; 3], u8)> {
 /// grid's first layers' outer faces) and its pinched edges as bit masks along x, y and z (bit j:
 /// the edge whose lower voxel corner has z = 64w + j).
 fn scan(bits: &BitVolume, mut visit: impl FnMut(u32, u32, usize, u64, [u64; 3])) {
+    for x in 0..bits.dims()[0] as usize {
+        scan_x(bits, x, &mut visit);
+    }
+}
+
+/// [`scan`] of the columns at `x`.
+fn scan_x(bits: &BitVolume, x: usize, visit: &mut impl FnMut(u32, u32, usize, u64, [u64; 3])) {
     let d = bits.dims().map(|n| n as usize);
     let wpc = bits.words_per_column();
     let col = |x: usize, y: usize| bits.column(x as u32, y as u32);
     // z + 1 of column c's word w (bit j: voxel 64w + j + 1).
     let up = |c: &[u64], w: usize| c[w] >> 1 | c.get(w + 1).map_or(0, |n| n << 63);
     let pinched = |a: u64, b: u64, c: u64, e: u64| (a & e & !b & !c) | (b & c & !a & !e);
-    for x in 0..d[0] {
-        for y in 0..d[1] {
-            let c = col(x, y);
-            let cx = (x + 1 < d[0]).then(|| col(x + 1, y));
-            let cy = (y + 1 < d[1]).then(|| col(x, y + 1));
-            let cxy = (x + 1 < d[0] && y + 1 < d[1]).then(|| col(x + 1, y + 1));
-            for w in 0..wpc {
-                let v = c[w];
-                let u = up(c, w);
-                // Faces across z: a voxel set and the one above unset, or the reverse (the
-                // lowest voxel's face below counted by the +1 of `below`).
-                let below_unset = !(v << 1 | if w > 0 { c[w - 1] >> 63 } else { 0 });
-                let mut faces = u64::from((v & !u).count_ones() + (v & below_unset).count_ones());
-                // Across x and y: differences with the next column (the grid's first and last
-                // layers face outside).
-                for (next, first) in [(cx, x == 0), (cy, y == 0)] {
-                    let n = next.map_or(0, |n| n[w]);
-                    faces += u64::from((v ^ n).count_ones());
-                    if first {
-                        faces += u64::from(v.count_ones());
-                    }
+    for y in 0..d[1] {
+        let c = col(x, y);
+        let cx = (x + 1 < d[0]).then(|| col(x + 1, y));
+        let cy = (y + 1 < d[1]).then(|| col(x, y + 1));
+        let cxy = (x + 1 < d[0] && y + 1 < d[1]).then(|| col(x + 1, y + 1));
+        for w in 0..wpc {
+            let v = c[w];
+            let u = up(c, w);
+            // Faces across z: a voxel set and the one above unset, or the reverse (the
+            // lowest voxel's face below counted by the +1 of `below`).
+            let below_unset = !(v << 1 | if w > 0 { c[w - 1] >> 63 } else { 0 });
+            let mut faces = u64::from((v & !u).count_ones() + (v & below_unset).count_ones());
+            // Across x and y: differences with the next column (the grid's first and last
+            // layers face outside).
+            for (next, first) in [(cx, x == 0), (cy, y == 0)] {
+                let n = next.map_or(0, |n| n[w]);
+                faces += u64::from((v ^ n).count_ones());
+                if first {
+                    faces += u64::from(v.count_ones());
                 }
-                // Pinched edges along x (columns y, y + 1 at z, z + 1), along y (columns x,
-                // x + 1 at z, z + 1) and along z (four columns).
-                let along_x = cy.map_or(0, |cy| pinched(v, cy[w], u, up(cy, w)));
-                let along_y = cx.map_or(0, |cx| pinched(v, cx[w], u, up(cx, w)));
-                let along_z = match (cx, cy, cxy) {
-                    (Some(cx), Some(cy), Some(cxy)) => pinched(v, cx[w], cy[w], cxy[w]),
-                    _ => 0,
-                };
-                visit(x as u32, y as u32, w, faces, [along_x, along_y, along_z]);
             }
+            // Pinched edges along x (columns y, y + 1 at z, z + 1), along y (columns x,
+            // x + 1 at z, z + 1) and along z (four columns).
+            let along_x = cy.map_or(0, |cy| pinched(v, cy[w], u, up(cy, w)));
+            let along_y = cx.map_or(0, |cx| pinched(v, cx[w], u, up(cx, w)));
+            let along_z = match (cx, cy, cxy) {
+                (Some(cx), Some(cy), Some(cxy)) => pinched(v, cx[w], cy[w], cxy[w]),
+                _ => 0,
+            };
+            visit(x as u32, y as u32, w, faces, [along_x, along_y, along_z]);
         }
     }
 }
