@@ -87,11 +87,24 @@ pub fn cubes(bits: &BitVolume, ctl: &Control) -> Result<TriMesh, Canceled> {
         let i = point_index(p);
         corners[i / 64] >> (i % 64) & 1 == 1
     };
+    // The corners before each word of `corners`: a corner's rank is its slot in `at_corner`.
+    let mut before = Vec::with_capacity(corners.len());
+    let mut total = 0u32;
+    for w in &corners {
+        before.push(total);
+        total += w.count_ones();
+    }
+    let rank =
+        |i: usize| before[i / 64] + (corners[i / 64] & ((1u64 << (i % 64)) - 1)).count_ones();
     let ctl = ctl.stage(0.6, 1.0);
     let counter = ctl.counter(rects.len() as u64);
     let mut out = TriMesh::default();
     // Vertices by (doubled lattice position, tag): a lattice point's tag is its sheet, an edge
-    // midpoint's is 16 + the index of the set voxel whose faces it joins.
+    // midpoint's is 16 + the index of the set voxel whose faces it joins. Every lattice point
+    // that is a vertex is a corner: its first sheet's vertex is kept by the corner's rank (the
+    // points are visited plane by plane, so these are near each other in memory, where a hash
+    // map's slots were not), the rest, and the midpoints, by the map.
+    let mut at_corner: Vec<(u8, u32)> = vec![(u8::MAX, 0); total as usize];
     let mut ids: HashMap<([u32; 3], u64), u32, foldhash::fast::RandomState> = HashMap::default();
     let mut ring: Vec<u32> = Vec::new();
     let voxel_index = |v: [u32; 3]| -> u64 {
@@ -113,6 +126,17 @@ pub fn cubes(bits: &BitVolume, ctl: &Control) -> Result<TriMesh, Canceled> {
         ];
         let mut vertex = |doubled: [u32; 3], tag: u64, out: &mut TriMesh| -> u32 {
             let next = out.positions.len() as u32;
+            if tag < 16 && doubled.iter().all(|c| c % 2 == 0) {
+                let slot = &mut at_corner[rank(point_index(doubled.map(|c| c / 2))) as usize];
+                if slot.0 == u8::MAX {
+                    *slot = (tag as u8, next);
+                    out.positions.push(doubled.map(|c| f64::from(c) / 2.0));
+                    return next;
+                }
+                if u64::from(slot.0) == tag {
+                    return slot.1;
+                }
+            }
             *ids.entry((doubled, tag)).or_insert_with(|| {
                 out.positions.push(doubled.map(|c| f64::from(c) / 2.0));
                 next
