@@ -223,7 +223,8 @@ fn face_counts(bits: &BitVolume, ctl: &Control) -> Result<Vec<usize>, Canceled> 
         .collect()
 }
 
-/// How many faces [`faces_at`] finds at `x`, by counting the bits it visits one by one.
+/// How many faces [`faces_at`] finds at `x`: the bits it visits one by one, counted a word at
+/// a time.
 pub(super) fn count_at(bits: &BitVolume, x: u32) -> usize {
     let d = bits.dims();
     let wpc = bits.words_per_column();
