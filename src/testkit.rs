@@ -183,3 +183,27 @@ pub(crate) fn gz(b: &[u8]) -> Vec<u8> {
     e.write_all(b).unwrap();
     e.finish().unwrap()
 }
+
+/// The unit octahedron (vertices ±1 on each axis), its triangles counter-clockwise seen from
+/// outside.
+pub(crate) fn octahedron() -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
+    let p = vec![
+        [1.0, 0.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, -1.0],
+    ];
+    let t = vec![
+        [0, 2, 4],
+        [2, 1, 4],
+        [1, 3, 4],
+        [3, 0, 4],
+        [2, 0, 5],
+        [1, 2, 5],
+        [3, 1, 5],
+        [0, 3, 5],
+    ];
+    (p, t)
+}

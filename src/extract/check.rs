@@ -181,19 +181,7 @@ mod tests {
     }
 
     fn octahedron() -> TriMesh {
-        let positions = vec![
-            [1.0, 0.0, 0.0],
-            [-1.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0],
-            [0.0, -1.0, 0.0],
-            [0.0, 0.0, 1.0],
-            [0.0, 0.0, -1.0],
-        ];
-        let mut triangles = vec![];
-        for (x, y) in [(0, 2), (2, 1), (1, 3), (3, 0)] {
-            triangles.push([x, y, 4]);
-            triangles.push([y, x, 5]);
-        }
+        let (positions, triangles) = crate::testkit::octahedron();
         TriMesh {
             positions,
             triangles,

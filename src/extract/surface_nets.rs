@@ -223,20 +223,27 @@ fn face_counts(bits: &BitVolume, ctl: &Control) -> Result<Vec<usize>, Canceled> 
         .collect()
 }
 
+/// Column (x, y) of `bits`; none (no words) outside the grid.
+fn column_or_none(bits: &BitVolume, x: i64, y: i64) -> &[u64] {
+    let d = bits.dims();
+    if x < 0 || y < 0 || x >= i64::from(d[0]) || y >= i64::from(d[1]) {
+        &[]
+    } else {
+        bits.column(x as u32, y as u32)
+    }
+}
+
+/// Word `w` of a column from [`column_or_none`] (0 past its end).
+fn word(c: &[u64], w: usize) -> u64 {
+    c.get(w).copied().unwrap_or(0)
+}
+
 /// How many faces [`faces_at`] finds at `x`: the bits it visits one by one, counted a word at
 /// a time.
 pub(super) fn count_at(bits: &BitVolume, x: u32) -> usize {
     let d = bits.dims();
     let wpc = bits.words_per_column();
-    let zero = [0u64; 0];
-    let col = |x: i64, y: i64| -> &[u64] {
-        if x < 0 || y < 0 || x >= i64::from(d[0]) || y >= i64::from(d[1]) {
-            &zero
-        } else {
-            bits.column(x as u32, y as u32)
-        }
-    };
-    let word = |c: &[u64], w: usize| c.get(w).copied().unwrap_or(0);
+    let col = |x: i64, y: i64| column_or_none(bits, x, y);
     let mut n = 0usize;
     for y in 0..=d[1] {
         let c = col(i64::from(x), i64::from(y));
@@ -267,15 +274,7 @@ pub(super) fn count_at(bits: &BitVolume, x: u32) -> usize {
 pub(super) fn faces_at(bits: &BitVolume, x: u32, out: &mut Vec<Face>) {
     let d = bits.dims();
     let wpc = bits.words_per_column();
-    let zero = [0u64; 0];
-    let col = |x: i64, y: i64| -> &[u64] {
-        if x < 0 || y < 0 || x >= i64::from(d[0]) || y >= i64::from(d[1]) {
-            &zero
-        } else {
-            bits.column(x as u32, y as u32)
-        }
-    };
-    let word = |c: &[u64], w: usize| c.get(w).copied().unwrap_or(0);
+    let col = |x: i64, y: i64| column_or_none(bits, x, y);
     for y in 0..=d[1] {
         let c = col(i64::from(x), i64::from(y));
         let cx = col(i64::from(x) - 1, i64::from(y));

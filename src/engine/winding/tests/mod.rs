@@ -29,24 +29,7 @@ use crate::engine::snap::snapped_world;
 use crate::testkit::Rng;
 
 fn octahedron() -> Mesh {
-    let p = vec![
-        [1.0, 0.0, 0.0],
-        [-1.0, 0.0, 0.0],
-        [0.0, 1.0, 0.0],
-        [0.0, -1.0, 0.0],
-        [0.0, 0.0, 1.0],
-        [0.0, 0.0, -1.0],
-    ];
-    let t = vec![
-        [0, 2, 4],
-        [2, 1, 4],
-        [1, 3, 4],
-        [3, 0, 4],
-        [2, 0, 5],
-        [1, 2, 5],
-        [3, 1, 5],
-        [0, 3, 5],
-    ];
+    let (p, t) = crate::testkit::octahedron();
     Mesh::new(p, t).unwrap()
 }
 
