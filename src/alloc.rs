@@ -9,8 +9,14 @@
 //! anyway, and `never` refuses them (the mark is then ignored). Where huge pages are taken
 //! the memory is the same, rounded to 2 MiB within large blocks only.
 //!
+//! With huge pages on, [`configure`] also fixes glibc's mmap threshold at [`LARGE`]: every
+//! large block is then a mapping of its own, returned to the system when freed. (glibc would
+//! otherwise raise the threshold after the first large frees and serve later large blocks from
+//! its heaps, whose marked ranges would stay marked under the small blocks that reuse them,
+//! and fragment the heaps' mappings.)
+//!
 //! `VOXD_HUGE_PAGES=off` (read once, at the start of `main`, by [`configure`]) leaves every
-//! block as the system allocator gives it.
+//! block, and glibc's threshold, as the system allocator has them.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -32,9 +38,19 @@ pub struct HugePages;
 pub fn configure() -> Result<(), String> {
     match std::env::var("VOXD_HUGE_PAGES").as_deref() {
         Err(_) | Ok("on") | Ok("1") => ON.store(true, Ordering::Relaxed),
-        Ok("off") | Ok("0") => ON.store(false, Ordering::Relaxed),
+        Ok("off") | Ok("0") => {
+            ON.store(false, Ordering::Relaxed);
+            return Ok(());
+        }
         Ok(other) => return Err(format!("VOXD_HUGE_PAGES must be on or off, not {other:?}")),
     }
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: mallopt only sets an allocator parameter (under glibc's own lock); LARGE fits
+    // in an int. Its result (1 on success) is ignored: the default threshold only means large
+    // blocks may come from the heaps, still marked.
+    unsafe {
+        libc::mallopt(libc::M_MMAP_THRESHOLD, LARGE as libc::c_int)
+    };
     Ok(())
 }
 
