@@ -130,6 +130,44 @@ mod tests {
         assert_eq!(inner_pages(7, 100).1, 0);
     }
 
+    /// The `VmFlags` of the mapping of this process that holds address `p` (Linux).
+    fn vm_flags(p: usize) -> Option<String> {
+        let smaps = std::fs::read_to_string("/proc/self/smaps").ok()?;
+        let mut inside = false;
+        for line in smaps.lines() {
+            if let Some((range, _)) = line.split_once(' ')
+                && let Some((lo, hi)) = range.split_once('-')
+                && let (Ok(lo), Ok(hi)) =
+                    (usize::from_str_radix(lo, 16), usize::from_str_radix(hi, 16))
+            {
+                inside = lo <= p && p < hi;
+            } else if inside && let Some(flags) = line.strip_prefix("VmFlags:") {
+                return Some(flags.trim().to_string());
+            }
+        }
+        None
+    }
+
+    #[test]
+    fn a_large_block_is_marked_for_huge_pages() {
+        if !std::path::Path::new("/sys/kernel/mm/transparent_hugepage").exists() {
+            eprintln!("SKIP: this kernel has no transparent huge pages");
+            return;
+        }
+        assert!(enabled());
+        let a = HugePages;
+        let layout = Layout::from_size_align(3 * LARGE, 64).unwrap();
+        // SAFETY: non-zero size; freed with its layout below.
+        let p = unsafe { a.alloc(layout) };
+        assert!(!p.is_null());
+        let (start, n) = inner_pages(p as usize, 3 * LARGE);
+        assert!(n >= HUGE);
+        let flags = vm_flags(start).expect("the block's mapping");
+        // SAFETY: as allocated above.
+        unsafe { a.dealloc(p, layout) };
+        assert!(flags.split(' ').any(|f| f == "hg"), "VmFlags: {flags}");
+    }
+
     #[test]
     fn the_allocator_gives_usable_zeroed_and_grown_blocks() {
         let a = HugePages;
