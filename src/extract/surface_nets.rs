@@ -33,8 +33,10 @@ use super::slabs::Slabs;
 use crate::cancel::{Canceled, Control};
 use crate::volume::{BitVolume, Volume};
 
-/// Faces per run of the quad mesh's parallel build (about; runs end at slab boundaries).
-const RUN_FACES: usize = 1 << 17;
+/// Faces per run of the quad mesh's parallel build (about; runs end at slab boundaries). At
+/// 2¹⁷ igea's 917K faces at 518³ made 7 runs, 4 on one of two threads and 3 on the other;
+/// 2¹⁶ makes 14 (the runs' median 0.089 → 0.067 s, eight alternations; 2¹⁵ was no better).
+const RUN_FACES: usize = 1 << 16;
 
 /// Rounds of constrained relaxation for bit volumes.
 pub const RELAX: usize = 12;
