@@ -38,7 +38,34 @@ pub mod volume;
 /// among threads busy with other jobs only adds hand-offs.
 pub(crate) const PAR_PIECE: usize = 1 << 12;
 
+/// `s` cut into consecutive parts of the lengths `lens` (whose sum is at most `s.len()`; the
+/// rest is left out), to be handed to threads one part each.
+pub(crate) fn split_lengths<T>(
+    s: &mut [T],
+    lens: impl IntoIterator<Item = usize>,
+) -> Vec<&mut [T]> {
+    let mut rest = s;
+    lens.into_iter()
+        .map(|len| {
+            let (part, tail) = std::mem::take(&mut rest).split_at_mut(len);
+            rest = tail;
+            part
+        })
+        .collect()
+}
+
 pub use engine::Method;
 pub use grid::{Grid, GridLimits, GridSpec};
 pub use mesh::Mesh;
 pub use volume::{Attributed, BitVolume, Dense, DensityVolume, Sparse, Volume, VolumeKind};
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn split_lengths_cuts_consecutive_parts() {
+        let mut v: Vec<u32> = (0..10).collect();
+        let parts = super::split_lengths(&mut v, [3, 0, 4]);
+        let got: Vec<Vec<u32>> = parts.iter().map(|p| p.to_vec()).collect();
+        assert_eq!(got, vec![vec![0, 1, 2], vec![], vec![3, 4, 5, 6]]);
+    }
+}

@@ -117,19 +117,20 @@ fn per_bucket(
     let buckets = start.len() - 1;
     // Parts of whole buckets, about PIECE values each.
     const PIECE: usize = 1 << 16;
-    let mut parts = Vec::new();
-    let (mut rest, mut v, mut at) = (values, 0usize, 0usize);
+    let mut ranges = Vec::new();
+    let mut v = 0;
     while v < buckets {
         let mut w = v + 1;
         while w < buckets && start[w] - start[v] < PIECE {
             w += 1;
         }
-        let (part, tail) = std::mem::take(&mut rest).split_at_mut(start[w] - at);
-        parts.push((v..w, part));
-        (rest, at, v) = (tail, start[w], w);
+        ranges.push(v..w);
+        v = w;
     }
-    parts
+    let parts = crate::split_lengths(values, ranges.iter().map(|r| start[r.end] - start[r.start]));
+    ranges
         .into_par_iter()
+        .zip(parts)
         .map(|(vs, part)| {
             let base = start[vs.start];
             vs.map(|v| {

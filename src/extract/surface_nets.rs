@@ -516,13 +516,11 @@ pub(super) fn net_in_runs(
         cells.extend(part.points);
         offsets.extend(part.offsets);
     }
-    let mut q_rest = &mut quads[..];
-    let mut jobs = Vec::new();
-    for (w, &offset) in cuts.windows(2).zip(&starts) {
-        let (q, qr) = std::mem::take(&mut q_rest).split_at_mut(before[w[1]] - before[w[0]]);
-        q_rest = qr;
-        jobs.push((q, offset));
-    }
+    let lens = cuts.windows(2).map(|w| before[w[1]] - before[w[0]]);
+    let jobs: Vec<_> = crate::split_lengths(&mut quads, lens)
+        .into_iter()
+        .zip(starts)
+        .collect();
     jobs.into_par_iter().for_each(|(q, offset)| {
         for v in q.iter_mut().flatten() {
             *v += offset;

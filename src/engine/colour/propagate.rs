@@ -141,6 +141,30 @@ fn pass_line(
 /// z lines a task of the y and x passes handles at once: 16 `u32` share a cache line.
 const TILE: usize = 16;
 
+/// Reads `width` (at most [`TILE`]) lines of `len` cells into `block`, line after line (cell
+/// i of line j at `block[j·len + i]`): the lines lie across rows, row i holding cell i of each,
+/// and `row(i, out)` copies row i into `out`.
+fn gather(block: &mut [u32], len: usize, width: usize, mut row: impl FnMut(usize, &mut [u32])) {
+    let mut r = [NONE; TILE];
+    for i in 0..len {
+        row(i, &mut r[..width]);
+        for (j, &s) in r[..width].iter().enumerate() {
+            block[j * len + i] = s;
+        }
+    }
+}
+
+/// Writes the lines [`gather`] read back, `row(i, values)` storing row i.
+fn scatter(block: &[u32], len: usize, width: usize, mut row: impl FnMut(usize, &[u32])) {
+    let mut r = [NONE; TILE];
+    for i in 0..len {
+        for (j, s) in r[..width].iter_mut().enumerate() {
+            *s = block[j * len + i];
+        }
+        row(i, &r[..width]);
+    }
+}
+
 /// For each set voxel of `bits` (by rank: the order of [`BitVolume::iter_ones`]), the index in
 /// `sources` (sorted keys of [`super::key`]) of its nearest source (module docs); 0 for every
 /// voxel when there are no sources.
@@ -294,23 +318,18 @@ pub(super) fn transform(
         |((f, v, zs, orig), block), slab| {
             for z0 in (0..nz).step_by(TILE) {
                 let width = TILE.min(nz - z0);
-                for y in 0..ny {
-                    let row = &slab[y * nz + z0..y * nz + z0 + width];
-                    for (j, &s) in row.iter().enumerate() {
-                        block[j * ny + y] = s;
-                    }
-                }
+                let at_y = |y: usize| y * nz + z0..y * nz + z0 + width;
+                gather(block, ny, width, |y, out| {
+                    out.copy_from_slice(&slab[at_y(y)])
+                });
                 for j in 0..width {
                     let z = (z0 + j) as u32;
                     let line = &mut block[j * ny..(j + 1) * ny];
                     pass_line(line, |s| d(z, at[s as usize][1]), f, v, zs, orig);
                 }
-                for y in 0..ny {
-                    let row = &mut slab[y * nz + z0..y * nz + z0 + width];
-                    for (j, s) in row.iter_mut().enumerate() {
-                        *s = block[j * ny + y];
-                    }
-                }
+                scatter(block, ny, width, |y, row| {
+                    slab[at_y(y)].copy_from_slice(row)
+                });
             }
         },
     );
@@ -345,13 +364,13 @@ pub(super) fn transform(
                 return;
             }
             let base = y * nz + z0;
-            for x in 0..nx {
-                for j in 0..width {
+            gather(block, nx, width, |x, out| {
+                for (j, s) in out.iter_mut().enumerate() {
                     // SAFETY: the lines (y, z0..z0 + width) are read and written by this task
                     // only (module-level note on `Lines`); every index is below X·Y·Z.
-                    block[j * nx + x] = unsafe { shared.get(x * ny * nz + base + j) };
+                    *s = unsafe { shared.get(x * ny * nz + base + j) };
                 }
-            }
+            });
             for j in (0..width).filter(|&j| want(z0 + j)) {
                 let z = (z0 + j) as u32;
                 let col = &mut block[j * nx..(j + 1) * nx];
@@ -361,12 +380,12 @@ pub(super) fn transform(
                 };
                 pass_line(col, dist, f, v, zs, orig);
             }
-            for x in 0..nx {
-                for j in 0..width {
+            scatter(block, nx, width, |x, row| {
+                for (j, &s) in row.iter().enumerate() {
                     // SAFETY: as above.
-                    unsafe { shared.set(x * ny * nz + base + j, block[j * nx + x]) };
+                    unsafe { shared.set(x * ny * nz + base + j, s) };
                 }
-            }
+            });
         },
     );
     ctl.check()?;
@@ -380,28 +399,24 @@ pub(super) fn transform(
         .map(|x| slab_words(x).iter().map(|w| w.count_ones() as usize).sum())
         .collect();
     let mut out = vec![0u32; counts.iter().sum()];
-    let mut parts = Vec::with_capacity(nx);
-    let mut rest = out.as_mut_slice();
-    for &c in &counts {
-        let (part, tail) = rest.split_at_mut(c);
-        parts.push(part);
-        rest = tail;
-    }
-    parts.into_par_iter().enumerate().for_each(|(x, part)| {
-        let mut r = 0;
-        for y in 0..ny {
-            let base = (x * ny + y) * nz;
-            for (i, &w) in bits.column(x as u32, y as u32).iter().enumerate() {
-                let mut w = w;
-                while w != 0 {
-                    let s = feat[base + i * 64 + w.trailing_zeros() as usize];
-                    part[r] = if s == NONE { 0 } else { s };
-                    r += 1;
-                    w &= w - 1;
+    crate::split_lengths(&mut out, counts)
+        .into_par_iter()
+        .enumerate()
+        .for_each(|(x, part)| {
+            let mut r = 0;
+            for y in 0..ny {
+                let base = (x * ny + y) * nz;
+                for (i, &w) in bits.column(x as u32, y as u32).iter().enumerate() {
+                    let mut w = w;
+                    while w != 0 {
+                        let s = feat[base + i * 64 + w.trailing_zeros() as usize];
+                        part[r] = if s == NONE { 0 } else { s };
+                        r += 1;
+                        w &= w - 1;
+                    }
                 }
             }
-        }
-    });
+        });
     tracing::debug!(
         setup_s = (t0 - start).as_secs_f64(),
         z_s = (t1 - t0).as_secs_f64(),

@@ -205,14 +205,9 @@ impl Bins {
                     }
                 }
             });
-        let mut parts = Vec::with_capacity(slabs);
-        let mut rest = pairs.as_mut_slice();
-        for len in slab_len {
-            let (part, tail) = std::mem::take(&mut rest).split_at_mut(len);
-            parts.push(part);
-            rest = tail;
-        }
-        parts.into_par_iter().for_each(|p| p.sort_unstable());
+        crate::split_lengths(&mut pairs, slab_len)
+            .into_par_iter()
+            .for_each(|p| p.sort_unstable());
         let mut groups = Vec::new();
         let mut list = Vec::with_capacity(pairs.len());
         let mut start = 0;
