@@ -10,7 +10,8 @@ use clap::Parser;
 use cli::args::{Cli, Command};
 use cli::commands;
 
-/// Large blocks on transparent huge pages (`voxd::alloc`; `VOXD_HUGE_PAGES=off` turns it off).
+/// Large blocks on transparent huge pages, kept for reuse when freed (`voxd::alloc`;
+/// `VOXD_HUGE_PAGES`, `VOXD_LARGE_CACHE_MIB`).
 #[global_allocator]
 static ALLOC: voxd::alloc::HugePages = voxd::alloc::HugePages;
 
