@@ -354,6 +354,8 @@ pub fn surface_nets(field: &Field<'_>, ctl: &Control) -> Result<TriMesh, Cancele
             .collect()
     };
     let t1 = std::time::Instant::now();
+    // Freed first: the triangles take these pages, not fresh ones.
+    drop((cells, sums));
     // Each quad split along its shorter diagonal (the first when they are equal).
     let mut triangles = vec![[0u32; 3]; 2 * quads.len()];
     triangles
@@ -692,6 +694,9 @@ fn relax(
     // the grid's size.
     let threads = rayon::current_num_threads();
     super::relax::relax(&graph, &mut now, rounds, threads, ctl)?;
+    // Freed first: the positions take the graph's pages (`crate::alloc` keeps them), not fresh
+    // ones.
+    drop(graph);
     let positions = now
         .par_iter()
         .zip(cells)
