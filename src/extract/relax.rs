@@ -58,8 +58,11 @@ pub(super) struct Graph {
 impl Graph {
     /// The graph of a closed, consistently oriented quad mesh whose vertices are numbered
     /// slab by slab (`cells`: each vertex's lattice point): each edge v → w is in exactly one
-    /// quad, so each neighbour is counted once.
-    pub(super) fn of(quads: &[[u32; 4]], cells: &[[u32; 3]]) -> Graph {
+    /// quad, so each neighbour is counted once. `by_plane`: the quads are in order of their
+    /// corners' lowest lattice x and each lies in two consecutive slabs (a net's are: a face's
+    /// corners are on its plane and the next), so each thread's part reads only the quads of
+    /// its slabs, not all of them.
+    pub(super) fn of(quads: &[[u32; 4]], cells: &[[u32; 3]], by_plane: bool) -> Graph {
         let n = cells.len();
         let pad = u32::try_from(n).expect("vertex numbers fit in u32");
         let mut adj = vec![[pad; SLOTS]; n];
@@ -78,7 +81,18 @@ impl Graph {
         }
         let extras: Vec<Vec<(u32, Vec<u32>)>> = jobs
             .into_par_iter()
-            .map(|(lo, adj, steps)| part(quads, cells, lo, adj, steps))
+            .map(|(lo, adj, steps)| {
+                let mut mine = quads;
+                if by_plane && !adj.is_empty() {
+                    // A vertex of slab x is a corner of the faces of planes x − 1 and x only.
+                    let low = |q: &[u32; 4]| q.iter().map(|&v| cells[v as usize][0]).min();
+                    let (xa, xb) = (cells[lo][0], cells[lo + adj.len() - 1][0]);
+                    let a = quads.partition_point(|q| low(q) < Some(xa.saturating_sub(1)));
+                    let b = quads.partition_point(|q| low(q) <= Some(xb));
+                    mine = &quads[a..b.max(a)];
+                }
+                part(mine, cells, lo, adj, steps)
+            })
             .collect();
         let extra = extras.concat();
         // The first vertex of each lattice slab (the wavefront's unit).
@@ -403,7 +417,13 @@ mod tests {
     /// Random quads on random vertices numbered slab by slab, each quad's consecutive corners
     /// in the next cells (what `Graph::of` requires of a net), valences up to 12, so the
     /// neighbour slots, the extra lists and the zero entry are all used.
-    fn random_net(rng: &mut Rng, n: usize, slabs: u32) -> (Vec<[u32; 4]>, Vec<[u32; 3]>) {
+    /// `flat`: each quad's corners in two consecutive slabs, as a net's faces' are.
+    fn random_net(
+        rng: &mut Rng,
+        n: usize,
+        slabs: u32,
+        flat: bool,
+    ) -> (Vec<[u32; 4]>, Vec<[u32; 3]>) {
         let mut cells: Vec<[u32; 3]> = (0..n)
             .map(|_| {
                 [
@@ -421,8 +441,11 @@ mod tests {
             let q: [u32; 4] = std::array::from_fn(|_| rng.below(n) as u32);
             let c = q.map(|v| cells[v as usize]);
             let distinct = (0..4).all(|i| (0..i).all(|j| q[i] != q[j]));
+            let xs = c.map(|c| c[0]);
+            let (lo, hi) = (xs.iter().min().unwrap(), xs.iter().max().unwrap());
             if distinct
                 && (0..4).all(|j| near(c[j], c[(j + 1) % 4]))
+                && (!flat || hi - lo <= 1)
                 && q.iter().all(|&v| valence[v as usize] < 12)
             {
                 for &v in &q {
@@ -452,9 +475,9 @@ mod tests {
         let mut saw_extra = false;
         for case in 0..40 {
             let n = 20 + rng.below(200);
-            let (quads, cells) = random_net(&mut rng, n, 1 + (case % 9) as u32);
+            let (quads, cells) = random_net(&mut rng, n, 1 + (case % 9) as u32, false);
             let n = cells.len();
-            let graph = Graph::of(&quads, &cells);
+            let graph = Graph::of(&quads, &cells, false);
             saw_extra |= !graph.extra.is_empty();
             let start: Vec<[f32; 4]> = (0..n)
                 .map(|_| {
@@ -486,11 +509,34 @@ mod tests {
     }
 
     #[test]
+    fn a_graph_of_quads_by_plane_reads_only_its_slabs_quads_and_is_the_same() {
+        let mut rng = Rng::new(5);
+        for case in 0..30 {
+            let n = 50 + rng.below(300);
+            let (mut quads, cells) = random_net(&mut rng, n, 2 + (case % 11) as u32, true);
+            // In order of their lowest lattice x, as a net's are.
+            quads.sort_by_key(|q| q.iter().map(|&v| cells[v as usize][0]).min());
+            let all = Graph::of(&quads, &cells, false);
+            for threads in [1, 2, 3, 5] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                let got = pool.install(|| Graph::of(&quads, &cells, true));
+                assert_eq!(got.adj, all.adj, "case {case}, {threads} threads");
+                assert_eq!(got.extra, all.extra, "case {case}");
+                assert_eq!(got.steps, all.steps, "case {case}");
+                assert_eq!(got.slabs, all.slabs, "case {case}");
+            }
+        }
+    }
+
+    #[test]
     fn a_canceled_relaxation_stops_with_the_positions_it_was_given_back() {
         let mut rng = Rng::new(7);
-        let (quads, cells) = random_net(&mut rng, 300, 20);
+        let (quads, cells) = random_net(&mut rng, 300, 20, false);
         let n = cells.len();
-        let graph = Graph::of(&quads, &cells);
+        let graph = Graph::of(&quads, &cells, false);
         let ctl = Control::new();
         ctl.cancel();
         for threads in [1, 2, 4] {

@@ -687,7 +687,7 @@ fn relax(
     ctl: &Control,
 ) -> Result<Vec<[f64; 3]>, Canceled> {
     let t0 = std::time::Instant::now();
-    let graph = super::relax::Graph::of(quads, cells);
+    let graph = super::relax::Graph::of(quads, cells, true);
     let t1 = std::time::Instant::now();
     // The rounds work on each vertex's offset from its lattice point, in f32: half the memory
     // traffic of f64 positions, with a rounding error of at most 2⁻²⁴ voxel per step, whatever
