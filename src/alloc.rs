@@ -108,9 +108,10 @@ fn lock() -> std::sync::MutexGuard<'static, Cache> {
     CACHE.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-/// Whether a block of `layout` is a large one (a mapping of its own).
+/// Whether a block of `layout` is a large one (a mapping of its own; Linux only, elsewhere
+/// every block is the system allocator's).
 fn is_large(layout: &Layout) -> bool {
-    layout.size() >= LARGE && layout.align() <= HUGE
+    cfg!(target_os = "linux") && layout.size() >= LARGE && layout.align() <= HUGE
 }
 
 /// A large block's mapped length.
@@ -154,12 +155,15 @@ fn map(len: usize) -> usize {
 }
 
 fn mark(p: usize, len: usize) {
+    #[cfg(target_os = "linux")]
     if enabled() {
         // SAFETY: MADV_HUGEPAGE on a range of this allocator's mapping changes how its pages
         // are backed, never their contents. Its result is ignored: a kernel without
         // transparent huge pages refuses it, and the block is as good without.
         unsafe { libc::madvise(p as *mut libc::c_void, len, libc::MADV_HUGEPAGE) };
     }
+    #[cfg(not(target_os = "linux"))]
+    let _ = (p, len);
 }
 
 /// A kept block cut or grown to `len` bytes, and how many of its first bytes were used before
@@ -193,6 +197,7 @@ fn reuse(len: usize) -> (usize, usize) {
 /// The mapping `[p, p + have)` grown to `len` bytes: in place if the addresses after it are
 /// free, else moved to a fresh aligned range (mremap moves the pages: nothing is copied).
 /// Returns its address, 0 on failure (the mapping is then left as it was).
+#[cfg(target_os = "linux")]
 fn grow(p: usize, have: usize, len: usize) -> usize {
     // SAFETY: `[p, p + have)` is one of this allocator's mappings, held by the caller.
     let q = unsafe { libc::mremap(p as *mut libc::c_void, have, len, 0) };
@@ -221,6 +226,12 @@ fn grow(p: usize, have: usize, len: usize) -> usize {
     }
     mark(dst, len);
     dst
+}
+
+/// Elsewhere there are no large blocks (`is_large`): never called, it fails.
+#[cfg(not(target_os = "linux"))]
+fn grow(_p: usize, _have: usize, _len: usize) -> usize {
+    0
 }
 
 /// Keeps the freed block `[p, p + len)`, unmapping the oldest kept ones beyond the bound (or
@@ -335,6 +346,7 @@ mod tests {
     }
 
     /// The `VmFlags` of the mapping of this process that holds address `p` (Linux).
+    #[cfg(target_os = "linux")]
     fn vm_flags(p: usize) -> Option<String> {
         let smaps = std::fs::read_to_string("/proc/self/smaps").ok()?;
         let mut inside = false;
@@ -357,6 +369,7 @@ mod tests {
     }
 
     #[test]
+    #[cfg(target_os = "linux")]
     fn a_large_block_is_aligned_and_marked_for_huge_pages() {
         let _s = serial();
         assert!(enabled());
@@ -405,6 +418,7 @@ mod tests {
     }
 
     #[test]
+    #[cfg(target_os = "linux")]
     fn a_freed_block_is_reused_cleared_and_the_cache_is_bounded() {
         let _s = serial();
         let a = HugePages;
