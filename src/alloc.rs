@@ -46,6 +46,17 @@ struct Cache {
     bytes: usize,
 }
 
+impl Cache {
+    /// Takes kept block `i` out of the table: (address, length).
+    fn remove(&mut self, i: usize) -> (usize, usize) {
+        let b = self.blocks[i];
+        self.blocks.copy_within(i + 1..self.len, i);
+        self.len -= 1;
+        self.bytes -= b.1;
+        b
+    }
+}
+
 static CACHE: Mutex<Cache> = Mutex::new(Cache {
     blocks: [(0, 0); SLOTS],
     len: 0,
@@ -178,10 +189,7 @@ fn reuse(len: usize) -> (usize, usize) {
     let Some(i) = fits.or_else(|| (0..n).max_by_key(|&i| c.blocks[i].1)) else {
         return (0, 0);
     };
-    let (p, have) = c.blocks[i];
-    c.blocks.copy_within(i + 1..n, i);
-    c.len -= 1;
-    c.bytes -= have;
+    let (p, have) = c.remove(i);
     drop(c);
     if have >= len {
         unmap(p + len, have - len);
@@ -244,11 +252,7 @@ fn keep(p: usize, len: usize) {
     }
     let mut c = lock();
     while c.len == SLOTS || c.bytes + len > limit {
-        let (q, l) = c.blocks[0];
-        let n = c.len;
-        c.blocks.copy_within(1..n, 0);
-        c.len -= 1;
-        c.bytes -= l;
+        let (q, l) = c.remove(0);
         unmap(q, l);
     }
     let n = c.len;

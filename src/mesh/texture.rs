@@ -121,6 +121,9 @@ pub fn decode(bytes: &[u8], budget: u64, what: &str) -> Result<Image, MeshError>
             ),
         });
     }
+    // A second reader, built with the limit from the header's size: the PNG decoder sizes its
+    // own buffers by the limits it is built with (`set_limits` afterwards would not reach
+    // them), so the header is read twice.
     let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), format);
     let mut limits = image::Limits::default();
     limits.max_alloc = Some(need.saturating_mul(2).max(1 << 20));
