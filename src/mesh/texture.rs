@@ -239,7 +239,7 @@ impl Image {
 
     /// The linear RGBA at texture coordinates (u, v) through `t`'s sampler. Coordinates that
     /// are not finite read texel (0, 0).
-    #[inline]
+    #[inline(always)]
     pub fn sample(&self, u: f64, v: f64, t: &TextureRef) -> [f32; 4] {
         if t.filter == Filter::Linear {
             // Between four texel centres inside the image (nearly every sample): nothing to
@@ -276,7 +276,8 @@ impl Image {
         )
     }
 
-    /// [`Image::sample`] anywhere.
+    /// [`Image::sample`] anywhere (out of line: `sample`'s common case is inlined alone).
+    #[inline(never)]
     fn sample_any(&self, u: f64, v: f64, t: &TextureRef) -> [f32; 4] {
         let (u, v) = if u.is_finite() && v.is_finite() {
             (u, v)
