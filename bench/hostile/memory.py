@@ -8,7 +8,7 @@ and a CSG body of 100 MB and 250 MB sent with Content-Length and chunked. Prints
 
     python3 bench/hostile/memory.py --voxd target/release/voxd --mesh ../shared/meshes/stanford-bunny.obj
 """
-import argparse, concurrent.futures as cf, http.client, os, re, socket, subprocess, tempfile, time
+import argparse, concurrent.futures as cf, http.client, os, re, subprocess, tempfile, time
 
 def hwm(pid):
     s = open(f"/proc/{pid}/status").read()

@@ -11,7 +11,6 @@ Usage: upload_memory.py BINARY [--max-memory BYTES] [--label NAME]
 Prints one row per case and concurrency: statuses seen and the peak RSS in MiB.
 """
 import argparse
-import gzip
 import http.client
 import os
 import subprocess
@@ -100,7 +99,7 @@ def main():
         ("(b) OBJ 60M v lines", obj_bomb(60_000_000), "model/obj"),
         ("(c) igea.obj", open(igea, "rb").read(), "model/obj"),
     ]
-    print(f"| build | case | body | copies | statuses | peak RSS (MiB) | seconds |")
+    print("| build | case | body | copies | statuses | peak RSS (MiB) | seconds |")
     print("|---|---|---|---|---|---|---|")
     for name, body, ctype in cases:
         for n in [int(x) for x in a.copies.split(",")]:

@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # Soak test of `voxd serve` (on demand, not in CI): SECONDS (default 600) of mixed traffic on
-# loopback from bench/soak/driver.py (several concurrent clients: uploads in every format, sync
-# and async jobs, random cancellations and deletions, downloads, volume operations, malformed
-# and abandoned requests, a few large jobs), sampling the server's RSS, open fds, threads and
-# store size every 5 s. Results (samples.csv, summary.txt, summary.json, problems.log, the
-# server's logs) go to OUT_DIR (default target/soak/<timestamp> in this checkout).
+# loopback from bench/soak/driver.py (with soak_client.py and soak_meshes.py: several concurrent
+# clients: uploads in every format, sync and async jobs, random cancellations and deletions,
+# downloads, volume operations, malformed and abandoned requests, a few large jobs), sampling
+# the server's RSS, open fds, threads and store size every 5 s. Results (samples.csv,
+# summary.txt, summary.json, problems.log, the server's logs) go to OUT_DIR (default
+# target/soak/<timestamp> in this checkout).
 #
 # Usage: bench/soak/run.sh [SECONDS] [OUT_DIR]
 # Environment: SOAK_CLIENTS (6), SOAK_SEED (random), SOAK_INTERVAL (5 s), SOAK_SHARED_MESHES
