@@ -142,18 +142,6 @@ struct TriShade<'m> {
     varying: bool,
     /// The texture: the image, its sampler, the texture coordinates of the corners.
     texture: Option<(&'m Image, crate::mesh::texture::TextureRef, [[f64; 2]; 3])>,
-    /// Twice the triangle's area in grid units: a part with corner weights `b` has this times
-    /// [`weights_det`] of them.
-    a2: f64,
-    /// Twice the triangle's area in texture coordinates (0 without a texture).
-    uv2: f64,
-}
-
-/// `|det(q − o, r − o)|` of three points' weights: the fraction of its triangle's area a fan
-/// triangle of a piece covers (the weights are affine in the triangle's plane).
-#[inline(always)]
-fn weights_det(o: [f64; 2], q: [f64; 2], r: [f64; 2]) -> f64 {
-    ((q[0] - o[0]) * (r[1] - o[1]) - (r[0] - o[0]) * (q[1] - o[1])).abs()
 }
 
 /// `v0 + (v1 − v0)·b0 + (v2 − v0)·b1`: the value at weights `b` of something linear over a
@@ -165,7 +153,7 @@ fn interpolate<const N: usize>(c: &[[f64; N]; 3], b: [f64; 2]) -> [f64; N] {
 
 impl<'m> Shader<'m> {
     /// Triangle `t`'s [`TriShade`].
-    fn prepare(&self, t: usize, tri: &[[f64; 3]; 3]) -> TriShade<'m> {
+    fn prepare(&self, t: usize) -> TriShade<'m> {
         let base = match &self.a.material {
             Some(m) => self.a.materials[usize::from(m[t])]
                 .base_color
@@ -190,14 +178,10 @@ impl<'m> Shader<'m> {
             let uv = &a.uv.as_ref()?[t];
             Some((&a.images[tex.image], tex, uv.map(|c| c.map(f64::from))))
         })();
-        let a2 = double_area(&tri.map(|p| Vertex { p, b: [0.0; 2] }));
-        let uv2 = texture.map_or(0.0, |(_, _, uv)| weights_det(uv[0], uv[1], uv[2]));
         TriShade {
             plain,
             varying,
             texture,
-            a2,
-            uv2,
         }
     }
 
@@ -205,20 +189,24 @@ impl<'m> Shader<'m> {
     /// world units.
     fn integrate(sh: &TriShade, piece: &[Vertex], s2: f64) -> (f64, [f64; 4]) {
         let Some((img, tex, uv)) = &sh.texture else {
-            // The area-weighted centroid of the fan's triangles (areas as fractions of the
-            // triangle's).
+            let a2 = double_area(piece);
+            // The area-weighted centroid of the fan's triangles.
             let o = piece[0].b;
-            let (mut d, mut cb) = (0.0f64, [0.0f64; 2]);
+            let mut cb = [0.0f64; 2];
             for w in piece[1..].windows(2) {
-                let a = weights_det(o, w[0].b, w[1].b);
-                d += a;
+                let fan = [piece[0], w[0], w[1]];
+                let a = double_area(&fan);
                 for k in 0..2 {
                     cb[k] += a * (o[k] + w[0].b[k] + w[1].b[k]) / 3.0;
                 }
             }
-            let b = if d > 0.0 { [cb[0] / d, cb[1] / d] } else { o };
+            let b = if a2 > 0.0 {
+                [cb[0] / a2, cb[1] / a2]
+            } else {
+                o
+            };
             let c = interpolate(&sh.plain, b);
-            let area = sh.a2 * d / 2.0 * s2;
+            let area = a2 / 2.0 * s2;
             return (area, c.map(|v| v * area));
         };
         let texels = f64::from(img.width) * f64::from(img.height);
@@ -226,18 +214,20 @@ impl<'m> Shader<'m> {
         let mut sum = [0.0f64; 4];
         for w in piece[1..].windows(2) {
             let fan = [piece[0], w[0], w[1]];
-            let d = weights_det(fan[0].b, fan[1].b, fan[2].b);
-            // Half of twice the area, in grid units (voxel faces).
-            let faces = sh.a2 * d / 2.0;
-            let area = faces * s2;
+            let area = double_area(&fan) / 2.0 * s2;
             if area <= 0.0 {
                 continue;
             }
             let uvs = fan.map(|v| interpolate(uv, v.b));
-            let samples = sh.uv2 * d / 2.0 * texels * SAMPLES_PER_TEXEL;
+            let samples = ((uvs[1][0] - uvs[0][0]) * (uvs[2][1] - uvs[0][1])
+                - (uvs[2][0] - uvs[0][0]) * (uvs[1][1] - uvs[0][1]))
+                .abs()
+                / 2.0
+                * texels
+                * SAMPLES_PER_TEXEL;
             // No more than SAMPLES_PER_VOXEL_FACE a voxel face's area of surface: a voxel's
             // colour averages all its parts' samples.
-            let samples = samples.min((SAMPLES_PER_VOXEL_FACE * faces).max(1.0));
+            let samples = samples.min((SAMPLES_PER_VOXEL_FACE * area / s2).max(1.0));
             // The least level with 4^level ≥ samples, up to MAX_LEVEL (powers of 4 are exact).
             let (mut level, mut four_to) = (0, 1.0);
             while level < MAX_LEVEL && four_to < samples {
@@ -345,7 +335,7 @@ pub fn surface(
                 || (Vec::new(), Clipper::default()),
                 |(mut out, mut clipper), t| {
                     let tri = mesh.triangle(t).map(to_grid);
-                    let sh = shader.prepare(t, &tri);
+                    let sh = shader.prepare(t);
                     clipper.pieces(&tri, dims, |v, piece| {
                         let (area, rgba) = Shader::integrate(&sh, piece, s2);
                         if area > 0.0 {
