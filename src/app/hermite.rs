@@ -158,6 +158,8 @@ pub async fn stored_solid(
         max_triangles: limits.max_triangles,
         max_decompressed_bytes: limits.max_decompressed_bytes,
         max_texture_bytes: limits.max_texture_bytes,
+        // The shape only.
+        textures: false,
     };
     let mesh = super::sources::load(store, meta, opts).await?;
     let diagnostics = match meta.diagnostics.clone() {

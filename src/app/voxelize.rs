@@ -94,6 +94,7 @@ pub fn load(req: &VoxelizeRequest) -> Result<Loaded> {
         max_triangles: req.limits.max_triangles,
         max_decompressed_bytes: req.limits.max_decompressed_bytes,
         max_texture_bytes: req.limits.max_texture_bytes,
+        textures: req.attributes.colour,
     };
     let (mesh, format, gzip, sha256) = match &req.source {
         MeshSource::File { path, format } => {

@@ -85,7 +85,7 @@ pub fn estimate(upload: &[u8], format: Option<Format>, opts: &LoadOptions) -> Es
         return Estimate {
             bytes: fixed_part(decoded).saturating_add(gltf_cost(
                 decoded,
-                opts.max_texture_bytes,
+                texture_limit(opts),
                 opts,
             )),
             decoded,
@@ -161,7 +161,7 @@ pub fn estimate(upload: &[u8], format: Option<Format>, opts: &LoadOptions) -> Es
             let whole_json = json_end <= head.len() as u64;
             let images = memchr::memmem::find(head, b"\"images\"").is_some();
             let textures = if images || !whole_json {
-                opts.max_texture_bytes
+                texture_limit(opts)
             } else {
                 0
             };
@@ -169,6 +169,15 @@ pub fn estimate(upload: &[u8], format: Option<Format>, opts: &LoadOptions) -> Es
         }
     };
     fixed(bytes)
+}
+
+/// The bytes of textures a parse with `opts` may decode: none unless it reads them.
+fn texture_limit(opts: &LoadOptions) -> u64 {
+    if opts.textures {
+        opts.max_texture_bytes
+    } else {
+        0
+    }
 }
 
 /// A glTF of `decoded` bytes (the costliest format per byte): its bytes held, at most a vertex
@@ -236,5 +245,40 @@ mod tests {
     fn gzip_trailer_size() {
         assert_eq!(gzip_size(&gz(&[1u8; 12345])), Some(12345));
         assert_eq!(gzip_size(b"plain text, long enough"), None);
+    }
+}
+
+#[cfg(test)]
+mod texture_tests {
+    use super::*;
+
+    /// Fox.glb (one 1024² texture): without `textures` it is parsed with its materials but no
+    /// image, and its estimate leaves the texture limit out.
+    #[test]
+    fn a_parse_without_textures_decodes_none_and_counts_none() {
+        let fox = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/Fox.glb"))
+            .expect("tests/data/Fox.glb");
+        let with = LoadOptions::default();
+        let without = LoadOptions {
+            textures: false,
+            ..LoadOptions::default()
+        };
+        let a = super::super::load_bytes(&fox, None, &with).expect("Fox.glb");
+        let b = super::super::load_bytes(&fox, None, &without).expect("Fox.glb");
+        let (a, b) = (a.attributes(), b.attributes());
+        assert_eq!(a.images.len(), 1);
+        assert!(a.materials.iter().any(|m| m.texture.is_some()));
+        assert!(b.images.is_empty());
+        assert!(b.materials.iter().all(|m| m.texture.is_none()));
+        let names = |x: &crate::mesh::Attributes| {
+            x.materials
+                .iter()
+                .map(|m| (m.name.clone(), m.base_color))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(names(a), names(b));
+        let (ea, eb) = (estimate(&fox, None, &with), estimate(&fox, None, &without));
+        assert_eq!(ea.bytes - eb.bytes, with.max_texture_bytes);
+        assert_eq!(ea.decoded, eb.decoded);
     }
 }

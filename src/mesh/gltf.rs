@@ -336,7 +336,8 @@ fn parse_document(doc: &gltf::Gltf, opts: &LoadOptions) -> Result<Mesh, MeshErro
             ),
         ));
     }
-    let (table, images, specs) = gltf_materials::materials(doc, &buffers, opts.max_texture_bytes)?;
+    let (table, images, specs) =
+        gltf_materials::materials(doc, &buffers, opts.max_texture_bytes, opts.textures)?;
     out.specs = specs;
     for (m, world) in instances(doc)? {
         out.mesh(&m, &world, &buffers)?;

@@ -39,6 +39,7 @@ pub(super) fn materials(
     doc: &gltf::Document,
     buffers: &[Vec<u8>],
     mut budget: u64,
+    textures: bool,
 ) -> Result<Materials, MeshError> {
     let mut images: Vec<Image> = vec![];
     // glTF image index -> index into `images`.
@@ -49,7 +50,8 @@ pub(super) fn materials(
         let pbr = m.pbr_metallic_roughness();
         let mut tex = None;
         let mut spec = None;
-        if let Some(info) = pbr.base_color_texture() {
+        // Without `textures` (no colour asked for) the images are not decoded.
+        if let Some(info) = pbr.base_color_texture().filter(|_| textures) {
             let t = info.texture();
             let src = t.source();
             let slot = src.index();

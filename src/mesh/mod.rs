@@ -192,6 +192,11 @@ pub struct LoadOptions {
     pub max_decompressed_bytes: u64,
     /// Limit on the bytes of a mesh's decoded textures (4 a texel), all images together.
     pub max_texture_bytes: u64,
+    /// Whether base colour textures are read and decoded (glTF images, OBJ `map_Kd`): only
+    /// colour needs them. Without, materials keep their names and base colours, no texture is
+    /// read (nor its limit spent, nor a bad one refused) and the parse's memory estimate counts
+    /// none ([`cost::estimate`]).
+    pub textures: bool,
 }
 
 impl LoadOptions {
@@ -209,6 +214,7 @@ impl Default for LoadOptions {
             max_triangles: crate::limits::Limits::LOCAL.max_triangles,
             max_decompressed_bytes: crate::limits::Limits::LOCAL.max_decompressed_bytes,
             max_texture_bytes: crate::limits::Limits::LOCAL.max_texture_bytes,
+            textures: true,
         }
     }
 }

@@ -496,6 +496,43 @@ fn vertex_colours_interpolate_and_refusals_are_clear() {
     assert_problem(&r, 400, "invalid-parameter");
 }
 
+/// Textures are read only for colour: a cube whose image is not a PNG or JPEG voxelizes
+/// without colour (its materials kept; the image is never decoded) and is refused with colour,
+/// the image named.
+#[test]
+fn textures_are_read_only_for_colour() {
+    let dir = tmpdir("colour-textures-on-demand");
+    let srv = Server::start(&dir, &[]);
+    let (p, uv, tris) = cube();
+    let body = glb(
+        &p,
+        &uv,
+        &[(tris.concat(), 0)],
+        serde_json::json!([{"name": "atlas", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]),
+        Some((b"not an image at all", serde_json::json!({}))),
+    );
+    let grid = "origin=0,0,0&voxel_size=1&dims=10,10,10";
+    let glb_type = [("Content-Type", "model/gltf-binary")];
+    let v = srv.created(
+        &format!("/v1/voxelize?{grid}&method=solid&material=true&wait=60"),
+        &glb_type,
+        &body,
+    );
+    assert_eq!(v["attributes"]["materials"][0]["name"], "atlas", "{v}");
+    let r = srv.req(
+        "POST",
+        &format!("/v1/voxelize?{grid}&method=solid&color=true&wait=60"),
+        &glb_type,
+        &body,
+    );
+    let p = assert_problem(&r, 422, "invalid-mesh");
+    let detail = p["detail"].as_str().unwrap();
+    assert!(
+        detail.contains("glTF image 0") && detail.contains("not a PNG or JPEG"),
+        "{p}"
+    );
+}
+
 /// A checkerboard of 4 × 4-texel squares on a plane, sampled bilinearly: each voxel's colour is
 /// the mean of the texture's bilinear interpolant over the voxel's part of the plane, computed
 /// here exactly (a bilinear function's mean over a rectangle is its value at the rectangle's

@@ -98,6 +98,7 @@ pub fn decode(bytes: &[u8], req: &VoxelizeRequest) -> Result<Prepared> {
         max_triangles: req.limits.max_triangles,
         max_decompressed_bytes: req.limits.max_decompressed_bytes,
         max_texture_bytes: req.limits.max_texture_bytes,
+        textures: req.attributes.colour,
     };
     // A count over this process's limits is the problem parsing the file would have given.
     let mesh = binary::decode(mesh, &opts)?;

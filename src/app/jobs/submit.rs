@@ -97,6 +97,8 @@ async fn admit_parse(
         max_triangles: req.limits.max_triangles,
         max_decompressed_bytes: req.limits.max_decompressed_bytes,
         max_texture_bytes: req.limits.max_texture_bytes,
+        // As the parse will (`voxelize::load`).
+        textures: req.attributes.colour,
     };
     let est = mesh::cost::estimate(bytes, *format, &opts);
     req.limits.max_decompressed_bytes = req.limits.max_decompressed_bytes.min(est.decoded);

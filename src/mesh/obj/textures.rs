@@ -36,7 +36,8 @@ pub(super) fn table(
         let def = defs.get(&name);
         let mut texture = None;
         let mut map = None;
-        if let Some(m) = def.and_then(|d| d.map.as_ref()) {
+        // Without `opts.textures` (no colour asked for) no `map_Kd` is read.
+        if let Some(m) = def.and_then(|d| d.map.as_ref()).filter(|_| opts.textures) {
             if texcoords.is_empty() {
                 tracing::warn!(material = %name, texture = %m.path, "texture left out: the OBJ has no texture coordinates (vt)");
             } else {
