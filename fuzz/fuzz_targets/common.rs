@@ -15,6 +15,8 @@ pub fn mesh_options() -> LoadOptions {
         max_triangles: 100_000,
         max_decompressed_bytes: 16 << 20,
         max_texture_bytes: 16 << 20,
+        // The texture decoders are fuzzed too (what a request with colour reads).
+        textures: true,
     }
 }
 
