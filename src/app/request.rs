@@ -14,7 +14,7 @@ use crate::engine::fill::Fill;
 pub use crate::engine::sdf::Band;
 use crate::grid::GridSpec;
 use crate::limits::Limits;
-use crate::mesh::{ExternalResources, Format};
+use crate::mesh::{ExternalResources, Format, LoadOptions};
 use crate::names::Named;
 use crate::volume::csg::CsgOp;
 use crate::volume::morph::{Kernel, MorphOp};
@@ -239,6 +239,21 @@ pub struct VoxelizeRequest {
     /// ([`MethodSpec::attributes`]).
     pub attributes: Want,
     pub limits: Limits,
+}
+
+impl VoxelizeRequest {
+    /// How its mesh is parsed, within its limits, and its parse's memory estimated
+    /// (`mesh::cost::estimate`): the one set of options both use, so the estimate holds for the
+    /// parse. Textures are read only for colour.
+    pub fn load_options(&self) -> LoadOptions {
+        LoadOptions {
+            external: self.source.external(),
+            max_triangles: self.limits.max_triangles,
+            max_decompressed_bytes: self.limits.max_decompressed_bytes,
+            max_texture_bytes: self.limits.max_texture_bytes,
+            textures: self.attributes.colour,
+        }
+    }
 }
 
 /// An uploaded voxelization request as data, without the upload's bytes: what a queue shared by

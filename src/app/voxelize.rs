@@ -15,7 +15,7 @@ use crate::engine::sdf::{self, Band};
 use crate::engine::{Engine, GridMesh};
 use crate::grid::{Grid, GridLimits};
 use crate::limits::Limits;
-use crate::mesh::{self, Format, LoadOptions, Mesh, MeshDiagnostics, MeshError};
+use crate::mesh::{self, Format, Mesh, MeshDiagnostics, MeshError};
 use crate::volume::Volume;
 
 /// A voxelization whose mesh is loaded and whose grid is fitted and within the limits: what a
@@ -89,13 +89,7 @@ pub struct Loaded {
 /// a file source reads the disk): async callers run it on a blocking thread.
 pub fn load(req: &VoxelizeRequest) -> Result<Loaded> {
     let t0 = Instant::now();
-    let opts = LoadOptions {
-        external: req.source.external(),
-        max_triangles: req.limits.max_triangles,
-        max_decompressed_bytes: req.limits.max_decompressed_bytes,
-        max_texture_bytes: req.limits.max_texture_bytes,
-        textures: req.attributes.colour,
-    };
+    let opts = req.load_options();
     let (mesh, format, gzip, sha256) = match &req.source {
         MeshSource::File { path, format } => {
             let bytes = std::fs::read(path)

@@ -246,11 +246,6 @@ mod tests {
         assert_eq!(gzip_size(&gz(&[1u8; 12345])), Some(12345));
         assert_eq!(gzip_size(b"plain text, long enough"), None);
     }
-}
-
-#[cfg(test)]
-mod texture_tests {
-    use super::*;
 
     /// Fox.glb (one 1024² texture): without `textures` it is parsed with its materials but no
     /// image, and its estimate leaves the texture limit out.

@@ -17,7 +17,7 @@ use serde::{Deserialize, Serialize};
 use super::super::error::{Error, Result};
 use super::super::request::VoxelizeRequest;
 use super::super::voxelize::{Loaded, Prepared, Source};
-use crate::mesh::{LoadOptions, MeshDiagnostics, binary};
+use crate::mesh::{MeshDiagnostics, binary};
 
 /// The first bytes of a stored prepared job (a raw mesh upload never starts so: see
 /// [`binary::MAGIC`] for why such a signature).
@@ -93,13 +93,7 @@ pub fn decode(bytes: &[u8], req: &VoxelizeRequest) -> Result<Prepared> {
     let (header, mesh) = bytes[16..].split_at(len);
     let h: Header =
         serde_json::from_slice(header).map_err(|e| corrupt(format!("its header: {e}")))?;
-    let opts = LoadOptions {
-        external: req.source.external(),
-        max_triangles: req.limits.max_triangles,
-        max_decompressed_bytes: req.limits.max_decompressed_bytes,
-        max_texture_bytes: req.limits.max_texture_bytes,
-        textures: req.attributes.colour,
-    };
+    let opts = req.load_options();
     // A count over this process's limits is the problem parsing the file would have given.
     let mesh = binary::decode(mesh, &opts)?;
     let d = &h.diagnostics;

@@ -17,7 +17,7 @@ use super::super::store::{VolumeMeta, VolumeStore};
 use crate::engine::fill::Fill;
 use crate::grid::GridSpec;
 use crate::limits::Limits;
-use crate::mesh::{self, Format, LoadOptions};
+use crate::mesh::{self, Format};
 
 /// A voxelization job as a front asks for it, all but the upload's bytes.
 #[derive(Clone, Debug)]
@@ -92,14 +92,7 @@ async fn admit_parse(
     let (Some(memory), MeshSource::Bytes { bytes, format }) = (memory, &req.source) else {
         return Ok(MemoryPermit::none());
     };
-    let opts = LoadOptions {
-        external: req.source.external(),
-        max_triangles: req.limits.max_triangles,
-        max_decompressed_bytes: req.limits.max_decompressed_bytes,
-        max_texture_bytes: req.limits.max_texture_bytes,
-        // As the parse will (`voxelize::load`).
-        textures: req.attributes.colour,
-    };
+    let opts = req.load_options();
     let est = mesh::cost::estimate(bytes, *format, &opts);
     req.limits.max_decompressed_bytes = req.limits.max_decompressed_bytes.min(est.decoded);
     memory
