@@ -71,15 +71,6 @@ def find_mesh(*names):
     return None
 
 
-# ---------------------------------------------------------------------------------------------
-# The server under test
-
-
-# ---------------------------------------------------------------------------------------------
-# A small HTTP/1.1 client that sees a response sent before the body is (if the server answers
-# early and closes, http.client only reports the broken pipe)
-
-
 def count(keys):
     c = {}
     for k in keys:

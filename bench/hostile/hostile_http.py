@@ -14,6 +14,10 @@ import time
 MiB = 1 << 20
 
 
+# ---------------------------------------------------------------------------------------------
+# The server under test
+
+
 class Server:
     """A fresh `voxd serve` (or the one at --addr). hwm() is its VmHWM in bytes, or None."""
 
@@ -89,6 +93,11 @@ class Server:
         self.proc = None
         if self.own_data:
             shutil.rmtree(self.data, ignore_errors=True)
+
+
+# ---------------------------------------------------------------------------------------------
+# A small HTTP/1.1 client that sees a response sent before the body is (if the server answers
+# early and closes, http.client only reports the broken pipe)
 
 
 class Resp:

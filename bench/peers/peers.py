@@ -661,8 +661,7 @@ def cmd_run(a):
     print(f"results: {out}/results.md, {out}/results.json ({doc['total_s']:.0f} s)")
 
 
-# ---------------------------------------------------------------- report
-
+# ---------------------------------------------------------------- memory again
 
 def cmd_memory(a):
     """Peak RSS again, one run per tool per cell, for a results.json whose timing run recorded

@@ -121,6 +121,10 @@ def grid_q(g):
     )
 
 
+# ---------------------------------------------------------------------------------------------
+# Clients
+
+
 class Client(threading.Thread):
     def __init__(self, n, args, stats, shared, small, heavy, seed):
         super().__init__(name=f"client-{n}", daemon=True)
@@ -590,6 +594,9 @@ class Client(threading.Thread):
             time.sleep(self.rng.uniform(0, 0.05))
         self.conn.close()
 
+
+# ---------------------------------------------------------------------------------------------
+# Malformed requests (each must be answered 4xx)
 
 EXTERNAL_GLTF = json.dumps(
     {
