@@ -1,7 +1,18 @@
 //! The checks every extracted mesh must pass, and what they measure.
 
 use super::TriMesh;
-use super::vec3::{cross, sub};
+use super::vec3::cross;
+
+/// Are the three points exactly collinear (zero area)? Each component of (b − a) × (c − a) is
+/// the orientation determinant of the points projected on a coordinate plane; its sign is
+/// taken exactly by Shewchuk's adaptive predicate (the `robust` crate). In plain f64 the cross
+/// product of exactly collinear points can come out non-zero.
+pub fn collinear(p: [[f64; 3]; 3]) -> bool {
+    [(0, 1), (1, 2), (2, 0)].iter().all(|&(i, j)| {
+        let c = |q: [f64; 3]| robust::Coord { x: q[i], y: q[j] };
+        robust::orient2d(c(p[0]), c(p[1]), c(p[2])) == 0.0
+    })
+}
 
 /// What [`check`] found.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -11,7 +22,7 @@ pub struct Report {
     /// Undirected edges not used exactly once in each direction (0: watertight and consistently
     /// oriented).
     pub bad_edges: usize,
-    /// Triangles with a repeated vertex or zero area.
+    /// Triangles with a repeated vertex or zero area (corners exactly collinear: [`collinear`]).
     pub degenerate: usize,
     /// Triangles with the same three vertices as an earlier one (in any order).
     pub duplicates: usize,
@@ -63,8 +74,7 @@ pub fn check(m: &TriMesh) -> Report {
         }
         tri_at[*t.iter().min().expect("three vertices") as usize + 1] += 1;
         let p = t.map(|i| m.positions[i as usize]);
-        let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
-        if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] || n == [0.0; 3] {
+        if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] || collinear(p) {
             r.degenerate += 1;
         }
         let c = cross(p[1], p[2]);
@@ -196,6 +206,37 @@ mod tests {
         assert!(r.is_valid(), "{r:?}");
         assert_eq!(r.volume, 4.0 / 3.0);
         assert_eq!((r.vertices, r.triangles), (6, 8));
+    }
+
+    /// Exactly collinear corners (on the line t·(1, 2, 3): checked with exact rationals when the
+    /// case was found) whose f64 cross product is not zero, and a triangle one ulp off that
+    /// line.
+    #[test]
+    fn zero_area_is_decided_exactly() {
+        use super::super::vec3::sub;
+        let line = [
+            [
+                -0.008188605403378395,
+                -0.01637721080675679,
+                -0.024565816210135184,
+            ],
+            [-11.826470525275433, -23.652941050550865, -35.4794115758263],
+            [-0.83028683049195, -1.6605736609839, -2.49086049147585],
+        ];
+        assert_ne!(
+            cross(sub(line[1], line[0]), sub(line[2], line[0])),
+            [0.0; 3]
+        );
+        assert!(collinear(line));
+        let mut off = line;
+        off[2][2] = f64::from_bits(off[2][2].to_bits() + 1);
+        assert!(!collinear(off));
+        let m = TriMesh {
+            positions: line.to_vec(),
+            triangles: vec![[0, 1, 2]],
+            colors: vec![],
+        };
+        assert_eq!(check(&m).degenerate, 1);
     }
 
     #[test]

@@ -11,7 +11,9 @@
 //!   its lattice points within 1.5 of that box on every axis: those are found through the
 //!   vertices' lattice points (sorted: the net numbers vertices in (x, y, z) order), and
 //!   tested when their boxes overlap.
-//! * **Crossing**: `measure::triangles_cross` (an edge of one through the other's interior).
+//! * **Crossing**: `measure::triangles_cross` (an edge of one through the other's interior,
+//!   by exact orientation signs: with plain f64 ones, nearly coplanar neighbours that do not
+//!   meet were reported crossing, and their sharp vertices pulled back for nothing).
 //! * **Bounded**: at most [`ROUNDS`] rounds; in the last a vertex goes to its mass point.
 //!   What still crosses after it is left and logged (not met on the test meshes).
 
