@@ -336,12 +336,23 @@ fn parse_document(doc: &gltf::Gltf, opts: &LoadOptions) -> Result<Mesh, MeshErro
             ),
         ));
     }
-    let (table, images, specs) =
-        gltf_materials::materials(doc, &buffers, opts.max_texture_bytes, opts.textures)?;
+    let (table, encoded, specs) = gltf_materials::materials(doc, &buffers, opts.textures)?;
     out.specs = specs;
-    for (m, world) in instances(doc)? {
-        out.mesh(&m, &world, &buffers)?;
-    }
+    // The images are decoded while the geometry is read (a 4096² PNG takes about as long as a
+    // million triangles' accessors, each on one thread); an image's error is reported before
+    // the geometry's, as when one followed the other.
+    let (images, geometry) = rayon::join(
+        || gltf_materials::decode(&encoded, opts.max_texture_bytes),
+        || -> Result<(), MeshError> {
+            for (m, world) in instances(doc)? {
+                out.mesh(&m, &world, &buffers)?;
+            }
+            Ok(())
+        },
+    );
+    let images = images?;
+    geometry?;
+    drop(encoded);
     if out.triangles.is_empty() {
         let why = if out.skipped_modes.is_empty() {
             " (no triangle primitives in the scene)".to_string()

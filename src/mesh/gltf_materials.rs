@@ -3,7 +3,10 @@
 //! coordinates of a primitive's triangles. Images come from buffer views or `data:` URIs only,
 //! never from files (a texture by any other URI is dropped with a warning: the material keeps
 //! its factor). Each image is decoded once, however many textures read it, within the mesh's
-//! texture limit (`max_texture_bytes`, all its images together).
+//! texture limit (`max_texture_bytes`, all its images together), while the loader reads the
+//! geometry ([`decode`]).
+
+use std::borrow::Cow;
 
 use base64::Engine as _;
 use gltf::texture::{MagFilter, WrappingMode};
@@ -30,18 +33,25 @@ impl UvSpec {
     }
 }
 
-/// A document's materials, their images, and each one's texture coordinates.
-pub(super) type Materials = (Vec<Material>, Vec<Image>, Vec<Option<UvSpec>>);
+/// An image a texture reads, still encoded: its bytes (borrowed from a buffer, or decoded from
+/// a `data:` URI) and its name in errors.
+pub(super) struct Encoded<'b> {
+    bytes: Cow<'b, [u8]>,
+    what: String,
+}
 
-/// The document's materials in order, the images their textures read, and each material's
-/// [`UvSpec`] (`None`: no texture). `budget`: bytes the decoded images may take.
-pub(super) fn materials(
+/// A document's materials, the images their textures read (to decode, in order: a
+/// [`TextureRef`]'s `image` is an index into them), and each one's texture coordinates.
+pub(super) type Materials<'b> = (Vec<Material>, Vec<Encoded<'b>>, Vec<Option<UvSpec>>);
+
+/// The document's materials in order, the images their textures read (not decoded yet:
+/// [`decode`]), and each material's [`UvSpec`] (`None`: no texture).
+pub(super) fn materials<'b>(
     doc: &gltf::Document,
-    buffers: &[Vec<u8>],
-    mut budget: u64,
+    buffers: &'b [Vec<u8>],
     textures: bool,
-) -> Result<Materials, MeshError> {
-    let mut images: Vec<Image> = vec![];
+) -> Result<Materials<'b>, MeshError> {
+    let mut images: Vec<Encoded<'b>> = vec![];
     // glTF image index -> index into `images`.
     let mut decoded: Vec<Option<usize>> = vec![None; doc.images().len()];
     let mut table = vec![];
@@ -60,13 +70,11 @@ pub(super) fn materials(
                 None => match image_bytes(&src, buffers)? {
                     None => None,
                     Some(bytes) => {
-                        let i = texture::decode_into(
-                            &mut images,
-                            &mut budget,
-                            &bytes,
-                            &format!("glTF image {slot}"),
-                        )?;
-                        decoded[slot] = Some(i);
+                        images.push(Encoded {
+                            bytes,
+                            what: format!("glTF image {slot}"),
+                        });
+                        decoded[slot] = Some(images.len() - 1);
                         decoded[slot]
                     }
                 },
@@ -114,15 +122,28 @@ pub(super) fn materials(
     Ok((table, images, specs))
 }
 
+/// The images [`materials`] found, decoded in order within `budget` bytes (4 a texel, all of
+/// them together).
+pub(super) fn decode(images: &[Encoded<'_>], mut budget: u64) -> Result<Vec<Image>, MeshError> {
+    let mut out = Vec::with_capacity(images.len());
+    for e in images {
+        texture::decode_into(&mut out, &mut budget, &e.bytes, &e.what)?;
+    }
+    Ok(out)
+}
+
 /// The encoded bytes of an image in a buffer view or a `data:` URI; `None` (with a warning)
 /// for any other URI.
-fn image_bytes(img: &gltf::Image, buffers: &[Vec<u8>]) -> Result<Option<Vec<u8>>, MeshError> {
+fn image_bytes<'b>(
+    img: &gltf::Image,
+    buffers: &'b [Vec<u8>],
+) -> Result<Option<Cow<'b, [u8]>>, MeshError> {
     match img.source() {
         gltf::image::Source::View { view, .. } => {
             let buf = &buffers[view.buffer().index()];
             let end = view.offset().checked_add(view.length());
             match end.and_then(|end| buf.get(view.offset()..end)) {
-                Some(b) => Ok(Some(b.to_vec())),
+                Some(b) => Ok(Some(Cow::Borrowed(b))),
                 None => Err(malformed(
                     "glTF",
                     format!(
@@ -139,7 +160,7 @@ fn image_bytes(img: &gltf::Image, buffers: &[Vec<u8>]) -> Result<Option<Vec<u8>>
                 })?;
                 base64::engine::general_purpose::STANDARD
                     .decode(payload.trim())
-                    .map(Some)
+                    .map(|b| Some(Cow::Owned(b)))
                     .map_err(|e| {
                         malformed("glTF", format!("bad base64 in an image's data URI: {e}"))
                     })

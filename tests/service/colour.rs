@@ -533,6 +533,50 @@ fn textures_are_read_only_for_colour() {
     );
 }
 
+/// The loader decodes a glTF's images while it reads its geometry: with both broken, the
+/// image's error is the one reported (as when the images were decoded first), every time; the
+/// geometry's without colour.
+#[test]
+fn an_image_error_comes_before_a_geometry_error() {
+    let dir = tmpdir("colour-error-order");
+    let srv = Server::start(&dir, &[]);
+    let (p, uv, tris) = cube();
+    let mut broken = tris.concat();
+    broken[4] = 99;
+    let body = glb(
+        &p,
+        &uv,
+        &[(broken, 0)],
+        serde_json::json!([{"name": "atlas", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]),
+        Some((b"not an image at all", serde_json::json!({}))),
+    );
+    let grid = "origin=0,0,0&voxel_size=1&dims=10,10,10";
+    let glb_type = [("Content-Type", "model/gltf-binary")];
+    for _ in 0..3 {
+        let r = srv.req(
+            "POST",
+            &format!("/v1/voxelize?{grid}&method=solid&color=true&wait=60"),
+            &glb_type,
+            &body,
+        );
+        let p = assert_problem(&r, 422, "invalid-mesh");
+        let detail = p["detail"].as_str().unwrap();
+        assert!(detail.contains("glTF image 0"), "{p}");
+    }
+    let r = srv.req(
+        "POST",
+        &format!("/v1/voxelize?{grid}&method=solid&wait=60"),
+        &glb_type,
+        &body,
+    );
+    let p = assert_problem(&r, 422, "invalid-mesh");
+    let detail = p["detail"].as_str().unwrap();
+    assert!(
+        !detail.contains("glTF image") && detail.contains("99"),
+        "{p}"
+    );
+}
+
 /// A checkerboard of 4 × 4-texel squares on a plane, sampled bilinearly: each voxel's colour is
 /// the mean of the texture's bilinear interpolant over the voxel's part of the plane, computed
 /// here exactly (a bilinear function's mean over a rectangle is its value at the rectangle's
