@@ -496,6 +496,34 @@ fn vertex_colours_interpolate_and_refusals_are_clear() {
     assert_problem(&r, 400, "invalid-parameter");
 }
 
+/// The textured cube as a GLB (its triangles `indices`) whose image is not an image.
+fn cube_with_a_bad_image(indices: Vec<u32>) -> Vec<u8> {
+    let (p, uv, _) = cube();
+    glb(
+        &p,
+        &uv,
+        &[(indices, 0)],
+        serde_json::json!([{"name": "atlas", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]),
+        Some((b"not an image at all", serde_json::json!({}))),
+    )
+}
+
+const GRID_10: &str = "origin=0,0,0&voxel_size=1&dims=10,10,10";
+const GLB: [(&str, &str); 1] = [("Content-Type", "model/gltf-binary")];
+
+/// The detail of the `invalid-mesh` problem a solid of GLB `body` on a 10³ grid gets, with
+/// the query's `extra` parameters.
+fn invalid_mesh_detail(srv: &Server, extra: &str, body: &[u8]) -> String {
+    let r = srv.req(
+        "POST",
+        &format!("/v1/voxelize?{GRID_10}&method=solid{extra}&wait=60"),
+        &GLB,
+        body,
+    );
+    let p = assert_problem(&r, 422, "invalid-mesh");
+    p["detail"].as_str().unwrap().to_string()
+}
+
 /// Textures are read only for colour: a cube whose image is not a PNG or JPEG voxelizes
 /// without colour (its materials kept; the image is never decoded) and is refused with colour,
 /// the image named.
@@ -503,33 +531,17 @@ fn vertex_colours_interpolate_and_refusals_are_clear() {
 fn textures_are_read_only_for_colour() {
     let dir = tmpdir("colour-textures-on-demand");
     let srv = Server::start(&dir, &[]);
-    let (p, uv, tris) = cube();
-    let body = glb(
-        &p,
-        &uv,
-        &[(tris.concat(), 0)],
-        serde_json::json!([{"name": "atlas", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]),
-        Some((b"not an image at all", serde_json::json!({}))),
-    );
-    let grid = "origin=0,0,0&voxel_size=1&dims=10,10,10";
-    let glb_type = [("Content-Type", "model/gltf-binary")];
+    let body = cube_with_a_bad_image(cube().2.concat());
     let v = srv.created(
-        &format!("/v1/voxelize?{grid}&method=solid&material=true&wait=60"),
-        &glb_type,
+        &format!("/v1/voxelize?{GRID_10}&method=solid&material=true&wait=60"),
+        &GLB,
         &body,
     );
     assert_eq!(v["attributes"]["materials"][0]["name"], "atlas", "{v}");
-    let r = srv.req(
-        "POST",
-        &format!("/v1/voxelize?{grid}&method=solid&color=true&wait=60"),
-        &glb_type,
-        &body,
-    );
-    let p = assert_problem(&r, 422, "invalid-mesh");
-    let detail = p["detail"].as_str().unwrap();
+    let detail = invalid_mesh_detail(&srv, "&color=true", &body);
     assert!(
         detail.contains("glTF image 0") && detail.contains("not a PNG or JPEG"),
-        "{p}"
+        "{detail}"
     );
 }
 
@@ -540,40 +552,17 @@ fn textures_are_read_only_for_colour() {
 fn an_image_error_comes_before_a_geometry_error() {
     let dir = tmpdir("colour-error-order");
     let srv = Server::start(&dir, &[]);
-    let (p, uv, tris) = cube();
-    let mut broken = tris.concat();
+    let mut broken = cube().2.concat();
     broken[4] = 99;
-    let body = glb(
-        &p,
-        &uv,
-        &[(broken, 0)],
-        serde_json::json!([{"name": "atlas", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]),
-        Some((b"not an image at all", serde_json::json!({}))),
-    );
-    let grid = "origin=0,0,0&voxel_size=1&dims=10,10,10";
-    let glb_type = [("Content-Type", "model/gltf-binary")];
+    let body = cube_with_a_bad_image(broken);
     for _ in 0..3 {
-        let r = srv.req(
-            "POST",
-            &format!("/v1/voxelize?{grid}&method=solid&color=true&wait=60"),
-            &glb_type,
-            &body,
-        );
-        let p = assert_problem(&r, 422, "invalid-mesh");
-        let detail = p["detail"].as_str().unwrap();
-        assert!(detail.contains("glTF image 0"), "{p}");
+        let detail = invalid_mesh_detail(&srv, "&color=true", &body);
+        assert!(detail.contains("glTF image 0"), "{detail}");
     }
-    let r = srv.req(
-        "POST",
-        &format!("/v1/voxelize?{grid}&method=solid&wait=60"),
-        &glb_type,
-        &body,
-    );
-    let p = assert_problem(&r, 422, "invalid-mesh");
-    let detail = p["detail"].as_str().unwrap();
+    let detail = invalid_mesh_detail(&srv, "", &body);
     assert!(
         !detail.contains("glTF image") && detail.contains("99"),
-        "{p}"
+        "{detail}"
     );
 }
 
