@@ -270,8 +270,8 @@ pub fn feature_distances(out: &TriMesh, features: &[Feature], clear: f64) -> Vec
 }
 
 /// Pairs of triangles of `m` that cross each other (an edge of one through the other's
-/// interior, by the exact signs of orientation determinants ([`triangles_cross`]); triangles sharing a vertex are tested
-/// with the edges away from it, sharing an edge not at all).
+/// interior, by the exact signs of orientation determinants: [`triangles_cross`]; triangles
+/// sharing a vertex are tested with the edges away from it, sharing an edge not at all).
 pub fn self_intersections(m: &TriMesh) -> usize {
     crossing_pairs(m).len()
 }
