@@ -203,18 +203,18 @@ unsafe fn step(
         .zip(&graph.steps[vertices]);
     for (i, (adj, steps)) in slab.enumerate() {
         let v = first + i;
-        // The neighbours' offsets, plus their lattice points' from this one's. All four
-        // lanes are computed alike (so each line is one vector operation), the fourth from
-        // zeros: it stays zero (left to the neighbours' sums it grew into subnormal numbers,
-        // which took the pass twice as long).
-        let mut s = [steps[0], steps[1], steps[2], 0.0];
-        for &w in adj {
-            debug_assert!((w as usize) <= graph.steps.len());
-            // SAFETY: a neighbour's entry of `from` (or the zero one), as the caller promises.
-            let p = unsafe { *from.0.add(w as usize) };
-            for k in 0..4 {
-                s[k] += p[k];
-            }
+        // The neighbours' offsets summed as a tree (three levels where one after another took
+        // six: each vertex's work is a chain of dependent additions), the extra ones after
+        // them, then their lattice points' from this one's. All four lanes are computed alike
+        // (so each line is one vector operation), the fourth from zeros: it stays zero (left
+        // to the neighbours' sums it grew into subnormal numbers, which took the pass twice
+        // as long).
+        // SAFETY: a neighbour's entry of `from` (or the zero one), as the caller promises.
+        let at = |i: usize| unsafe { *from.0.add(adj[i] as usize) };
+        let (n0, n1, n2, n3, n4, n5) = (at(0), at(1), at(2), at(3), at(4), at(5));
+        let mut t = [0.0f32; 4];
+        for k in 0..4 {
+            t[k] = ((n0[k] + n1[k]) + (n2[k] + n3[k])) + (n4[k] + n5[k]);
         }
         if extra.peek().is_some_and(|(u, _)| *u as usize == v) {
             let (_, more) = extra.next().expect("peeked");
@@ -222,16 +222,20 @@ unsafe fn step(
                 // SAFETY: as above.
                 let p = unsafe { *from.0.add(w as usize) };
                 for k in 0..4 {
-                    s[k] += p[k];
+                    t[k] += p[k];
                 }
             }
         }
-        let inv = steps[3];
+        // p + f·(s/valence − p), as p·(1 − f) + s·(f/valence): two dependent operations after
+        // the sum instead of four.
+        let (keep, by) = (1.0 - factor, factor * steps[3]);
         // SAFETY: the vertex's own entries, as the caller promises.
         let p = unsafe { *from.0.add(v) };
         let mut out = [0.0f32; 4];
         for k in 0..4 {
-            out[k] = (p[k] + factor * (s[k] * inv - p[k])).clamp(-HALF, HALF);
+            // Lane 3 of `steps` (1 / valence) times zero: one load of the four lanes.
+            let s = t[k] + steps[k] * [1.0, 1.0, 1.0, 0.0][k];
+            out[k] = (p[k] * keep + s * by).clamp(-HALF, HALF);
         }
         // SAFETY: as the caller promises.
         unsafe { *to.0.add(v) = out };
@@ -385,23 +389,28 @@ pub(super) fn relax_in_passes(
         for factor in [TAUBIN.0 as f32, TAUBIN.1 as f32] {
             let mut next = now.clone();
             for (v, out) in next.iter_mut().enumerate() {
-                let mut s = [0.0f32; 3];
+                // Step's order: the first six neighbours (zeros for missing ones) as a tree,
+                // the rest one by one, then the lattice sum.
+                let nbs: Vec<[f32; 4]> = (0..nb[v].len().max(6))
+                    .map(|i| nb[v].get(i).map_or([0.0; 4], |&w| now[w]))
+                    .collect();
+                let mut t = [0.0f32; 3];
                 for k in 0..3 {
-                    let lattice: i64 = nb[v]
-                        .iter()
-                        .map(|&w| i64::from(cells[w][k]) - i64::from(cells[v][k]))
-                        .sum();
-                    s[k] = lattice as f32;
-                }
-                for &w in &nb[v] {
-                    for k in 0..3 {
-                        s[k] += now[w][k];
+                    t[k] = ((nbs[0][k] + nbs[1][k]) + (nbs[2][k] + nbs[3][k]))
+                        + (nbs[4][k] + nbs[5][k]);
+                    for n in &nbs[6..] {
+                        t[k] += n[k];
                     }
                 }
                 let inv = 1.0 / nb[v].len() as f32;
                 let p = now[v];
                 for k in 0..3 {
-                    out[k] = (p[k] + factor * (s[k] * inv - p[k])).clamp(-HALF, HALF);
+                    let lattice: i64 = nb[v]
+                        .iter()
+                        .map(|&w| i64::from(cells[w][k]) - i64::from(cells[v][k]))
+                        .sum();
+                    let s = t[k] + lattice as f32;
+                    out[k] = (p[k] * (1.0 - factor) + s * (factor * inv)).clamp(-HALF, HALF);
                 }
             }
             *now = next;
