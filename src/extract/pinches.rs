@@ -13,8 +13,7 @@ use std::collections::HashSet;
 use super::cubes::{SHEETS, block, face_index, sheets, sheets_for};
 use crate::volume::BitVolume;
 
-/// A lattice edge: its lower end and its axis.
-type Edge = ([u32; 3], u8);
+use super::faces::Edge;
 
 /// The pinched edges surface nets joins.
 #[derive(Default)]
@@ -66,14 +65,14 @@ impl Joins {
         flags
     }
 
-    /// Decides every pinched edge of `bits`.
-    pub(super) fn decide(bits: &BitVolume) -> Joins {
+    /// Decides every pinched edge of `bits` (`edges`: all of them, from
+    /// `faces::plane_counts_and_pinches`).
+    pub(super) fn decide(bits: &BitVolume, edges: &[Edge]) -> Joins {
         let d = bits.dims();
         let occ = |p: [i64; 3]| {
             (0..3).all(|a| p[a] >= 0 && p[a] < i64::from(d[a]))
                 && bits.get(p[0] as u32, p[1] as u32, p[2] as u32)
         };
-        let edges = super::faces::pinched_edges(bits);
         let mut joins = Joins::default();
         // Do the sheets at the block of `p` join the inside voxels of its half-edge (e, side)?
         let joined_at = |joins: &Joins, p: [u32; 3], e: usize, side: u8| {
@@ -87,7 +86,7 @@ impl Joins {
         };
         for _ in 0..=edges.len() {
             let mut changed = false;
-            for &(lo, e) in &edges {
+            for &(lo, e) in edges {
                 if joins.0.contains(&(lo, e)) {
                     continue;
                 }

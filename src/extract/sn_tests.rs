@@ -373,9 +373,12 @@ fn a_net_built_in_runs_is_the_net_built_in_one() {
 
 #[test]
 fn the_faces_counted_are_the_faces_found() {
-    // `count_at` counts by words what `faces_at` finds bit by bit, on every plane, including
-    // grids whose z is a multiple of 64 (the top face pushed separately) and thin ones.
-    use super::surface_nets::{count_at, faces_at};
+    // `plane_counts_and_pinches` counts by words, layer by layer, what `faces_at` finds bit by
+    // bit on each plane, on every plane, including grids whose z is a multiple of 64 (the top
+    // face pushed separately) and thin ones; and its pinched edges are those found voxel by
+    // voxel: two diagonal voxels of the four around a lattice edge set, the other two not.
+    use super::faces::plane_counts_and_pinches;
+    use super::surface_nets::faces_at;
     let mut rng = Rng::new(37);
     for case in 0..60 {
         let dims = [
@@ -384,14 +387,48 @@ fn the_faces_counted_are_the_faces_found() {
             [1, 5, 63, 64, 65, 128, 130][case % 7],
         ];
         let b = crate::testkit::random_bit_volume(&mut rng, grid(dims), [0.1, 0.5, 0.9][case % 3]);
+        let (counts, mut edges) = plane_counts_and_pinches(&b, &Control::none()).unwrap();
+        assert_eq!(counts.len(), dims[0] as usize + 1, "case {case}");
         let mut faces = Vec::new();
         let mut total = 0;
         for x in 0..=dims[0] {
             faces.clear();
             faces_at(&b, x, &mut faces);
-            assert_eq!(count_at(&b, x), faces.len(), "case {case} plane {x}");
+            assert_eq!(counts[x as usize], faces.len(), "case {case} plane {x}");
             total += faces.len();
         }
+        let on = |p: [i64; 3]| {
+            (0..3).all(|a| p[a] >= 0 && p[a] < i64::from(dims[a]))
+                && b.get(p[0] as u32, p[1] as u32, p[2] as u32)
+        };
+        let mut want = Vec::new();
+        for e in 0..3 {
+            let (u, v) = ((e + 1) % 3, (e + 2) % 3);
+            // Edge along e from lattice point p: the voxels p − 1 + (i, j) on axes u, v.
+            for px in 0..=i64::from(dims[0]) {
+                for py in 0..=i64::from(dims[1]) {
+                    for pz in 0..=i64::from(dims[2]) {
+                        let p = [px, py, pz];
+                        if p[e] >= i64::from(dims[e]) {
+                            continue;
+                        }
+                        let q = |i: i64, j: i64| {
+                            let mut c = p;
+                            c[u] += i - 1;
+                            c[v] += j - 1;
+                            on(c)
+                        };
+                        let (a, bb, c, d) = (q(0, 0), q(1, 1), q(1, 0), q(0, 1));
+                        if a == bb && c == d && a != c {
+                            want.push(([px as u32, py as u32, pz as u32], e as u8));
+                        }
+                    }
+                }
+            }
+        }
+        want.sort_unstable();
+        edges.sort_unstable();
+        assert_eq!(edges, want, "case {case}");
         // A volume with a set voxel has faces.
         assert_eq!(total > 0, b.count_ones() > 0, "case {case}");
     }

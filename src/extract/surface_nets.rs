@@ -208,23 +208,6 @@ impl Face {
     }
 }
 
-/// How many unit boundary faces of `bits` have lowest lattice x = x, for each plane x
-/// (0 ..= dims x), counted on the pool's threads.
-fn face_counts(bits: &BitVolume, ctl: &Control) -> Result<Vec<usize>, Canceled> {
-    let d = bits.dims();
-    let counter = ctl.counter(u64::from(d[0]) + 1);
-    (0..d[0] + 1)
-        .into_par_iter()
-        .with_min_len(8)
-        .map(|x| {
-            counter.check()?;
-            let n = count_at(bits, x);
-            counter.add(1);
-            Ok(n)
-        })
-        .collect()
-}
-
 /// Column (x, y) of `bits`; none (no words) outside the grid.
 fn column_or_none(bits: &BitVolume, x: i64, y: i64) -> &[u64] {
     let d = bits.dims();
@@ -238,38 +221,6 @@ fn column_or_none(bits: &BitVolume, x: i64, y: i64) -> &[u64] {
 /// Word `w` of a column from [`column_or_none`] (0 past its end).
 fn word(c: &[u64], w: usize) -> u64 {
     c.get(w).copied().unwrap_or(0)
-}
-
-/// How many faces [`faces_at`] finds at `x`: the bits it visits one by one, counted a word at
-/// a time.
-pub(super) fn count_at(bits: &BitVolume, x: u32) -> usize {
-    let d = bits.dims();
-    let wpc = bits.words_per_column();
-    let col = |x: i64, y: i64| column_or_none(bits, x, y);
-    let mut n = 0usize;
-    for y in 0..=d[1] {
-        let c = col(i64::from(x), i64::from(y));
-        let cx = col(i64::from(x) - 1, i64::from(y));
-        let cy = col(i64::from(x), i64::from(y) - 1);
-        let (across_x, across_y, within) = (y < d[1], x < d[0], x < d[0] && y < d[1]);
-        for w in 0..wpc {
-            let cw = word(c, w);
-            if across_x {
-                n += (word(cx, w) ^ cw).count_ones() as usize;
-            }
-            if across_y {
-                n += (word(cy, w) ^ cw).count_ones() as usize;
-            }
-            if within {
-                let carry = if w > 0 { c[w - 1] >> 63 } else { 0 };
-                n += ((cw << 1 | carry) ^ cw).count_ones() as usize;
-                if w + 1 == wpc && d[2].is_multiple_of(64) && cw >> 63 == 1 {
-                    n += 1;
-                }
-            }
-        }
-    }
-    n
 }
 
 /// The faces whose lowest lattice x is `x`, appended to `out`.
@@ -423,12 +374,11 @@ pub(super) fn net_in_runs(
     let bits: &BitVolume = &field.inside;
     let t0 = std::time::Instant::now();
     // The faces are counted plane by plane first (and found again by each run, where they are
-    // used at once: no array of them unless asked for); the pinches are decided meanwhile.
-    let (counts, joins) = rayon::join(
-        || face_counts(bits, &ctl.stage(0.0, 0.2)),
-        || super::pinches::Joins::decide(bits),
-    );
-    let counts = counts?;
+    // used at once: no array of them unless asked for), in the pass that finds the pinched
+    // edges; then the pinches are decided.
+    let (counts, edges) = super::faces::plane_counts_and_pinches(bits, &ctl.stage(0.0, 0.2))?;
+    let joins = super::pinches::Joins::decide(bits, &edges);
+    drop(edges);
     let t1 = std::time::Instant::now();
     // Faces before each plane.
     let mut before = Vec::with_capacity(counts.len() + 1);
