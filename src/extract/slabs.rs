@@ -72,6 +72,18 @@ fn sheet_offsets(nums: &[u8; 12], n: u8) -> [[f32; 4]; MAX_SHEETS] {
     out
 }
 
+/// The offset of a vertex of shape `code` ([`Slabs::shapes`]): its [`sheet_offsets`] entry.
+#[inline]
+pub(super) fn shape_offset(code: u32) -> [f32; 4] {
+    let (set, flags, sheet) = (code as u8, (code >> 8) as u8, (code >> 16) as usize);
+    if flags == 0 {
+        offsets_table()[usize::from(set)][sheet]
+    } else {
+        let (nums, n) = compact(set, &sheets_for(set, flags));
+        sheet_offsets(&nums, n)[sheet]
+    }
+}
+
 /// [`sheet_offsets`] of each block occupancy with no pinch joined.
 static OFFSETS: OnceLock<Vec<[[f32; 4]; MAX_SHEETS]>> = OnceLock::new();
 
@@ -106,7 +118,6 @@ pub(super) struct Slabs<'a> {
     bits: &'a BitVolume,
     joins: &'a Joins,
     table: &'static [([u8; 12], u8)],
-    offset_table: &'static [[[f32; 4]; MAX_SHEETS]],
     zero: Vec<u64>,
     /// Lattice points per slab row (dims z + 1).
     stride: usize,
@@ -118,19 +129,23 @@ pub(super) struct Slabs<'a> {
     pub points: Vec<[u32; 3]>,
     /// The first vertex of the last slab numbered.
     pub last_start: usize,
-    /// Each vertex numbered so far: [`sheet_offsets`] (filled only when asked for).
-    pub offsets: Vec<[f32; 4]>,
+    /// Each vertex numbered so far: its block occupancy, joined half-edges and sheet, as
+    /// `set | flags << 8 | sheet << 16` ([`shape_offset`] gives its offset; filled only when
+    /// asked for: 4 bytes a vertex while the runs are held, where its offset takes 16).
+    pub shapes: Vec<u32>,
     with_offsets: bool,
 }
 
 impl<'a> Slabs<'a> {
     /// Slabs numbered from slab `from` on (its first vertex numbered 0), with each vertex's
-    /// offset when `with_offsets`.
+    /// shape when `with_offsets`, room made for about `vertices` vertices (a surface has about
+    /// as many as faces; the arrays grow past that if need be).
     pub(super) fn new(
         bits: &'a BitVolume,
         joins: &'a Joins,
         from: u32,
         with_offsets: bool,
+        vertices: usize,
     ) -> Slabs<'a> {
         let d = bits.dims();
         let n = (d[1] as usize + 1) * (d[2] as usize + 1);
@@ -138,14 +153,13 @@ impl<'a> Slabs<'a> {
             bits,
             joins,
             table: compact_table(),
-            offset_table: offsets_table(),
             zero: vec![0; bits.words_per_column()],
             stride: d[2] as usize + 1,
             blocks: [vec![Block::default(); n], vec![Block::default(); n]],
             next: from,
             last_start: 0,
-            points: Vec::new(),
-            offsets: Vec::new(),
+            points: Vec::with_capacity(vertices),
+            shapes: Vec::with_capacity(if with_offsets { vertices } else { 0 }),
             with_offsets,
         }
     }
@@ -225,20 +239,15 @@ impl<'a> Slabs<'a> {
                     let z = 64 * w as u32 + t;
                     let flags = self.joins.flags([x, y, z], set);
                     let n = if flags == 0 {
-                        if self.with_offsets {
-                            let n = self.table[usize::from(set)].1;
-                            let o = &self.offset_table[usize::from(set)];
-                            self.offsets.extend_from_slice(&o[..usize::from(n)]);
-                        }
                         self.table[usize::from(set)].1
                     } else {
-                        let (nums, n) = compact(set, &sheets_for(set, flags));
-                        if self.with_offsets {
-                            let o = sheet_offsets(&nums, n);
-                            self.offsets.extend_from_slice(&o[..usize::from(n)]);
-                        }
-                        n
+                        compact(set, &sheets_for(set, flags)).1
                     };
+                    if self.with_offsets {
+                        let code = u32::from(set) | u32::from(flags) << 8;
+                        self.shapes
+                            .extend((0..u32::from(n)).map(|sheet| code | sheet << 16));
+                    }
                     let i = y as usize * self.stride + z as usize;
                     self.blocks[par][i] = Block {
                         base: self.points.len() as u32,

@@ -461,12 +461,12 @@ pub(super) fn net_in_runs(
                 carry = part.sums.split_off(part.shared);
             }
             part.points.truncate(part.shared);
-            part.offsets.truncate(part.shared);
+            part.shapes.truncate(part.shared);
             start += part.shared as u32;
         }
         sums.extend(part.sums);
         cells.extend(part.points);
-        offsets.extend(part.offsets);
+        offsets.extend(part.shapes.iter().map(|&c| super::slabs::shape_offset(c)));
     }
     let lens = cuts.windows(2).map(|w| before[w[1]] - before[w[0]]);
     let jobs: Vec<_> = crate::split_lengths(&mut quads, lens)
@@ -502,8 +502,8 @@ pub(super) fn net_in_runs(
 struct Run {
     /// Each vertex's sum of crossings (a valued field only).
     sums: Vec<[f64; 4]>,
-    /// Each vertex's offset (a bit volume only).
-    offsets: Vec<[f32; 4]>,
+    /// Each vertex's shape (a bit volume only: `Slabs::shapes`).
+    shapes: Vec<u32>,
     points: Vec<[u32; 3]>,
     /// The first vertex of slab `upto` (shared with the next run).
     shared: usize,
@@ -525,7 +525,9 @@ fn run(
     counter: &crate::cancel::Counter,
 ) -> Result<Run, Canceled> {
     let valued = field.value.is_some();
-    let mut slabs = Slabs::new(&field.inside, joins, planes.start, !valued);
+    // A closed surface has about as many vertices as faces (as many plus two for a sphere).
+    let room = quads.len() + quads.len() / 16 + 1024;
+    let mut slabs = Slabs::new(&field.inside, joins, planes.start, !valued, room);
     let mut sums: Vec<[f64; 4]> = Vec::new();
     let mut plane = Vec::new();
     let mut i = 0;
@@ -597,7 +599,7 @@ fn run(
     // The last slab numbered is `upto` (the faces' slabs are below it).
     Ok(Run {
         sums,
-        offsets: slabs.offsets,
+        shapes: slabs.shapes,
         shared: slabs.last_start,
         points: slabs.points,
     })
