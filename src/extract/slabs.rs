@@ -72,6 +72,15 @@ fn sheet_offsets(nums: &[u8; 12], n: u8) -> [[f32; 4]; MAX_SHEETS] {
     out
 }
 
+/// Room for every vertex of the slabs that the faces of lattice planes `from ..= upto` — the
+/// faces with a corner in them — touch (`faces`: their count): each vertex is a sheet of at
+/// least three of its block's faces, and each face is a corner of four blocks. A surface has
+/// about as many vertices as faces, so three quarters of the room are used, and the rest is
+/// never touched (no memory behind it).
+pub(super) fn room(faces: usize) -> usize {
+    (4 * faces).div_ceil(3)
+}
+
 /// The offset of a vertex of shape `code` ([`Slabs::shapes`]): its [`sheet_offsets`] entry.
 #[inline]
 pub(super) fn shape_offset(code: u32) -> [f32; 4] {
@@ -125,27 +134,30 @@ pub(super) struct Slabs<'a> {
     blocks: [Vec<Block>; 2],
     /// The first slab not numbered yet.
     next: u32,
-    /// Each vertex numbered so far: its lattice point.
-    pub points: Vec<[u32; 3]>,
+    /// Each vertex numbered so far: its lattice point (the first `count` entries).
+    points: &'a mut [[u32; 3]],
+    /// Vertices numbered so far.
+    pub count: usize,
     /// The first vertex of the last slab numbered.
     pub last_start: usize,
     /// Each vertex numbered so far: its block occupancy, joined half-edges and sheet, as
     /// `set | flags << 8 | sheet << 16` ([`shape_offset`] gives its offset; filled only when
     /// asked for: 4 bytes a vertex while the runs are held, where its offset takes 16).
-    pub shapes: Vec<u32>,
+    shapes: &'a mut [u32],
     with_offsets: bool,
 }
 
 impl<'a> Slabs<'a> {
-    /// Slabs numbered from slab `from` on (its first vertex numbered 0), with each vertex's
-    /// shape when `with_offsets`, room made for about `vertices` vertices (a surface has about
-    /// as many as faces; the arrays grow past that if need be).
+    /// Slabs numbered from slab `from` on (its first vertex numbered 0), each vertex's lattice
+    /// point written to `points` and, when `with_offsets`, its shape to `shapes` (both with
+    /// room for every vertex numbered: [`room`]).
     pub(super) fn new(
         bits: &'a BitVolume,
         joins: &'a Joins,
         from: u32,
         with_offsets: bool,
-        vertices: usize,
+        points: &'a mut [[u32; 3]],
+        shapes: &'a mut [u32],
     ) -> Slabs<'a> {
         let d = bits.dims();
         let n = (d[1] as usize + 1) * (d[2] as usize + 1);
@@ -158,8 +170,9 @@ impl<'a> Slabs<'a> {
             blocks: [vec![Block::default(); n], vec![Block::default(); n]],
             next: from,
             last_start: 0,
-            points: Vec::with_capacity(vertices),
-            shapes: Vec::with_capacity(if with_offsets { vertices } else { 0 }),
+            points,
+            count: 0,
+            shapes,
             with_offsets,
         }
     }
@@ -195,7 +208,7 @@ impl<'a> Slabs<'a> {
         let par = (x & 1) as usize;
         // Words of lattice z: 64w..64w + 64, up to dims z.
         let nw = d[2] as usize / 64 + 1;
-        self.last_start = self.points.len();
+        self.last_start = self.count;
         for y in 0..=d[1] {
             // The four columns around the lattice row, k = dx + 2·dy (voxel x − 1 + dx,
             // y − 1 + dy).
@@ -243,20 +256,21 @@ impl<'a> Slabs<'a> {
                     } else {
                         compact(set, &sheets_for(set, flags)).1
                     };
-                    if self.with_offsets {
-                        let code = u32::from(set) | u32::from(flags) << 8;
-                        self.shapes
-                            .extend((0..u32::from(n)).map(|sheet| code | sheet << 16));
+                    let first = self.count;
+                    let code = u32::from(set) | u32::from(flags) << 8;
+                    for sheet in 0..usize::from(n) {
+                        self.points[first + sheet] = [x, y, z];
+                        if self.with_offsets {
+                            self.shapes[first + sheet] = code | (sheet as u32) << 16;
+                        }
                     }
+                    self.count += usize::from(n);
                     let i = y as usize * self.stride + z as usize;
                     self.blocks[par][i] = Block {
-                        base: self.points.len() as u32,
+                        base: first as u32,
                         set,
                         flags,
                     };
-                    for _ in 0..n {
-                        self.points.push([x, y, z]);
-                    }
                 }
             }
         }

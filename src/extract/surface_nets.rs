@@ -411,24 +411,42 @@ pub(super) fn net_in_runs(
     let mut quads = vec![[0u32; 4]; total];
     let mut faces = vec![Face::default(); if full { total } else { 0 }];
     let mut crossings = vec![[0.0f64; 3]; if full { total } else { 0 }];
+    // Each run numbers its vertices into its own part of one array of lattice points (and of
+    // shapes, for a bit volume), with room for all it can have (`slabs::room`): the runs'
+    // parts are then moved together in place, in one block of memory where arrays of their
+    // own took as much again, in small pages, one fault each.
+    let last = bits.dims()[0];
+    let valued = field.value.is_some();
+    let rooms: Vec<usize> = cuts
+        .windows(2)
+        .map(|w| {
+            // Numbered up to the next run's first slab.
+            let upto = (w[1] as u32).min(last) as usize;
+            super::slabs::room(before[upto + 1] - before[w[0].saturating_sub(1)])
+        })
+        .collect();
+    let room_total: usize = rooms.iter().sum();
+    let mut cells = vec![[0u32; 3]; room_total];
+    let mut shapes = vec![0u32; if valued { 0 } else { room_total }];
     let mut jobs = Vec::new();
     let (mut q_rest, mut f_rest, mut c_rest) = (&mut quads[..], &mut faces[..], &mut crossings[..]);
-    for w in cuts.windows(2) {
+    let (mut p_rest, mut s_rest) = (&mut cells[..], &mut shapes[..]);
+    for (w, &room) in cuts.windows(2).zip(&rooms) {
         let len = before[w[1]] - before[w[0]];
         let (q, qr) = std::mem::take(&mut q_rest).split_at_mut(len);
         let (f, fr) = std::mem::take(&mut f_rest).split_at_mut(if full { len } else { 0 });
         let (c, cr) = std::mem::take(&mut c_rest).split_at_mut(if full { len } else { 0 });
-        (q_rest, f_rest, c_rest) = (qr, fr, cr);
-        jobs.push((w[0] as u32..w[1] as u32, q, f, c));
+        let (p, pr) = std::mem::take(&mut p_rest).split_at_mut(room);
+        let (sh, shr) = std::mem::take(&mut s_rest).split_at_mut(if valued { 0 } else { room });
+        (q_rest, f_rest, c_rest, p_rest, s_rest) = (qr, fr, cr, pr, shr);
+        jobs.push((w[0] as u32..w[1] as u32, q, f, c, p, sh));
     }
     let t2 = std::time::Instant::now();
-    let last = bits.dims()[0];
     let parts = jobs
         .into_par_iter()
-        .map(|(planes, q, f, c)| {
-            // Numbered up to the next run's first slab.
+        .map(|(planes, q, f, c, p, sh)| {
             let upto = planes.end.min(last);
-            run(field, &joins, planes, upto, q, f, c, &counter)
+            run(field, &joins, planes, upto, q, f, c, p, sh, &counter)
         })
         .collect::<Result<Vec<Run>, Canceled>>()?;
     let t3 = std::time::Instant::now();
@@ -436,38 +454,44 @@ pub(super) fn net_in_runs(
     let mut starts = Vec::with_capacity(parts.len());
     let mut start = 0u32;
     // Allocated once (grown by `extend`, the copies took a tenth of the build).
-    let total = parts.iter().map(|p| p.points.len()).sum::<usize>()
+    let total = parts.iter().map(|p| p.count).sum::<usize>()
         - parts[..parts.len().saturating_sub(1)]
             .iter()
-            .map(|p| p.points.len() - p.shared)
+            .map(|p| p.count - p.shared)
             .sum::<usize>();
-    let valued = field.value.is_some();
-    let (mut sums, mut cells) = (
-        Vec::with_capacity(if valued { total } else { 0 }),
-        Vec::with_capacity(total),
-    );
+    let mut sums = Vec::with_capacity(if valued { total } else { 0 });
     let mut offsets = Vec::with_capacity(if valued { 0 } else { total });
+    // Where the next run's part of `cells` (and `shapes`) begins, and where its vertices go.
+    let (mut from, mut to) = (0usize, 0usize);
     let mut carry: Vec<[f64; 4]> = Vec::new();
     let n = parts.len();
-    for (r, mut part) in parts.into_iter().enumerate() {
+    for (r, (mut part, room)) in parts.into_iter().zip(rooms).enumerate() {
         starts.push(start);
         // The shared slab's sums are split between the two runs; its offsets are the same in
         // both (they depend on the blocks only).
         for (s, c) in part.sums.iter_mut().zip(&carry) {
             *s = [0, 1, 2, 3].map(|k| c[k] + s[k]);
         }
+        let mut keep = part.count;
         if r + 1 < n {
             if valued {
                 carry = part.sums.split_off(part.shared);
             }
-            part.points.truncate(part.shared);
-            part.shapes.truncate(part.shared);
+            keep = part.shared;
             start += part.shared as u32;
         }
         sums.extend(part.sums);
-        cells.extend(part.points);
-        offsets.extend(part.shapes.iter().map(|&c| super::slabs::shape_offset(c)));
+        // Moved down (never up: `to` ≤ `from`), so nothing not yet moved is overwritten.
+        cells.copy_within(from..from + keep, to);
+        if !valued {
+            let part_shapes = &shapes[from..from + keep];
+            offsets.extend(part_shapes.iter().map(|&c| super::slabs::shape_offset(c)));
+        }
+        from += room;
+        to += keep;
     }
+    drop(shapes);
+    cells.truncate(to);
     let lens = cuts.windows(2).map(|w| before[w[1]] - before[w[0]]);
     let jobs: Vec<_> = crate::split_lengths(&mut quads, lens)
         .into_iter()
@@ -502,17 +526,18 @@ pub(super) fn net_in_runs(
 struct Run {
     /// Each vertex's sum of crossings (a valued field only).
     sums: Vec<[f64; 4]>,
-    /// Each vertex's shape (a bit volume only: `Slabs::shapes`).
-    shapes: Vec<u32>,
-    points: Vec<[u32; 3]>,
+    /// Vertices numbered (their lattice points and shapes are in the run's part of the arrays
+    /// it was given).
+    count: usize,
     /// The first vertex of slab `upto` (shared with the next run).
     shared: usize,
 }
 
 /// The [`Run`] of the faces of lattice planes `planes` (found here, plane by plane),
 /// numbering the slabs from the first plane's up to `upto`; their quads (vertices numbered
-/// from the run's first) go to `quads`, and the faces and crossings to `faces` and
-/// `crossings` unless they are empty.
+/// from the run's first) go to `quads`, the faces and crossings to `faces` and `crossings`
+/// unless they are empty, and its vertices' lattice points and shapes to `points` and
+/// `shapes` (the latter for a bit volume; both with room for every vertex: `slabs::room`).
 #[allow(clippy::too_many_arguments)]
 fn run(
     field: &Field<'_>,
@@ -522,12 +547,12 @@ fn run(
     quads: &mut [[u32; 4]],
     faces: &mut [Face],
     crossings: &mut [[f64; 3]],
+    points: &mut [[u32; 3]],
+    shapes: &mut [u32],
     counter: &crate::cancel::Counter,
 ) -> Result<Run, Canceled> {
     let valued = field.value.is_some();
-    // A closed surface has about as many vertices as faces (as many plus two for a sphere).
-    let room = quads.len() + quads.len() / 16 + 1024;
-    let mut slabs = Slabs::new(&field.inside, joins, planes.start, !valued, room);
+    let mut slabs = Slabs::new(&field.inside, joins, planes.start, !valued, points, shapes);
     let mut sums: Vec<[f64; 4]> = Vec::new();
     let mut plane = Vec::new();
     let mut i = 0;
@@ -538,8 +563,8 @@ fn run(
         counter.add(plane.len() as u64);
         // The faces' corners are in lattice slabs x and x + 1.
         slabs.reach(x + 1);
-        if valued && sums.len() < slabs.points.len() {
-            sums.resize(slabs.points.len(), [0.0; 4]);
+        if valued && sums.len() < slabs.count {
+            sums.resize(slabs.count, [0.0; 4]);
         }
         for f in &plane {
             if !faces.is_empty() {
@@ -594,14 +619,13 @@ fn run(
     debug_assert_eq!(i, quads.len(), "the planes' faces fill the run");
     slabs.reach(upto);
     if valued {
-        sums.resize(slabs.points.len(), [0.0; 4]);
+        sums.resize(slabs.count, [0.0; 4]);
     }
     // The last slab numbered is `upto` (the faces' slabs are below it).
     Ok(Run {
         sums,
-        shapes: slabs.shapes,
         shared: slabs.last_start,
-        points: slabs.points,
+        count: slabs.count,
     })
 }
 
