@@ -155,6 +155,85 @@ fn bit_sphere_is_smoothed_within_its_cells() {
     assert!((vol / count - 1.0).abs() < 0.02, "{vol} vs {count}");
 }
 
+/// The largest distance (in voxels, on any axis) between the relaxed positions surface nets
+/// gives for `b` (in f32, on offsets) and the relaxation by its definition in f64: each step
+/// every vertex to p + f·(mean of its quad neighbours − p), clamped to its cell shrunk by 1/16.
+fn relax_error(b: &BitVolume) -> f64 {
+    let v = Volume::Bits(b.clone());
+    let field = Field::of(&v);
+    let got = surface_nets(&field, &Control::none()).unwrap();
+    let net = super::surface_nets::net(&field, false, &Control::none()).unwrap();
+    let mut nb = vec![Vec::new(); net.cells.len()];
+    for q in &net.quads {
+        for j in 0..4 {
+            nb[q[j] as usize].push(q[(j + 1) % 4] as usize);
+        }
+    }
+    let cell = |v: usize| net.cells[v].map(f64::from);
+    let mut p: Vec<[f64; 3]> = (0..nb.len())
+        .map(|v| [0, 1, 2].map(|k| cell(v)[k] + f64::from(net.offsets[v][k])))
+        .collect();
+    let half = 0.5 - 1.0 / 16.0;
+    for _ in 0..super::surface_nets::RELAX {
+        for f in [0.5, -0.5263157894736842] {
+            p = (0..nb.len())
+                .map(|v| {
+                    let c = cell(v);
+                    [0, 1, 2].map(|k| {
+                        let mean = nb[v].iter().map(|&w| p[w][k]).sum::<f64>() / nb[v].len() as f64;
+                        (p[v][k] + f * (mean - p[v][k])).clamp(c[k] - half, c[k] + half)
+                    })
+                })
+                .collect();
+        }
+    }
+    assert_eq!(got.positions.len(), p.len());
+    got.positions
+        .iter()
+        .zip(&p)
+        .flat_map(|(a, b)| (0..3).map(move |k| (a[k] - b[k]).abs()))
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn relaxation_in_f32_is_within_its_bound_of_f64() {
+    // The rounds work in f32 on offsets from the lattice points: a rounding of at most 2⁻²⁴
+    // voxel a step on any grid, so after 24 steps (whose linear part amplifies an error at
+    // most 2.06 times a round) well within 10⁻⁵ voxel of the f64 relaxation: checked on a
+    // sphere far from the origin and on random blobs.
+    let (g, f) = sphere(48, 19.7);
+    let mut b = BitVolume::new(g);
+    for x in 0..48 {
+        for y in 0..48 {
+            for z in 0..48 {
+                b.set(x, y, z, f(x, y, z) < 0.0);
+            }
+        }
+    }
+    let e = relax_error(&b);
+    assert!(e < 1e-5, "{e}");
+    let mut rng = Rng::new(53);
+    for case in 0..4 {
+        let b = crate::testkit::random_bit_volume(&mut rng, grid([20, 17, 23]), 0.5);
+        let e = relax_error(&b);
+        assert!(e < 1e-5, "case {case}: {e}");
+    }
+}
+
+/// The same on a `.vxl` bit volume named by `VOXD_RELAX_VXL` (igea-subdiv4 at 518³ for
+/// `docs/methods.md`): `cargo test --release --lib relaxation_error_of -- --ignored
+/// --nocapture`.
+#[test]
+#[ignore = "reads a volume named by VOXD_RELAX_VXL"]
+fn relaxation_error_of_a_volume() {
+    let path = std::env::var("VOXD_RELAX_VXL").expect("VOXD_RELAX_VXL");
+    let (v, _) = crate::codec::vxl::decode(&std::fs::read(path).unwrap()).unwrap();
+    let Volume::Bits(b) = v else {
+        panic!("a bit volume")
+    };
+    println!("relaxation f32 vs f64: max {:e} voxel", relax_error(&b));
+}
+
 #[test]
 fn a_canceled_surface_net_stops() {
     let mut b = BitVolume::new(grid([4, 4, 4]));
