@@ -284,9 +284,11 @@ pub(super) fn relax(
     if passes == 0 || n == 0 {
         return Ok(());
     }
-    // Each array with the zero entry the unused neighbour slots point to.
+    // Each array with the zero entry the unused neighbour slots point to. The other array's
+    // entries are each written by the first step before any is read (the schedule above), so
+    // it starts as zeros (fresh pages, not a copy).
     now.push([0.0; 4]);
-    let mut other = now.clone();
+    let mut other = vec![[0.0f32; 4]; now.len()];
     let buffers = [Buffer(now.as_mut_ptr()), Buffer(other.as_mut_ptr())];
     // Consecutive runs of steps, one a thread (a thread with less than a round would wait
     // more than it works).
