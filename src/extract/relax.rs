@@ -371,8 +371,21 @@ pub(super) fn relax(
     result
 }
 
+/// Each of the `n` vertices' neighbours in `quads`, in the order of the quads: `w` follows `v`
+/// in a quad (the tests' references).
+#[cfg(test)]
+pub(super) fn quad_neighbours(quads: &[[u32; 4]], n: usize) -> Vec<Vec<usize>> {
+    let mut nb = vec![Vec::new(); n];
+    for q in quads {
+        for j in 0..4 {
+            nb[q[j] as usize].push(q[(j + 1) % 4] as usize);
+        }
+    }
+    nb
+}
+
 /// The steps one after another, each over every vertex, each vertex's neighbours taken from
-/// the quads (`w` follows `v` in a quad): the definition the wavefront must equal (the tests'
+/// the quads ([`quad_neighbours`]): the definition the wavefront must equal (the tests'
 /// reference).
 #[cfg(test)]
 pub(super) fn relax_in_passes(
@@ -381,12 +394,7 @@ pub(super) fn relax_in_passes(
     now: &mut Vec<[f32; 4]>,
     rounds: usize,
 ) {
-    let mut nb = vec![Vec::new(); now.len()];
-    for q in quads {
-        for j in 0..4 {
-            nb[q[j] as usize].push(q[(j + 1) % 4] as usize);
-        }
-    }
+    let nb = quad_neighbours(quads, now.len());
     for _ in 0..rounds {
         for factor in [TAUBIN.0 as f32, TAUBIN.1 as f32] {
             let mut next = now.clone();

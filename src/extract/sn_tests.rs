@@ -163,12 +163,7 @@ fn relax_error(b: &BitVolume) -> f64 {
     let field = Field::of(&v);
     let got = surface_nets(&field, &Control::none()).unwrap();
     let net = super::surface_nets::net(&field, false, &Control::none()).unwrap();
-    let mut nb = vec![Vec::new(); net.cells.len()];
-    for q in &net.quads {
-        for j in 0..4 {
-            nb[q[j] as usize].push(q[(j + 1) % 4] as usize);
-        }
-    }
+    let nb = super::relax::quad_neighbours(&net.quads, net.cells.len());
     let cell = |v: usize| net.cells[v].map(f64::from);
     let mut p: Vec<[f64; 3]> = (0..nb.len())
         .map(|v| [0, 1, 2].map(|k| cell(v)[k] + f64::from(net.offsets[v][k])))
