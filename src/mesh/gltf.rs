@@ -3,6 +3,8 @@
 //! skins ignored (bind pose). Buffers come from the GLB chunk or `data:` URIs; other URIs are read
 //! only when [`ExternalResources::BesideFile`] allows it, and never outside that directory.
 
+use std::borrow::Cow;
+
 use base64::Engine as _;
 use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::Mode;
@@ -32,14 +34,14 @@ pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshErro
     let mut s = std::panic::AssertUnwindSafe(s);
     std::panic::catch_unwind(move || {
         let s = &mut **s;
-        let doc = if s.peek(GLB_HEADER)?.starts_with(b"glTF") {
+        let (doc, bin) = if s.peek(GLB_HEADER)?.starts_with(b"glTF") {
             document(glb_bytes(s, opts)?)?
         } else if s.is_compressed() {
-            document_from_stream(s)?
+            (document_from_stream(s)?, None)
         } else {
             document(s.rest()?)?
         };
-        parse_document(&doc, opts)
+        parse_document(&doc, bin, opts)
     })
     .unwrap_or_else(|_| Err(malformed("glTF", "malformed accessor or buffer data")))
 }
@@ -85,16 +87,34 @@ fn glb_bytes<'s>(s: &'s mut Stream, opts: &LoadOptions) -> Result<&'s [u8], Mesh
     Ok(&a[..a.len().min(length)])
 }
 
-/// The glTF document of a .gltf or a GLB's JSON chunk (or a whole GLB).
-fn document(bytes: &[u8]) -> Result<gltf::Gltf, MeshError> {
+/// The glTF document of a .gltf or a GLB's JSON chunk, or of a whole GLB with its BIN chunk
+/// (borrowed from `bytes`: a GLB's geometry is read where it lies, never copied).
+fn document(bytes: &[u8]) -> Result<(gltf::Gltf, Option<&[u8]>), MeshError> {
     let bad = |e: gltf::json::Error| malformed("glTF", e.to_string());
     if bytes.starts_with(b"glTF") {
         let glb = gltf::Glb::from_slice(bytes).map_err(|e| malformed("glTF", e.to_string()))?;
         let root = gltf::json::deserialize::from_slice(&glb.json).map_err(bad)?;
-        validated(root, glb.bin.map(|b| b.into_owned()))
+        let bin = match glb.bin {
+            Some(std::borrow::Cow::Borrowed(b)) => Some(b),
+            // `from_slice` borrows its chunks; were one ever owned, it is found again in
+            // `bytes` by its length (the last chunk's data ends the GLB, padding aside).
+            Some(std::borrow::Cow::Owned(b)) => bin_chunk(bytes, b.len()),
+            None => None,
+        };
+        Ok((validated(root, None)?, bin))
     } else {
-        json_document(bytes)
+        Ok((json_document(bytes)?, None))
     }
+}
+
+/// The data of the GLB chunk after the JSON chunk in `glb`, `len` bytes (or `None`).
+fn bin_chunk(glb: &[u8], len: usize) -> Option<&[u8]> {
+    let u32_at = |i: usize| -> Option<usize> {
+        Some(u32::from_le_bytes(glb.get(i..i + 4)?.try_into().ok()?) as usize)
+    };
+    let json_len = u32_at(GLB_HEADER)?;
+    let bin_start = GLB_HEADER + CHUNK_HEADER + json_len + CHUNK_HEADER;
+    glb.get(bin_start..bin_start.checked_add(len)?)
 }
 
 /// The glTF document of JSON text (a .gltf, or a GLB's JSON chunk).
@@ -285,13 +305,17 @@ fn check_limits(doc: &gltf::Document, opts: &LoadOptions) -> Result<(), MeshErro
     Ok(())
 }
 
-fn parse_document(doc: &gltf::Gltf, opts: &LoadOptions) -> Result<Mesh, MeshError> {
+fn parse_document(
+    doc: &gltf::Gltf,
+    bin: Option<&[u8]>,
+    opts: &LoadOptions,
+) -> Result<Mesh, MeshError> {
     let external = &opts.external;
     check_limits(doc, opts)?;
-    let mut buffers: Vec<Vec<u8>> = Vec::new();
+    let mut buffers: Vec<Cow<[u8]>> = Vec::new();
     for b in doc.buffers() {
         let data = match b.source() {
-            gltf::buffer::Source::Bin => doc.blob.clone().ok_or_else(|| {
+            gltf::buffer::Source::Bin => bin.map(Cow::Borrowed).ok_or_else(|| {
                 malformed(
                     "glTF",
                     format!(
@@ -300,7 +324,7 @@ fn parse_document(doc: &gltf::Gltf, opts: &LoadOptions) -> Result<Mesh, MeshErro
                     ),
                 )
             })?,
-            gltf::buffer::Source::Uri(uri) => read_uri(uri, external)?,
+            gltf::buffer::Source::Uri(uri) => Cow::Owned(read_uri(uri, external)?),
         };
         if data.len() < b.length() {
             return Err(malformed(
@@ -454,7 +478,12 @@ struct Collector {
 }
 
 impl Collector {
-    fn mesh(&mut self, mesh: &gltf::Mesh, m: &Mat4, buffers: &[Vec<u8>]) -> Result<(), MeshError> {
+    fn mesh(
+        &mut self,
+        mesh: &gltf::Mesh,
+        m: &Mat4,
+        buffers: &[Cow<[u8]>],
+    ) -> Result<(), MeshError> {
         for prim in mesh.primitives() {
             let mode = prim.mode();
             if !matches!(
@@ -479,7 +508,7 @@ impl Collector {
                     ));
                 }
             }
-            let reader = prim.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
+            let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d[..]));
             let positions: Vec<[f32; 3]> = reader
                 .read_positions()
                 .ok_or_else(|| {
@@ -489,17 +518,35 @@ impl Collector {
                     )
                 })?
                 .collect();
-            let indices: Vec<u32> = match reader.read_indices() {
-                Some(i) => i.into_u32().collect(),
-                None if idx.is_some() => {
+            // A triangle list's indices are read straight into triangles; strips and fans
+            // unroll theirs below.
+            let mut tris: Vec<[u32; 3]> = Vec::new();
+            let mut indices: Vec<u32> = Vec::new();
+            match (reader.read_indices(), mode) {
+                (None, _) if idx.is_some() => {
                     return Err(malformed(
                         "glTF",
                         format!("{where_}: index accessor lies outside its buffer"),
                     ));
                 }
-                None => (0..positions.len() as u32).collect(),
-            };
-            if let Some(&bad) = indices.iter().find(|&&i| i as usize >= positions.len()) {
+                (Some(i), Mode::Triangles) => {
+                    let mut it = i.into_u32();
+                    tris.reserve(it.size_hint().0 / 3);
+                    while let (Some(a), Some(b), Some(c)) = (it.next(), it.next(), it.next()) {
+                        tris.push([a, b, c]);
+                    }
+                }
+                (None, Mode::Triangles) => {
+                    let n = positions.len() as u32 / 3;
+                    tris.extend((0..n).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]));
+                }
+                (Some(i), _) => indices = i.into_u32().collect(),
+                (None, _) => indices = (0..positions.len() as u32).collect(),
+            }
+            let out_of_range = |i: &&u32| **i as usize >= positions.len();
+            if let Some(&bad) = (tris.iter().flatten().find(out_of_range))
+                .or_else(|| indices.iter().find(out_of_range))
+            {
                 return Err(MeshError::IndexOutOfRange {
                     triangle: 0,
                     index: bad as u64,
@@ -569,9 +616,8 @@ impl Collector {
             let base = self.positions.len() as u32;
             self.positions
                 .extend(positions.iter().map(|p| transform(m, p)));
-            let mut tris = Vec::new();
             match mode {
-                Mode::Triangles => tris.extend(indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]])),
+                Mode::Triangles => {}
                 Mode::TriangleStrip => super::unroll_strip(&indices, &mut tris),
                 _ => super::fan(&indices, &mut tris),
             }
@@ -596,8 +642,7 @@ impl Collector {
                     if self.uv.is_empty() {
                         self.uv = vec![[[0.0; 2]; 3]; self.triangles.len()];
                     }
-                    self.uv
-                        .extend(gltf_materials::corner_uvs(&tris, &uvs, &spec));
+                    gltf_materials::push_corner_uvs(&mut self.uv, &tris, &uvs, &spec);
                 }
                 None if !self.uv.is_empty() => self
                     .uv
@@ -606,8 +651,13 @@ impl Collector {
             }
             self.material
                 .extend(std::iter::repeat_n(material, tris.len()));
-            self.triangles
-                .extend(tris.into_iter().map(|t| t.map(|i| base + i)));
+            if self.triangles.is_empty() && base == 0 {
+                // The first primitive's triangles are kept as they are (no copy).
+                self.triangles = tris;
+            } else {
+                self.triangles
+                    .extend(tris.into_iter().map(|t| t.map(|i| base + i)));
+            }
         }
         Ok(())
     }

@@ -48,7 +48,7 @@ pub(super) type Materials<'b> = (Vec<Material>, Vec<Encoded<'b>>, Vec<Option<UvS
 /// [`decode`]), and each material's [`UvSpec`] (`None`: no texture).
 pub(super) fn materials<'b>(
     doc: &gltf::Document,
-    buffers: &'b [Vec<u8>],
+    buffers: &'b [Cow<'_, [u8]>],
     textures: bool,
 ) -> Result<Materials<'b>, MeshError> {
     let mut images: Vec<Encoded<'b>> = vec![];
@@ -136,7 +136,7 @@ pub(super) fn decode(images: &[Encoded<'_>], mut budget: u64) -> Result<Vec<Imag
 /// for any other URI.
 fn image_bytes<'b>(
     img: &gltf::Image,
-    buffers: &'b [Vec<u8>],
+    buffers: &'b [Cow<'_, [u8]>],
 ) -> Result<Option<Cow<'b, [u8]>>, MeshError> {
     match img.source() {
         gltf::image::Source::View { view, .. } => {
@@ -176,10 +176,13 @@ fn image_bytes<'b>(
     }
 }
 
-/// The texture coordinates of `tris` (corner indices into the primitive's `uvs`) through
-/// `spec`.
-pub(super) fn corner_uvs(tris: &[[u32; 3]], uvs: &[[f32; 2]], spec: &UvSpec) -> Vec<[[f32; 2]; 3]> {
-    tris.iter()
-        .map(|t| t.map(|i| spec.apply(uvs[i as usize])))
-        .collect()
+/// Appends to `out` the texture coordinates of `tris` (corner indices into the primitive's
+/// `uvs`) through `spec` (written in place: no array between).
+pub(super) fn push_corner_uvs(
+    out: &mut Vec<[[f32; 2]; 3]>,
+    tris: &[[u32; 3]],
+    uvs: &[[f32; 2]],
+    spec: &UvSpec,
+) {
+    out.extend(tris.iter().map(|t| t.map(|i| spec.apply(uvs[i as usize]))));
 }
