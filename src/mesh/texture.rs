@@ -3,8 +3,9 @@
 //!
 //! * **Decoding**: the image's dimensions are read from its header first; one whose RGBA8 texels
 //!   would take more than the budget left (`max_texture_bytes`, shared by all the mesh's
-//!   images) is refused before any texel is decoded. Texels are kept as 8-bit sRGB RGBA (what
-//!   the files hold: 4 bytes a texel).
+//!   images) is refused before any texel is decoded (4 bytes a texel counted, whatever the
+//!   image holds). Texels are kept as 8-bit sRGB: RGB (3 bytes a texel, alpha 255) for images
+//!   without alpha, RGBA (4 bytes) for the others, as the files hold them.
 //! * **Coordinates**: glTF's: (0, 0) is the image's top-left corner, u to the right, v down;
 //!   texel (i, j)'s centre is at ((i + ½)/W, (j + ½)/H).
 //! * **Wrapping** per axis (glTF sampler `wrapS`/`wrapT`): repeat (the default), mirrored repeat,
@@ -16,12 +17,47 @@
 
 use super::MeshError;
 
-/// A decoded image: `width × height` sRGB RGBA8 texels, row by row from the top.
+/// A decoded image: `width × height` sRGB texels, row by row from the top, 8 bits a channel:
+/// RGB (alpha 255) or RGBA.
 #[derive(Clone, PartialEq)]
 pub struct Image {
     pub width: u32,
     pub height: u32,
-    pub texels: Vec<[u8; 4]>,
+    /// Bytes a texel: 3 (RGB) or 4 (RGBA).
+    channels: usize,
+    bytes: Vec<u8>,
+}
+
+impl Image {
+    /// An image of `width × height` RGBA texels (`texels.len()` must be their number).
+    pub fn from_rgba(width: u32, height: u32, texels: Vec<[u8; 4]>) -> Image {
+        assert_eq!(texels.len(), width as usize * height as usize);
+        Image {
+            width,
+            height,
+            channels: 4,
+            bytes: texels.into_iter().flatten().collect(),
+        }
+    }
+
+    /// Texel `i` (row-major) as RGBA bytes.
+    #[inline(always)]
+    pub fn rgba_at(&self, i: usize) -> [u8; 4] {
+        if self.channels == 3 {
+            let b = &self.bytes[3 * i..3 * i + 3];
+            [b[0], b[1], b[2], 255]
+        } else {
+            let b = &self.bytes[4 * i..4 * i + 4];
+            [b[0], b[1], b[2], b[3]]
+        }
+    }
+
+    /// All texels as RGBA bytes, row by row.
+    pub fn to_rgba(&self) -> Vec<[u8; 4]> {
+        (0..self.width as usize * self.height as usize)
+            .map(|i| self.rgba_at(i))
+            .collect()
+    }
 }
 
 impl std::fmt::Debug for Image {
@@ -140,44 +176,44 @@ pub fn decode(bytes: &[u8], budget: u64, what: &str) -> Result<Image, MeshError>
         image::ColorType::Rgba8 => 4,
         _ => 0,
     };
-    let texels = if channels > 0 {
-        // 8-bit images are decoded into the texels' own array and widened there, in place
-        // (the decoder's array, its RGBA copy and the texels were three arrays of fresh pages,
-        // 176 MB for a 4096² RGB texture: a quarter of a coloured voxelization's time went to
-        // the kernel clearing them).
+    let (bytes, channels) = if channels > 0 {
+        // 8-bit images are decoded into the texels' own array and widened there, in place,
+        // grey to RGB, grey and alpha to RGBA; RGB stays RGB (the decoder's array, its RGBA
+        // copy and the texels were three arrays of fresh pages, 176 MB for a 4096² RGB
+        // texture: a quarter of a coloured voxelization's time went to the kernel clearing
+        // them; then one RGBA array, 64 MB; now 48 MB).
         let n = width as usize * height as usize;
-        let mut texels = vec![[0u8; 4]; n];
-        let buf: &mut [u8] = bytemuck::cast_slice_mut(&mut texels);
+        let wide = if channels % 2 == 1 { 3 } else { 4 };
+        let mut bytes = vec![0u8; n * wide];
         decoder
-            .read_image(&mut buf[..n * channels])
+            .read_image(&mut bytes[..n * channels])
             .map_err(|e| bad(format!("{e}")))?;
-        if channels < 4 {
-            widen(buf, channels);
+        if channels < wide {
+            widen(&mut bytes, channels, wide);
         }
-        texels
+        (bytes, wide)
     } else {
         // 16-bit and float images: through the library's conversion.
-        image::DynamicImage::from_decoder(decoder)
+        let rgba = image::DynamicImage::from_decoder(decoder)
             .map_err(|e| bad(format!("{e}")))?
             .into_rgba8()
-            .into_raw()
-            .chunks_exact(4)
-            .map(|c| [c[0], c[1], c[2], c[3]])
-            .collect()
+            .into_raw();
+        (rgba, 4)
     };
     Ok(Image {
         width,
         height,
-        texels,
+        channels,
+        bytes,
     })
 }
 
-/// Widens the texels packed at the front of `buf` with `channels` bytes each (grey, grey and
-/// alpha, RGB, RGBA) to RGBA in place, as the `image` crate's `into_rgba8` does: grey to three
-/// equal components, alpha 255 where there is none. Back to front: texel i's bytes are read
+/// Widens the texels packed at the front of `buf` with `channels` bytes each (grey: 1, grey
+/// and alpha: 2) to `wide` bytes each (RGB: 3, RGBA: 4) in place, as the `image` crate's
+/// conversions do: grey to three equal components. Back to front: texel i's bytes are read
 /// before anything at or after `channels · i` is written.
-fn widen(buf: &mut [u8], channels: usize) {
-    let n = buf.len() / 4;
+fn widen(buf: &mut [u8], channels: usize, wide: usize) {
+    let n = buf.len() / wide;
     for i in (0..n).rev() {
         let s = &buf[channels * i..channels * (i + 1)];
         let c = match *s {
@@ -187,7 +223,7 @@ fn widen(buf: &mut [u8], channels: usize) {
             [r, g, b, a] => [r, g, b, a],
             _ => unreachable!("one to four channels"),
         };
-        buf[4 * i..4 * i + 4].copy_from_slice(&c);
+        buf[wide * i..wide * (i + 1)].copy_from_slice(&c[..wide]);
     }
 }
 
@@ -234,7 +270,7 @@ impl Image {
     fn texel(&self, i: i64, j: i64, t: &TextureRef) -> [f32; 4] {
         let x = wrap(i, self.width, t.wrap[0]);
         let y = wrap(j, self.height, t.wrap[1]);
-        linear(self.texels[y as usize * self.width as usize + x as usize])
+        linear(self.rgba_at(y as usize * self.width as usize + x as usize))
     }
 
     /// The linear RGBA at texture coordinates (u, v) through `t`'s sampler. Coordinates that
@@ -260,16 +296,36 @@ impl Image {
     /// the image, at fractions `fx`, `fy`.
     #[inline(always)]
     fn bilinear_inside(&self, i: usize, j: usize, fx: f32, fy: f32) -> [f32; 4] {
+        if self.channels == 3 {
+            self.bilinear_packed::<3>(i, j, fx, fy)
+        } else {
+            self.bilinear_packed::<4>(i, j, fx, fy)
+        }
+    }
+
+    /// [`Image::bilinear_inside`] for `C` bytes a texel.
+    #[inline(always)]
+    fn bilinear_packed<const C: usize>(&self, i: usize, j: usize, fx: f32, fy: f32) -> [f32; 4] {
         let w = self.width as usize;
-        let at = j * w + i;
+        let at = C * (j * w + i);
         let lin = srgb_to_linear_table();
-        let (top, bottom) = (&self.texels[at..at + 2], &self.texels[at + w..at + w + 2]);
+        let (top, bottom) = (
+            &self.bytes[at..at + 2 * C],
+            &self.bytes[at + C * w..at + C * w + 2 * C],
+        );
+        let texel = |b: &[u8]| -> [u8; 4] {
+            if C == 3 {
+                [b[0], b[1], b[2], 255]
+            } else {
+                [b[0], b[1], b[2], b[3]]
+            }
+        };
         bilinear(
             [
-                linear_by(lin, top[0]),
-                linear_by(lin, top[1]),
-                linear_by(lin, bottom[0]),
-                linear_by(lin, bottom[1]),
+                linear_by(lin, texel(&top[..C])),
+                linear_by(lin, texel(&top[C..])),
+                linear_by(lin, texel(&bottom[..C])),
+                linear_by(lin, texel(&bottom[C..])),
             ],
             fx,
             fy,
@@ -330,14 +386,14 @@ mod tests {
     use super::*;
 
     fn image(w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 4]) -> Image {
-        Image {
-            width: w,
-            height: h,
-            texels: (0..h)
+        Image::from_rgba(
+            w,
+            h,
+            (0..h)
                 .flat_map(|y| (0..w).map(move |x| (x, y)))
                 .map(|(x, y)| f(x, y))
                 .collect(),
-        }
+        )
     }
 
     #[test]
@@ -384,13 +440,24 @@ mod tests {
     #[test]
     fn the_fast_path_gives_what_the_general_sampler_gives() {
         // Texels from a hash: neighbours differ, so a wrong texel or weight shows.
-        let img = image(37, 23, |x, y| {
+        let rgba = image(37, 23, |x, y| {
             let h = x.wrapping_mul(2654435761) ^ y.wrapping_mul(40503).rotate_left(7);
             h.to_le_bytes()
         });
+        // The same texels packed as RGB (alpha 255), as an RGB file decodes.
+        let opaque: Vec<[u8; 4]> = rgba.to_rgba().iter().map(|t| [t[0], t[1], t[2], 255]).collect();
+        let rgb = Image {
+            width: 37,
+            height: 23,
+            channels: 3,
+            bytes: opaque.iter().flat_map(|t| [t[0], t[1], t[2]]).collect(),
+        };
+        assert_eq!(rgb.to_rgba(), opaque);
         let mut rng = crate::testkit::Rng::new(3);
         let mut rnd = || rng.unit();
-        for wrap in [Wrap::Repeat, Wrap::MirroredRepeat, Wrap::ClampToEdge] {
+        for (img, wrap) in [&rgba, &rgb].into_iter().flat_map(|img| {
+            [Wrap::Repeat, Wrap::MirroredRepeat, Wrap::ClampToEdge].map(|w| (img, w))
+        }) {
             let t = TextureRef {
                 image: 0,
                 wrap: [wrap; 2],
@@ -417,7 +484,7 @@ mod tests {
             .unwrap();
         let got = decode(&png, 64 * 32 * 4, "image 0").unwrap();
         assert_eq!((got.width, got.height), (64, 32));
-        assert!(got.texels.iter().all(|t| *t == [10, 20, 30, 255]));
+        assert!(got.to_rgba().iter().all(|t| *t == [10, 20, 30, 255]));
         let err = decode(&png, 64 * 32 * 4 - 1, "image 0").unwrap_err();
         assert!(err.to_string().contains("64x32"), "{err}");
         assert!(decode(b"GIF89a....", 1 << 20, "image 1").is_err());
@@ -481,7 +548,7 @@ mod tests {
             let want = image::load_from_memory(f).unwrap().into_rgba8();
             let got = decode(f, 1 << 20, "image").unwrap();
             assert_eq!((got.width, got.height), (w, h), "file {i}");
-            let got: Vec<u8> = got.texels.iter().flatten().copied().collect();
+            let got: Vec<u8> = got.to_rgba().iter().flatten().copied().collect();
             assert_eq!(got, want.into_raw(), "file {i}");
         }
     }

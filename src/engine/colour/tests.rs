@@ -198,11 +198,7 @@ fn interior_voxels_take_the_nearest_surface_voxel() {
 /// linear light and back), in every filter and wrap mode.
 #[test]
 fn a_uniform_texture_gives_its_colour_exactly() {
-    let img = Image {
-        width: 4,
-        height: 4,
-        texels: vec![[200, 30, 90, 255]; 16],
-    };
+    let img = Image::from_rgba(4, 4, vec![[200, 30, 90, 255]; 16]);
     for filter in [Filter::Linear, Filter::Nearest] {
         let p = vec![
             [0.0, 0.0, 0.5],
