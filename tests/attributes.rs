@@ -86,6 +86,71 @@ fn gltf_keeps_vertex_colours_and_the_material_table() {
     );
 }
 
+/// A glTF's texture coordinates are kept one per position, through the material's
+/// `KHR_texture_transform`: a quad drawn first with an untextured material (its positions get
+/// zeros), then with a textured one whose transform scales by (2, 4) and offsets by
+/// (0.5, 0.25). The expected values are computed here from the file's numbers.
+#[test]
+fn gltf_texture_coordinates_are_kept_per_vertex_through_the_transform() {
+    let mut b = crate::loaders::quad_buffer();
+    let uv = [[0.1f32, 0.2], [0.3, 0.4], [0.5, 0.6], [0.7, 0.8]];
+    for c in uv.iter().flatten() {
+        b.extend_from_slice(&c.to_le_bytes());
+    }
+    let mut png = vec![];
+    image::RgbaImage::from_pixel(2, 2, image::Rgba([10, 20, 30, 255]))
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    let b64 = |d: &[u8]| base64::engine::general_purpose::STANDARD.encode(d);
+    let gltf = format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+        "extensionsUsed":["KHR_texture_transform"],
+        "images":[{{"uri":"data:image/png;base64,{png}"}}],"textures":[{{"source":0}}],
+        "materials":[{{"name":"wood","pbrMetallicRoughness":{{"baseColorTexture":{{"index":0,
+                        "extensions":{{"KHR_texture_transform":{{"offset":[0.5,0.25],"scale":[2,4]}}}}}}}}}},
+                     {{"name":"plain","pbrMetallicRoughness":{{"baseColorFactor":[1,1,1,1]}}}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"indices":1,"material":1}},
+                                  {{"attributes":{{"POSITION":0,"TEXCOORD_0":2}},"indices":1,"material":0}}]}}],
+        "buffers":[{{"uri":"data:application/octet-stream;base64,{buf}","byteLength":92}}],
+        "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":48}},{{"buffer":0,"byteOffset":48,"byteLength":12}},
+                       {{"buffer":0,"byteOffset":60,"byteLength":32}}],
+        "accessors":[{{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3"}},
+                     {{"bufferView":1,"componentType":5123,"count":6,"type":"SCALAR"}},
+                     {{"bufferView":2,"componentType":5126,"count":4,"type":"VEC2"}}]}}"#,
+        png = b64(&png),
+        buf = b64(&b),
+    );
+    let opts = LoadOptions {
+        textures: true,
+        ..LoadOptions::default()
+    };
+    let m = mesh::load_bytes_as(gltf.as_bytes(), Some(Format::Gltf), &opts)
+        .unwrap()
+        .0;
+    let a = m.attributes();
+    assert_eq!(a.images.len(), 1);
+    let Some(mesh::Uv::Vertices(got)) = a.uv.as_ref() else {
+        panic!("a glTF's texture coordinates are per vertex: {:?}", a.uv)
+    };
+    assert_eq!(got.len(), 8, "one per position");
+    assert!(
+        got[..4].iter().all(|&c| c == [0.0; 2]),
+        "untextured: {got:?}"
+    );
+    for (g, w) in got[4..].iter().zip(uv) {
+        let want = [2.0 * w[0] + 0.5, 4.0 * w[1] + 0.25];
+        assert!(
+            (g[0] - want[0]).abs() < 1e-6 && (g[1] - want[1]).abs() < 1e-6,
+            "{g:?} vs {want:?}"
+        );
+    }
+    // The second quad's triangles read them through their indices (0, 1, 2 and 0, 2, 3).
+    let uvs = a.uv.as_ref().unwrap();
+    let tris = m.triangles();
+    assert_eq!(uvs.corners(2, tris[2]), [got[4], got[5], got[6]]);
+    assert_eq!(uvs.corners(3, tris[3]), [got[4], got[6], got[7]]);
+}
+
 fn ply(props: &str, rows: &[&str]) -> Vec<u8> {
     format!(
         "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n{props}element face 1\nproperty list uchar int vertex_indices\nend_header\n{}\n3 0 1 2\n",
@@ -308,14 +373,16 @@ fn obj_textures_come_from_map_kd_beside_the_file() {
     let a = m.attributes();
     assert_eq!(a.images.len(), 1);
     assert_eq!((a.images[0].width, a.images[0].height), (4, 2));
-    assert_eq!(a.images[0].texels[0], [10, 20, 30, 255]);
+    assert_eq!(a.images[0].rgba_at(0), [10, 20, 30, 255]);
     let t = a.materials[0].texture.expect("wood has its texture");
     assert_eq!(t.wrap, [Wrap::ClampToEdge; 2]);
     assert_eq!(a.materials[1].texture, None);
     assert_eq!(a.materials[1].base_color, [0.5, 0.5, 0.5, 1.0]);
     assert_eq!(a.materials[2].texture, None, "nowhere.png is missing");
     // (u, v) → (2u + 0.5, 1 − (4v + 0.25)).
-    let uv = a.uv.as_ref().expect("texture coordinates");
+    let Some(mesh::Uv::Corners(uv)) = a.uv.as_ref() else {
+        panic!("an OBJ's texture coordinates are per corner: {:?}", a.uv)
+    };
     assert_eq!(uv[0], [[0.5, 0.75], [1.0, -1.25], [2.5, -3.25]]);
     assert_eq!(uv[1], [[0.0; 2]; 3], "corners without vt");
     assert_eq!(uv[2], [[0.0; 2]; 3], "plain has no texture");
@@ -376,7 +443,9 @@ fn texture_coordinates_resolve_across_chunks_and_blocks() {
     std::fs::write(dir.join("m.obj.gz"), gz(obj.as_bytes())).unwrap();
     for f in ["m.obj", "m.obj.gz"] {
         let m = mesh::load_file(&dir.join(f), usize::MAX).unwrap();
-        let uv = m.attributes().uv.as_ref().expect("coordinates");
+        let Some(mesh::Uv::Corners(uv)) = m.attributes().uv.as_ref() else {
+            panic!("{f}: an OBJ's texture coordinates are per corner")
+        };
         assert_eq!(uv.len(), 2 * quads);
         for q in 0..quads {
             let u = (q % 1000) as f32;

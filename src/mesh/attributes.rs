@@ -32,11 +32,31 @@ pub struct Attributes {
     /// One id per triangle, into `materials`.
     pub material: Option<Vec<u16>>,
     pub materials: Vec<Material>,
-    /// Each triangle's texture coordinates at its corners (see the module docs), when some
-    /// material has a texture.
-    pub uv: Option<Vec<[[f32; 2]; 3]>>,
+    /// The texture coordinates (see the module docs), when some material has a texture.
+    pub uv: Option<Uv>,
     /// The images the materials' textures read.
     pub images: Vec<Image>,
+}
+
+/// Texture coordinates, as the file gives them.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Uv {
+    /// Each triangle's at its corners (OBJ: `vt` indices apart from the positions').
+    Corners(Vec<[[f32; 2]; 3]>),
+    /// Each vertex's, shared by the triangles using it (glTF: one per position); a sixth of
+    /// the corners' memory on a closed mesh.
+    Vertices(Vec<[f32; 2]>),
+}
+
+impl Uv {
+    /// The coordinates at the corners of triangle `t`, whose vertices are `tri`.
+    #[inline]
+    pub fn corners(&self, t: usize, tri: [u32; 3]) -> [[f32; 2]; 3] {
+        match self {
+            Uv::Corners(c) => c[t],
+            Uv::Vertices(v) => tri.map(|i| v[i as usize]),
+        }
+    }
 }
 
 /// A material of the table.
@@ -125,13 +145,20 @@ impl Attributes {
                 ));
             }
         }
-        if let Some(uv) = &self.uv
-            && uv.len() != triangles
-        {
-            return bad(format!(
-                "{} texture coordinate triples for {triangles} triangles",
-                uv.len()
-            ));
+        match &self.uv {
+            Some(Uv::Corners(uv)) if uv.len() != triangles => {
+                return bad(format!(
+                    "{} texture coordinate triples for {triangles} triangles",
+                    uv.len()
+                ));
+            }
+            Some(Uv::Vertices(uv)) if uv.len() != positions => {
+                return bad(format!(
+                    "{} texture coordinates for {positions} vertices",
+                    uv.len()
+                ));
+            }
+            _ => {}
         }
         if let Some((i, _)) = self
             .materials

@@ -400,7 +400,7 @@ fn parse_document(
         // primitive has none (its id: the table's length).
         attributes.set_materials(table, out.material);
         if !out.uv.is_empty() {
-            attributes.uv = Some(out.uv);
+            attributes.uv = Some(super::Uv::Vertices(out.uv));
             attributes.images = images;
         }
     }
@@ -472,9 +472,9 @@ struct Collector {
     any_material: bool,
     /// Each material's texture coordinates ([`gltf_materials::materials`]).
     specs: Vec<Option<UvSpec>>,
-    /// Each triangle's corner texture coordinates (zeros without a texture), once a
-    /// triangle's material had a texture; empty while none has.
-    uv: Vec<[[f32; 2]; 3]>,
+    /// Each position's texture coordinates (zeros without a texture), once a primitive's
+    /// material had a texture; empty while none has.
+    uv: Vec<[f32; 2]>,
 }
 
 impl Collector {
@@ -624,29 +624,26 @@ impl Collector {
             let spec = self.specs.get(usize::from(material)).copied().flatten();
             match spec {
                 Some(spec) => {
-                    let uvs: Vec<[f32; 2]> = match reader
-                        .read_tex_coords(spec.set)
-                        .map(|t| t.into_f32().collect::<Vec<_>>())
-                    {
-                        Some(t) if t.len() == positions.len() => t,
-                        _ => {
-                            return Err(malformed(
-                                "glTF",
-                                format!(
-                                    "{where_}: its material's texture reads TEXCOORD_{}, which the primitive lacks (or has not one per position)",
-                                    spec.set
-                                ),
-                            ));
-                        }
-                    };
+                    // Read straight into the mesh's array (per position, through `spec`).
                     if self.uv.is_empty() {
-                        self.uv = vec![[[0.0; 2]; 3]; self.triangles.len()];
+                        self.uv = vec![[0.0; 2]; base as usize];
                     }
-                    gltf_materials::push_corner_uvs(&mut self.uv, &tris, &uvs, &spec);
+                    let read = reader.read_tex_coords(spec.set).map(|t| {
+                        self.uv.extend(t.into_f32().map(|c| spec.apply(c)));
+                    });
+                    if read.is_none() || self.uv.len() != self.positions.len() {
+                        return Err(malformed(
+                            "glTF",
+                            format!(
+                                "{where_}: its material's texture reads TEXCOORD_{}, which the primitive lacks (or has not one per position)",
+                                spec.set
+                            ),
+                        ));
+                    }
                 }
                 None if !self.uv.is_empty() => self
                     .uv
-                    .extend(std::iter::repeat_n([[0.0f32; 2]; 3], tris.len())),
+                    .extend(std::iter::repeat_n([0.0f32; 2], positions.len())),
                 None => {}
             }
             self.material

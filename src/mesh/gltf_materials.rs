@@ -175,14 +175,3 @@ fn image_bytes<'b>(
         },
     }
 }
-
-/// Appends to `out` the texture coordinates of `tris` (corner indices into the primitive's
-/// `uvs`) through `spec` (written in place: no array between).
-pub(super) fn push_corner_uvs(
-    out: &mut Vec<[[f32; 2]; 3]>,
-    tris: &[[u32; 3]],
-    uvs: &[[f32; 2]],
-    spec: &UvSpec,
-) {
-    out.extend(tris.iter().map(|t| t.map(|i| spec.apply(uvs[i as usize]))));
-}

@@ -25,7 +25,7 @@ use rayon::prelude::*;
 
 use stream::Stream;
 
-pub use attributes::{Attributes, Material};
+pub use attributes::{Attributes, Material, Uv};
 pub use diagnostics::MeshDiagnostics;
 pub(crate) use diagnostics::merged_ids;
 pub(crate) use edges::edge_groups;
@@ -319,7 +319,11 @@ fn load_stream(
         &mesh.positions,
         &mut mesh.triangles,
         mesh.attributes.material.as_mut(),
-        mesh.attributes.uv.as_mut(),
+        match mesh.attributes.uv.as_mut() {
+            Some(Uv::Corners(c)) => Some(c),
+            // Per vertex: dropping a triangle leaves its vertices' coordinates as they are.
+            _ => None,
+        },
     );
     mesh.dropped += repeats.dropped;
     if mesh.triangles.len() > opts.max_triangles {

@@ -445,7 +445,11 @@ mod tests {
             h.to_le_bytes()
         });
         // The same texels packed as RGB (alpha 255), as an RGB file decodes.
-        let opaque: Vec<[u8; 4]> = rgba.to_rgba().iter().map(|t| [t[0], t[1], t[2], 255]).collect();
+        let opaque: Vec<[u8; 4]> = rgba
+            .to_rgba()
+            .iter()
+            .map(|t| [t[0], t[1], t[2], 255])
+            .collect();
         let rgb = Image {
             width: 37,
             height: 23,

@@ -175,7 +175,7 @@ impl<'m> Shader<'m> {
             let a: &'m Attributes = self.a;
             let m = a.material.as_ref()?[t];
             let tex = a.materials[usize::from(m)].texture?;
-            let uv = &a.uv.as_ref()?[t];
+            let uv = a.uv.as_ref()?.corners(t, self.mesh.triangles()[t]);
             Some((&a.images[tex.image], tex, uv.map(|c| c.map(f64::from))))
         })();
         TriShade {

@@ -217,10 +217,10 @@ fn a_uniform_texture_gives_its_colour_exactly() {
                 }),
             }],
             material: Some(vec![0, 0]),
-            uv: Some(vec![
+            uv: Some(crate::mesh::Uv::Corners(vec![
                 [[0.0, 0.0], [5.0, 0.0], [5.0, 5.0]],
                 [[0.0, 0.0], [5.0, 5.0], [0.0, 5.0]],
-            ]),
+            ])),
             images: vec![img.clone()],
             ..Default::default()
         };

@@ -124,12 +124,12 @@ pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshErro
         let (table, maps, images) = textures::table(&st.names, &st.libs, opts, &st.texcoords)?;
         if !images.is_empty() {
             st.corners.resize(st.triangles.len(), [parser::NO_UV; 3]);
-            attributes.uv = Some(textures::corner_uvs(
+            attributes.uv = Some(super::Uv::Corners(textures::corner_uvs(
                 &st.material,
                 &st.corners,
                 &st.texcoords,
                 &maps,
-            ));
+            )));
             attributes.images = images;
         }
         attributes.set_materials(table, st.material);
