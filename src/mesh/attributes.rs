@@ -11,9 +11,10 @@
 //!   (`baseColorFactor`, linear RGBA, default white).
 //!
 //! * **Textures**: a material's base colour texture ([`TextureRef`]: image and sampler), the
-//!   decoded images (`texture.rs`), and each triangle's texture coordinates at its three
-//!   corners, in the UV set its material's texture reads, with the texture's
-//!   `KHR_texture_transform` applied (zeros for a triangle whose material has no texture).
+//!   decoded images (`texture.rs`), and the texture coordinates ([`Uv`]), in the UV set the
+//!   material's texture reads, with the texture's `KHR_texture_transform` applied (zeros where
+//!   the material has no texture): one per position for glTF (its vertices are split where
+//!   their coordinates differ), one per triangle corner for OBJ (its `vt` are indexed apart).
 //!
 //! The loaders that do not read an attribute leave it out; nothing here is invented.
 
