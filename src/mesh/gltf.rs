@@ -41,7 +41,7 @@ pub(super) fn parse(s: &mut Stream, opts: &LoadOptions) -> Result<Mesh, MeshErro
         } else {
             document(s.rest()?)?
         };
-        parse_document(&doc, bin, opts)
+        parse_document(&doc, bin.as_deref(), opts)
     })
     .unwrap_or_else(|_| Err(malformed("glTF", "malformed accessor or buffer data")))
 }
@@ -87,34 +87,21 @@ fn glb_bytes<'s>(s: &'s mut Stream, opts: &LoadOptions) -> Result<&'s [u8], Mesh
     Ok(&a[..a.len().min(length)])
 }
 
+/// A GLB's BIN chunk (`None`: a .gltf, or a GLB without one).
+type Bin<'a> = Option<Cow<'a, [u8]>>;
+
 /// The glTF document of a .gltf or a GLB's JSON chunk, or of a whole GLB with its BIN chunk
-/// (borrowed from `bytes`: a GLB's geometry is read where it lies, never copied).
-fn document(bytes: &[u8]) -> Result<(gltf::Gltf, Option<&[u8]>), MeshError> {
+/// (as `gltf::Glb::from_slice` gives it: borrowed from `bytes`, so a GLB's geometry is read
+/// where it lies, never copied).
+fn document(bytes: &[u8]) -> Result<(gltf::Gltf, Bin<'_>), MeshError> {
     let bad = |e: gltf::json::Error| malformed("glTF", e.to_string());
     if bytes.starts_with(b"glTF") {
         let glb = gltf::Glb::from_slice(bytes).map_err(|e| malformed("glTF", e.to_string()))?;
         let root = gltf::json::deserialize::from_slice(&glb.json).map_err(bad)?;
-        let bin = match glb.bin {
-            Some(std::borrow::Cow::Borrowed(b)) => Some(b),
-            // `from_slice` borrows its chunks; were one ever owned, it is found again in
-            // `bytes` by its length (the last chunk's data ends the GLB, padding aside).
-            Some(std::borrow::Cow::Owned(b)) => bin_chunk(bytes, b.len()),
-            None => None,
-        };
-        Ok((validated(root, None)?, bin))
+        Ok((validated(root, None)?, glb.bin))
     } else {
         Ok((json_document(bytes)?, None))
     }
-}
-
-/// The data of the GLB chunk after the JSON chunk in `glb`, `len` bytes (or `None`).
-fn bin_chunk(glb: &[u8], len: usize) -> Option<&[u8]> {
-    let u32_at = |i: usize| -> Option<usize> {
-        Some(u32::from_le_bytes(glb.get(i..i + 4)?.try_into().ok()?) as usize)
-    };
-    let json_len = u32_at(GLB_HEADER)?;
-    let bin_start = GLB_HEADER + CHUNK_HEADER + json_len + CHUNK_HEADER;
-    glb.get(bin_start..bin_start.checked_add(len)?)
 }
 
 /// The glTF document of JSON text (a .gltf, or a GLB's JSON chunk).

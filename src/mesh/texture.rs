@@ -44,11 +44,9 @@ impl Image {
     #[inline(always)]
     pub fn rgba_at(&self, i: usize) -> [u8; 4] {
         if self.channels == 3 {
-            let b = &self.bytes[3 * i..3 * i + 3];
-            [b[0], b[1], b[2], 255]
+            unpack::<3>(&self.bytes[3 * i..])
         } else {
-            let b = &self.bytes[4 * i..4 * i + 4];
-            [b[0], b[1], b[2], b[3]]
+            unpack::<4>(&self.bytes[4 * i..])
         }
     }
 
@@ -57,6 +55,16 @@ impl Image {
         (0..self.width as usize * self.height as usize)
             .map(|i| self.rgba_at(i))
             .collect()
+    }
+}
+
+/// The texel at the front of `b`, packed in `C` bytes (3: RGB, alpha 255; 4: RGBA), as RGBA.
+#[inline(always)]
+fn unpack<const C: usize>(b: &[u8]) -> [u8; 4] {
+    if C == 3 {
+        [b[0], b[1], b[2], 255]
+    } else {
+        [b[0], b[1], b[2], b[3]]
     }
 }
 
@@ -313,19 +321,12 @@ impl Image {
             &self.bytes[at..at + 2 * C],
             &self.bytes[at + C * w..at + C * w + 2 * C],
         );
-        let texel = |b: &[u8]| -> [u8; 4] {
-            if C == 3 {
-                [b[0], b[1], b[2], 255]
-            } else {
-                [b[0], b[1], b[2], b[3]]
-            }
-        };
         bilinear(
             [
-                linear_by(lin, texel(&top[..C])),
-                linear_by(lin, texel(&top[C..])),
-                linear_by(lin, texel(&bottom[..C])),
-                linear_by(lin, texel(&bottom[C..])),
+                linear_by(lin, unpack::<C>(top)),
+                linear_by(lin, unpack::<C>(&top[C..])),
+                linear_by(lin, unpack::<C>(bottom)),
+                linear_by(lin, unpack::<C>(&bottom[C..])),
             ],
             fx,
             fy,
