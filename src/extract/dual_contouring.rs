@@ -5,12 +5,15 @@
 //!
 //! * **Vertex.** The minimiser of its sheet's QEF (`Σ (n_i · (x − p_i))²` over the crossings
 //!   of its faces' edges; [`super::qef`]: about the mass point, eigenvalues of `AᵀA` under
-//!   2% of the largest truncated). Uncrossed edges (open meshes) add their midpoint to the mass
+//!   0.3% of the largest truncated). Uncrossed edges (open meshes) add their midpoint to the mass
 //!   point only.
-//! * **Kept in its cell.** When the minimiser `x` leaves the vertex's dual cell (the cube
-//!   between its eight voxel centres), the vertex is moved back along the segment to the mass
-//!   point `m` (inside the cell: its points are on the cell's edges): `m + s·(x − m)` with the
-//!   largest `s ≤ 1` in the cell.
+//! * **Kept in its cell.** The vertex is the QEF's minimiser within its dual cell (the cube
+//!   between its eight voxel centres) shrunk by 2⁻¹⁰ voxel on every side ([`Qef::solve_in`]):
+//!   the free minimiser when it is inside; else the least-error minimiser on the box's faces,
+//!   edges and corners, each solved with those coordinates held. A feature that leaves the cell
+//!   keeps the vertex on its planes where the cell meets them (moving it back towards the mass
+//!   point, as before, took it off them and tilted its triangles). The shrink keeps any two
+//!   cells' boxes apart, so no two vertices coincide.
 //! * **Quads to triangles.** Each quad is split along the diagonal whose two triangles both
 //!   face the quad's outward axis, if only one split does; else along the one whose triangles
 //!   pass nearer the quad's own crossing point (the surface is there: at a sharp edge this is
@@ -29,6 +32,10 @@ use super::vec3::{cross, dot, sub};
 use crate::cancel::{Canceled, Control};
 use crate::engine::hermite::Hermite;
 use crate::volume::BitVolume;
+
+/// Half the side of the box a vertex is kept in: its dual cell shrunk by 2⁻¹⁰ voxel on every
+/// side (exact in f64), so no two cells' boxes touch and two vertices never coincide.
+const INSET: f64 = 0.5 - 1.0 / 1024.0;
 
 /// The dual contouring mesh of `bits` (the solid the Hermite data `h` was taken from), in
 /// lattice units.
@@ -61,9 +68,8 @@ pub fn dual_contouring(bits: &BitVolume, h: &Hermite, ctl: &Control) -> Result<T
     let mass: Vec<[f64; 3]> = qefs.iter().map(Qef::mass_point).collect();
     let solved: Vec<[f64; 3]> = qefs
         .iter()
-        .zip(&mass)
         .zip(&cells)
-        .map(|((q, m), c)| keep_in_cell(q.solve(), *m, *c))
+        .map(|(q, c)| q.solve_in(c.map(|v| v - INSET), c.map(|v| v + INSET)))
         .collect();
     let mut positions = solved.clone();
     let split = |i: usize, positions: &[[f64; 3]]| {
@@ -119,25 +125,6 @@ pub fn dual_contouring(bits: &BitVolume, h: &Hermite, ctl: &Control) -> Result<T
         triangles,
         colors: vec![],
     })
-}
-
-/// `x` when inside the unit cube about `c`; else `m + s·(x − m)` with the largest `s` that is
-/// (`m` is in the cube).
-fn keep_in_cell(x: [f64; 3], m: [f64; 3], c: [f64; 3]) -> [f64; 3] {
-    let mut s: f64 = 1.0;
-    for a in 0..3 {
-        let (lo, hi) = (c[a] - 0.5, c[a] + 0.5);
-        let d = x[a] - m[a];
-        if x[a] > hi && d > 0.0 {
-            s = s.min((hi - m[a]) / d);
-        } else if x[a] < lo && d < 0.0 {
-            s = s.min((lo - m[a]) / d);
-        }
-    }
-    let s = s.max(0.0);
-    let p = [0, 1, 2].map(|a| m[a] + s * (x[a] - m[a]));
-    // Round-off at the cube's faces: onto them.
-    [0, 1, 2].map(|a| p[a].clamp(c[a] - 0.5, c[a] + 0.5))
 }
 
 fn normal(t: &[[f64; 3]; 3]) -> [f64; 3] {

@@ -24,6 +24,10 @@ use super::vec3::{dot, sub};
 
 /// A vertex farther than this (voxels) from its mass point makes its triangles suspects.
 pub const FAR: f64 = 0.25;
+/// A group of suspects' box is at most this wide (voxels) on every axis, and holds at most
+/// `GROUP_LEN` of them ([`crossings`]).
+const GROUP_SPAN: f64 = 3.0;
+const GROUP_LEN: usize = 32;
 /// Rounds of halving at most (the last puts the vertices on their mass points).
 pub const ROUNDS: usize = 8;
 
@@ -117,6 +121,9 @@ pub(super) fn untangle(
     unreachable!("the last round returns")
 }
 
+/// A triangle near a group of suspects: its number, corners and bounding box.
+type Candidate = (u32, [[f64; 3]; 3], [f64; 3], [f64; 3]);
+
 /// The pairs (lower first) of a suspect and any triangle that crosses it.
 fn crossings(
     t: &Tangle<'_>,
@@ -130,12 +137,34 @@ fn crossings(
             std::array::from_fn(|k| p[0][k].max(p[1][k]).max(p[2][k])),
         )
     };
-    let mut pairs: Vec<(u32, u32)> = suspects
+    // The suspects in groups of neighbours (consecutive in number, their boxes' union at most
+    // GROUP_SPAN a side, at most GROUP_LEN of them), each group's neighbourhood looked up once:
+    // the lookup (a search of the lattice points per column, the neighbours' triangles sorted)
+    // cost more than the tests, and a suspect's neighbours are mostly its group's too.
+    let mut groups: Vec<(&[u32], [f64; 3], [f64; 3])> = vec![];
+    let mut i = 0;
+    while i < suspects.len() {
+        let (mut lo, mut hi) = bbox(&corners(suspects[i]));
+        let mut j = i + 1;
+        while j < suspects.len() && j - i < GROUP_LEN {
+            let (l, h) = bbox(&corners(suspects[j]));
+            let (nl, nh): ([f64; 3], [f64; 3]) = (
+                std::array::from_fn(|k| lo[k].min(l[k])),
+                std::array::from_fn(|k| hi[k].max(h[k])),
+            );
+            if (0..3).any(|k| nh[k] - nl[k] > GROUP_SPAN) {
+                break;
+            }
+            (lo, hi) = (nl, nh);
+            j += 1;
+        }
+        groups.push((&suspects[i..j], lo, hi));
+        i = j;
+    }
+    let mut pairs: Vec<(u32, u32)> = groups
         .par_iter()
-        .flat_map_iter(|&a| {
-            let (ta, pa) = (t.triangles[a as usize], corners(a));
-            let (lo, hi) = bbox(&pa);
-            // A triangle meeting this one's box has its lattice points within 1.5 of the box
+        .flat_map_iter(|&(group, lo, hi)| {
+            // A triangle meeting the group's box has its lattice points within 1.5 of the box
             // on every axis (its vertices are within ½ of theirs, which differ by at most 1).
             let from: [u32; 3] = std::array::from_fn(|k| (lo[k] - 1.5).ceil().max(0.0) as u32);
             let to: [u32; 3] = std::array::from_fn(|k| (hi[k] + 1.5).floor().max(0.0) as u32);
@@ -150,18 +179,28 @@ fn crossings(
                     near.extend(i as u32..j as u32);
                 }
             }
-            triangles_at(&mut near.into_iter())
+            let candidates: Vec<Candidate> = triangles_at(&mut near.into_iter())
                 .into_iter()
-                .filter(move |&b| {
-                    if b == a {
-                        return false;
-                    }
+                .map(|b| {
                     let pb = corners(b);
                     let (blo, bhi) = bbox(&pb);
-                    (0..3).all(|k| blo[k] <= hi[k] && bhi[k] >= lo[k])
-                        && triangles_cross(ta, pa, t.triangles[b as usize], pb)
+                    (b, pb, blo, bhi)
                 })
-                .map(move |b| (a.min(b), a.max(b)))
+                .collect();
+            let mut out = vec![];
+            for &a in group {
+                let (ta, pa) = (t.triangles[a as usize], corners(a));
+                let (lo, hi) = bbox(&pa);
+                for &(b, pb, blo, bhi) in &candidates {
+                    if b != a
+                        && (0..3).all(|k| blo[k] <= hi[k] && bhi[k] >= lo[k])
+                        && triangles_cross(ta, pa, t.triangles[b as usize], pb)
+                    {
+                        out.push((a.min(b), a.max(b)));
+                    }
+                }
+            }
+            out
         })
         .collect();
     pairs.sort_unstable();
