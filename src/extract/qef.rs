@@ -144,9 +144,7 @@ impl Qef {
 /// `start` moved to the minimiser over the axes not `held` (their rows and columns of `a`
 /// kept, the others zeroed), `r` the residual's pull at `start`, with [`TRUNCATE`]'s rank rule
 /// on the kept part (a direction it drops keeps `start`'s coordinate).
-fn step(a: [[f64; 3]; 3], r: [f64; 3], start: [f64; 3], held: [bool; 3]) -> [f64; 3] {
-    let mut a = a;
-    let mut r = r;
+fn step(mut a: [[f64; 3]; 3], mut r: [f64; 3], start: [f64; 3], held: [bool; 3]) -> [f64; 3] {
     for i in 0..3 {
         for j in 0..3 {
             if held[i] || held[j] {
@@ -328,10 +326,7 @@ mod tests {
             for &(p, n) in &planes {
                 q.add(p, n);
             }
-            let (vals, _) = eigen({
-                let [xx, xy, xz, yy, yz, zz] = q.ata;
-                [[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]
-            });
+            let (vals, _) = eigen(q.about(q.mass_point()).0);
             let max = vals.iter().cloned().fold(0.0, f64::max);
             if vals.iter().any(|&v| v < 0.05 * max) {
                 continue; // near-parallel planes: the rank rule applies, not brute force.

@@ -121,7 +121,7 @@ pub(super) fn untangle(
     unreachable!("the last round returns")
 }
 
-/// A triangle near a group of suspects: its number, corners and bounding box.
+/// A triangle (a suspect, or one near a group of them): its number, corners and bounding box.
 type Candidate = (u32, [[f64; 3]; 3], [f64; 3], [f64; 3]);
 
 /// The pairs (lower first) of a suspect and any triangle that crosses it.
@@ -137,17 +137,24 @@ fn crossings(
             std::array::from_fn(|k| p[0][k].max(p[1][k]).max(p[2][k])),
         )
     };
+    let shape = |a: u32| -> Candidate {
+        let p = corners(a);
+        let (lo, hi) = bbox(&p);
+        (a, p, lo, hi)
+    };
+    // Each suspect's corners and box, found once for the grouping and the tests.
+    let shapes: Vec<Candidate> = suspects.iter().map(|&a| shape(a)).collect();
     // The suspects in groups of neighbours (consecutive in number, their boxes' union at most
     // GROUP_SPAN a side, at most GROUP_LEN of them), each group's neighbourhood looked up once:
     // the lookup (a search of the lattice points per column, the neighbours' triangles sorted)
     // cost more than the tests, and a suspect's neighbours are mostly its group's too.
-    let mut groups: Vec<(&[u32], [f64; 3], [f64; 3])> = vec![];
+    let mut groups: Vec<(&[Candidate], [f64; 3], [f64; 3])> = vec![];
     let mut i = 0;
-    while i < suspects.len() {
-        let (mut lo, mut hi) = bbox(&corners(suspects[i]));
+    while i < shapes.len() {
+        let (_, _, mut lo, mut hi) = shapes[i];
         let mut j = i + 1;
-        while j < suspects.len() && j - i < GROUP_LEN {
-            let (l, h) = bbox(&corners(suspects[j]));
+        while j < shapes.len() && j - i < GROUP_LEN {
+            let (_, _, l, h) = shapes[j];
             let (nl, nh): ([f64; 3], [f64; 3]) = (
                 std::array::from_fn(|k| lo[k].min(l[k])),
                 std::array::from_fn(|k| hi[k].max(h[k])),
@@ -158,7 +165,7 @@ fn crossings(
             (lo, hi) = (nl, nh);
             j += 1;
         }
-        groups.push((&suspects[i..j], lo, hi));
+        groups.push((&shapes[i..j], lo, hi));
         i = j;
     }
     let mut pairs: Vec<(u32, u32)> = groups
@@ -181,16 +188,11 @@ fn crossings(
             }
             let candidates: Vec<Candidate> = triangles_at(&mut near.into_iter())
                 .into_iter()
-                .map(|b| {
-                    let pb = corners(b);
-                    let (blo, bhi) = bbox(&pb);
-                    (b, pb, blo, bhi)
-                })
+                .map(shape)
                 .collect();
             let mut out = vec![];
-            for &a in group {
-                let (ta, pa) = (t.triangles[a as usize], corners(a));
-                let (lo, hi) = bbox(&pa);
+            for &(a, pa, lo, hi) in group {
+                let ta = t.triangles[a as usize];
                 for &(b, pb, blo, bhi) in &candidates {
                     if b != a
                         && (0..3).all(|k| blo[k] <= hi[k] && bhi[k] >= lo[k])
