@@ -189,20 +189,19 @@ pub fn features(m: &TriMesh, min_angle: f64) -> Vec<Feature> {
 }
 
 /// Per feature (in order; `None` for one without a probe): |dihedral of `out` − dihedral of
-/// `src`| in degrees, averaged over the probes along it. A probe is a point `p` on the edge (at ¼, ½, ¾ of it, none within
-/// `clear` of a corner — an end shared by three or more feature edges); each side's dihedral
-/// normal is the normal of the nearest triangle to `p + r·into` (the mesh's at that point of
-/// the face, `r` from the edge), in `src` and in `out` alike.
+/// `src`| in degrees, averaged over its `probes` ([`probes`], [`isolated`]). At a probe `p`
+/// each side's dihedral normal is the normal of the nearest triangle to `p + r·into` (the
+/// mesh's at that point of the face, `r` from the edge), in `src` and in `out` alike.
 pub fn dihedral_errors(
     src: &TriMesh,
     out: &TriMesh,
     features: &[Feature],
+    probes: &[Vec<[f64; 3]>],
     r: f64,
-    clear: f64,
 ) -> Vec<Option<f64>> {
     let (bs, bo) = (Bins::new(src), Bins::new(out));
     let mut errors = vec![];
-    for (f, ps) in features.iter().zip(probes(features, clear)) {
+    for (f, ps) in features.iter().zip(probes) {
         let mut sum = 0.0;
         let mut n = 0;
         for p in ps {
@@ -222,9 +221,9 @@ pub fn dihedral_errors(
     errors
 }
 
-/// The probes of [`dihedral_errors`] on each feature (points at ¼, ½, ¾ of it, none within
-/// `clear` of a corner), one list per feature.
-fn probes(features: &[Feature], clear: f64) -> Vec<Vec<[f64; 3]>> {
+/// The probes of each feature: points at ¼, ½, ¾ of it, none within `clear` of a corner (an
+/// end shared by three or more of `features`).
+pub fn probes(features: &[Feature], clear: f64) -> Vec<Vec<[f64; 3]>> {
     let mut degree: HashMap<[u64; 3], usize> = HashMap::new();
     let key = |p: [f64; 3]| p.map(f64::to_bits);
     for f in features {
@@ -252,11 +251,102 @@ fn probes(features: &[Feature], clear: f64) -> Vec<Vec<[f64; 3]>> {
         .collect()
 }
 
+/// Source edges whose faces' normals differ by more than this many degrees: the creases a
+/// probe of [`isolated`] keeps clear of.
+pub const CREASE: f64 = 30.0;
+
+/// `probes` (of `features`, edges of `src`) without those within `clear` of a crease of `src`
+/// (an edge over [`CREASE`]) of another chain than their feature's: where a feature is alone
+/// on the grid. Two creases closer than a couple of voxels share dual cells, and a cell holds
+/// one vertex: dual contouring cannot place it on both, on any grid of that size.
+pub fn isolated(
+    src: &TriMesh,
+    features: &[Feature],
+    probes: &[Vec<[f64; 3]>],
+    clear: f64,
+) -> Vec<Vec<[f64; 3]>> {
+    let creases = self::features(src, CREASE);
+    let chain = chains(&creases);
+    let key = |p: [f64; 3]| p.map(f64::to_bits);
+    let id: HashMap<([u64; 3], [u64; 3]), usize> = creases
+        .iter()
+        .enumerate()
+        .flat_map(|(i, c)| {
+            [
+                ((key(c.a), key(c.b)), chain[i]),
+                ((key(c.b), key(c.a)), chain[i]),
+            ]
+        })
+        .collect();
+    features
+        .iter()
+        .zip(probes)
+        .map(|(f, ps)| {
+            // A feature that is no crease (at most CREASE) is in no chain.
+            let own = id.get(&(key(f.a), key(f.b))).copied();
+            ps.iter()
+                .copied()
+                .filter(|&p| {
+                    creases
+                        .iter()
+                        .zip(&chain)
+                        .all(|(c, &ch)| Some(ch) == own || to_segment(p, c.a, c.b) >= clear)
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Per crease (edges over [`CREASE`], as [`features`] gives them), the id of its chain:
+/// creases joined where exactly two meet and the second goes on within 45° of the first's
+/// direction (one feature cut into mesh edges).
+fn chains(creases: &[Feature]) -> Vec<usize> {
+    fn find(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    let key = |p: [f64; 3]| p.map(f64::to_bits);
+    let mut at: HashMap<[u64; 3], Vec<usize>> = HashMap::new();
+    for (i, f) in creases.iter().enumerate() {
+        at.entry(key(f.a)).or_default().push(i);
+        at.entry(key(f.b)).or_default().push(i);
+    }
+    let mut parent: Vec<usize> = (0..creases.len()).collect();
+    for (v, es) in &at {
+        let [e, f] = es[..] else { continue };
+        // Each edge's direction away from the shared end.
+        let away = |i: usize| {
+            let c = &creases[i];
+            if key(c.a) == *v {
+                sub(c.b, c.a)
+            } else {
+                sub(c.a, c.b)
+            }
+        };
+        if angle(away(e), away(f)) >= 135.0 {
+            let (re, rf) = (find(&mut parent, e), find(&mut parent, f));
+            parent[re] = rf;
+        }
+    }
+    (0..creases.len()).map(|i| find(&mut parent, i)).collect()
+}
+
+/// The distance from `p` to the segment `a`–`b`.
+fn to_segment(p: [f64; 3], a: [f64; 3], b: [f64; 3]) -> f64 {
+    let ab = sub(b, a);
+    let t = (dot(sub(p, a), ab) / dot(ab, ab).max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
+    let q: [f64; 3] = [0, 1, 2].map(|k| a[k] + t * ab[k]);
+    dot(sub(p, q), sub(p, q)).sqrt()
+}
+
 /// Per feature (in order; `None` for one without a probe): the mean distance from its probes
 /// to `out` (how far the mesh cuts the edge off; 0 when the edge is on the mesh).
-pub fn feature_distances(out: &TriMesh, features: &[Feature], clear: f64) -> Vec<Option<f64>> {
+pub fn feature_distances(out: &TriMesh, probes: &[Vec<[f64; 3]>]) -> Vec<Option<f64>> {
     let bo = Bins::new(out);
-    probes(features, clear)
+    probes
         .iter()
         .map(|ps| {
             (!ps.is_empty()).then(|| {
