@@ -9,7 +9,8 @@
 use std::borrow::Cow;
 
 use super::measure::{
-    dihedral_errors, feature_distances, features, hausdorff, isolated, probes, self_intersections,
+    Feature, dihedral_errors, feature_distances, features, hausdorff, isolated, probes,
+    self_intersections,
 };
 use super::surface_nets::{Field, surface_nets};
 use super::{TriMesh, check, dual_contouring, marching_cubes};
@@ -166,16 +167,21 @@ fn grid(dims: [u32; 3]) -> Grid {
     }
 }
 
+/// The feature edges of `m` on `g` (over `min_angle`) whose error in `errors` (theirs, in
+/// order) is over 5°, with it.
+fn over_5(m: &Mesh, g: &Grid, min_angle: f64, errors: &[Option<f64>]) -> Vec<(Feature, f64)> {
+    features(&lattice(m, g), min_angle)
+        .into_iter()
+        .zip(errors)
+        .filter_map(|(f, e)| e.filter(|&e| e > 5.0).map(|e| (f, e)))
+        .collect()
+}
+
 /// Dual contouring keeps every feature of `m` sharp (module doc's bounds).
 fn assert_sharp(name: &str, m: &Mesh, g: &Grid, contrast: bool) {
     let [dc, sn, _] = measure(name, m, g, 30.0);
     assert!(dc.hausdorff <= 1.0, "{name}: Hausdorff {}", dc.hausdorff);
-    let src = lattice(m, g);
-    let bad: Vec<_> = features(&src, 30.0)
-        .into_iter()
-        .zip(&dc.dihedral)
-        .filter(|(_, e)| e.is_some_and(|e| e > 5.0))
-        .collect();
+    let bad = over_5(m, g, 30.0, &dc.dihedral);
     assert!(bad.is_empty(), "{name}: {bad:?}");
     assert_eq!(dc.intersections, 0, "{name}");
     // On the edges, up to the prism's 56° edge, thinner than a voxel near its apex (PROBE).
@@ -306,12 +312,7 @@ fn rocker_arm_stays_sharp() {
     let alone = dc.alone.iter().flatten().count();
     assert!(alone >= 10, "{alone} edges clear of other creases");
     assert!(mean(&dc.alone) <= 1.0, "mean {}", mean(&dc.alone));
-    let src = lattice(&m, &g);
-    let bad: Vec<_> = features(&src, 60.0)
-        .into_iter()
-        .zip(&dc.alone)
-        .filter(|(_, e)| e.is_some_and(|e| e > 5.0))
-        .collect();
+    let bad = over_5(&m, &g, 60.0, &dc.alone);
     assert!(bad.is_empty(), "{bad:?}");
 }
 
