@@ -11,7 +11,7 @@ pub mod distance;
 #[cfg(test)]
 pub(crate) mod exact;
 pub mod fill;
-mod geom;
+pub(crate) mod geom;
 pub mod gpu;
 pub mod hermite;
 pub mod sdf;

@@ -10,6 +10,12 @@ type Map<K, V> = HashMap<K, V, foldhash::fast::RandomState>;
 use super::TriMesh;
 use super::dual_contouring::distance2;
 use super::vec3::{cross, dot, sub};
+use crate::engine::geom::dist2_to_segment;
+
+/// A point's bits: the key of a mesh vertex (a source's shared vertices are the same f64s).
+fn key(p: [f64; 3]) -> [u64; 3] {
+    p.map(f64::to_bits)
+}
 
 fn unit(a: [f64; 3]) -> [f64; 3] {
     let l = dot(a, a).sqrt();
@@ -225,7 +231,6 @@ pub fn dihedral_errors(
 /// end shared by three or more of `features`).
 pub fn probes(features: &[Feature], clear: f64) -> Vec<Vec<[f64; 3]>> {
     let mut degree: HashMap<[u64; 3], usize> = HashMap::new();
-    let key = |p: [f64; 3]| p.map(f64::to_bits);
     for f in features {
         *degree.entry(key(f.a)).or_default() += 1;
         *degree.entry(key(f.b)).or_default() += 1;
@@ -267,7 +272,6 @@ pub fn isolated(
 ) -> Vec<Vec<[f64; 3]>> {
     let creases = self::features(src, CREASE);
     let chain = chains(&creases);
-    let key = |p: [f64; 3]| p.map(f64::to_bits);
     let id: HashMap<([u64; 3], [u64; 3]), usize> = creases
         .iter()
         .enumerate()
@@ -287,10 +291,9 @@ pub fn isolated(
             ps.iter()
                 .copied()
                 .filter(|&p| {
-                    creases
-                        .iter()
-                        .zip(&chain)
-                        .all(|(c, &ch)| Some(ch) == own || to_segment(p, c.a, c.b) >= clear)
+                    creases.iter().zip(&chain).all(|(c, &ch)| {
+                        Some(ch) == own || dist2_to_segment(p, &[c.a, c.b]) >= clear * clear
+                    })
                 })
                 .collect()
         })
@@ -308,7 +311,6 @@ fn chains(creases: &[Feature]) -> Vec<usize> {
         }
         i
     }
-    let key = |p: [f64; 3]| p.map(f64::to_bits);
     let mut at: HashMap<[u64; 3], Vec<usize>> = HashMap::new();
     for (i, f) in creases.iter().enumerate() {
         at.entry(key(f.a)).or_default().push(i);
@@ -332,14 +334,6 @@ fn chains(creases: &[Feature]) -> Vec<usize> {
         }
     }
     (0..creases.len()).map(|i| find(&mut parent, i)).collect()
-}
-
-/// The distance from `p` to the segment `a`–`b`.
-fn to_segment(p: [f64; 3], a: [f64; 3], b: [f64; 3]) -> f64 {
-    let ab = sub(b, a);
-    let t = (dot(sub(p, a), ab) / dot(ab, ab).max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
-    let q: [f64; 3] = [0, 1, 2].map(|k| a[k] + t * ab[k]);
-    dot(sub(p, q), sub(p, q)).sqrt()
 }
 
 /// Per feature (in order; `None` for one without a probe): the mean distance from its probes
