@@ -77,7 +77,10 @@ pub fn inside(v: &Volume) -> Cow<'_, BitVolume> {
         Volume::SparseDistance(d) if !d.background().is_sign_negative() => {
             Cow::Owned(sparse_inside(d))
         }
-        Volume::SparseDistance(d) => from(&|x, y, z| d.get(x, y, z).is_sign_negative()),
+        Volume::SparseDistance(d) => {
+            let r = d.reader();
+            from(&|x, y, z| r.get(x, y, z).is_sign_negative())
+        }
         other => Cow::Owned(super::occupancy(other)),
     }
 }
@@ -148,10 +151,13 @@ impl<'a> Field<'a> {
                 Some(Box::new(move |x, y, z| f64::from(d.get(x, y, z)))),
                 f64::INFINITY,
             ),
-            Volume::SparseDistance(d) => (
-                Some(Box::new(move |x, y, z| f64::from(d.get(x, y, z)))),
-                f64::INFINITY,
-            ),
+            Volume::SparseDistance(d) => {
+                let r = d.reader();
+                (
+                    Some(Box::new(move |x, y, z| f64::from(r.get(x, y, z)))),
+                    f64::INFINITY,
+                )
+            }
             _ => (None, 1.0),
         };
         Field {

@@ -6,7 +6,7 @@
 //! value when its brick is a tile, else the background. Meant for narrow-band distance fields (`Sparse<f32>`, background +∞ or the band's
 //! width) and other mostly-uniform volumes. Not here: the `.vxl` layout (`codec::vxl`).
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 
 use super::dense::Dense;
 use super::kind::Voxel;
@@ -319,6 +319,46 @@ impl<T: Voxel> Sparse<T> {
     }
 }
 
+/// [`Sparse::get`] for many lookups ([`Sparse::reader`]): the bricks found through a hash
+/// table instead of the B-tree, whose search took most of a mesh extraction's reads of a
+/// narrow band's values (two a boundary face). Its table is one entry a brick.
+pub struct Reader<'a, T> {
+    sparse: &'a Sparse<T>,
+    bricks: HashMap<[u32; 3], &'a [T; BRICK_VOXELS], foldhash::fast::FixedState>,
+}
+
+impl<T: Voxel> Sparse<T> {
+    /// A [`Reader`] of this volume.
+    pub fn reader(&self) -> Reader<'_, T> {
+        let mut bricks = HashMap::with_capacity_and_hasher(
+            self.bricks.len(),
+            foldhash::fast::FixedState::default(),
+        );
+        for (&at, b) in &self.bricks {
+            bricks.insert(at, &**b);
+        }
+        Reader {
+            sparse: self,
+            bricks,
+        }
+    }
+}
+
+impl<T: Voxel> Reader<'_, T> {
+    /// [`Sparse::get`].
+    pub fn get(&self, x: u32, y: u32, z: u32) -> T {
+        let s = self.sparse;
+        let d = s.grid.dims;
+        assert!(x < d[0] && y < d[1] && z < d[2], "voxel outside the grid");
+        let at = [x / BRICK, y / BRICK, z / BRICK];
+        match self.bricks.get(&at) {
+            Some(b) => b[offset(x, y, z)],
+            None if s.is_tile(at) => s.tile_value,
+            None => s.background,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -388,5 +428,43 @@ mod tests {
         s.set(1, 1, 1, 0);
         assert_eq!(s.count_occupied(), 26);
         assert_eq!(s.to_dense().count_occupied(), 26);
+    }
+
+    #[test]
+    fn a_reader_reads_what_get_reads() {
+        // Bricks, tiles and background, on a grid whose high bricks pass its faces; every
+        // voxel read both ways.
+        let g = Grid {
+            origin: [0.0; 3],
+            voxel_size: 1.0,
+            dims: [21, 10, 27],
+        };
+        let mut s = Sparse::with_tile_value(g, 2.5f32, -2.5);
+        let mut rng = crate::testkit::Rng::new(19);
+        for _ in 0..300 {
+            let (x, y, z) = (rng.below(21), rng.below(10), rng.below(27));
+            s.set(x as u32, y as u32, z as u32, rng.below(1000) as f32 - 500.0);
+        }
+        s.set_tile([2, 0, 3], true).unwrap();
+        s.set_tile([0, 1, 0], true).unwrap();
+        assert!(s.brick_count() > 10 && s.tile_count() == 2);
+        let r = s.reader();
+        let mut kinds = [0; 3];
+        for x in 0..21 {
+            for y in 0..10 {
+                for z in 0..27 {
+                    let v = s.get(x, y, z);
+                    assert_eq!(r.get(x, y, z).to_bits(), v.to_bits(), "({x}, {y}, {z})");
+                    kinds[if v == 2.5 {
+                        0
+                    } else if v == -2.5 {
+                        1
+                    } else {
+                        2
+                    }] += 1;
+                }
+            }
+        }
+        assert!(kinds.iter().all(|&k| k > 0), "{kinds:?}");
     }
 }
