@@ -130,6 +130,8 @@ fn part(
     let mut sums = vec![[0i8; 4]; adj.len()];
     let mut more: Vec<(u32, u32)> = Vec::new();
     for q in quads {
+        // The corners' lattice points, read once for the quad's four edges.
+        let c = q.map(|v| cells[v as usize]);
         for j in 0..4 {
             let (v, w) = (q[j] as usize, q[(j + 1) % 4]);
             if v < lo || v >= hi {
@@ -145,9 +147,10 @@ fn part(
             }
             step[3] += 1;
             for a in 0..3 {
-                let d = i64::from(cells[w as usize][a]) - i64::from(cells[v][a]);
-                assert!(d.abs() <= 1, "a neighbour in the next cells");
-                step[a] += d as i8;
+                // Wrapping: a neighbour's lattice point is at most one step away on each axis.
+                let d = c[(j + 1) % 4][a].wrapping_sub(c[j][a]);
+                debug_assert!(d.wrapping_add(1) <= 2, "a neighbour in the next cells");
+                step[a] = step[a].wrapping_add(d as i8);
             }
         }
     }
