@@ -13,13 +13,20 @@
 //! in the other: the skew of two slabs per step is what lets step `p + 1` overwrite step
 //! `p − 1` of its slab (every read of it is done by then).
 //!
-//! **Threads.** The steps are cut into one consecutive run per thread (a pipeline): each
-//! thread runs the wavefront of its steps, and before its sweep `t` waits until the thread of
-//! the steps before has finished its last step on slabs `..= t + 1` (a counter it publishes
-//! after each sweep). Nothing else needs waiting for: what a thread overwrites was last read
-//! by its own earlier steps, or by the threads before it, which are done with that slab by
-//! then. Each vertex's arithmetic is the same, in the same order, as in step-by-step passes,
-//! so the result is too, bit for bit, on any number of threads.
+//! **Stages.** A slab's arrays are read again two sweeps after a step has read them, by the
+//! next step, so a wavefront of `d` steps reads about `2d` slabs' arrays in between: deeper
+//! than a core's cache holds, every step reads them from memory again. The steps are
+//! therefore cut into consecutive *stages* of at most [`STAGE_CACHE`] / (2 × a slab's bytes)
+//! steps each (igea-subdiv4 at 518³: 4 steps; one stage a thread, 12 steps each, took 20 %
+//! longer), as many as the threads or a multiple of them, each at least a round.
+//!
+//! **Threads.** The stages run as a pipeline: each runs the wavefront of its steps, and before
+//! its sweep `t` waits until the stage of the steps before has finished its last step on
+//! slabs `..= t + 1` (a counter it publishes after each sweep). Nothing else needs waiting
+//! for: what a stage overwrites was last read by its own earlier steps, or by the stages
+//! before it, which are done with that slab by then. Each vertex's arithmetic is the same, in
+//! the same order, as in step-by-step passes, so the result is too, bit for bit, on any number
+//! of threads and of stages.
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
@@ -29,6 +36,27 @@ use crate::cancel::{Canceled, Control};
 
 /// Taubin's λ and μ (λ = 0.5, 1/λ + 1/μ = 0.1: the pass band of his paper's examples).
 const TAUBIN: (f64, f64) = (0.5, -0.5263157894736842);
+
+/// The bytes of a wavefront's arrays a stage should keep in a core's cache (the L2 of the
+/// processors this runs on holds 1–2 MiB): see the module doc's "Stages".
+const STAGE_CACHE: usize = 1 << 20;
+
+/// Bytes of the wavefront's arrays a vertex takes in one step: its neighbour slots (24), its
+/// step sums (16), and its entries of the positions read and written (16 each).
+const VERTEX_BYTES: usize = 24 + 16 + 16 + 16;
+
+/// How many stages [`relax`] cuts `2 · rounds` steps into, for `n` vertices in `slabs` slabs
+/// on `threads` threads (the module doc's "Stages").
+fn stage_count(n: usize, slabs: usize, rounds: usize, threads: usize) -> usize {
+    let slab_bytes = (n / slabs.max(1)).max(1) * VERTEX_BYTES;
+    let depth = (STAGE_CACHE / (2 * slab_bytes)).max(2);
+    let threads = threads.max(1);
+    (2 * rounds)
+        .div_ceil(depth)
+        .div_ceil(threads)
+        .saturating_mul(threads)
+        .clamp(1, rounds.max(1))
+}
 
 /// Half the side of a vertex's box about its lattice point: the cell shrunk by 1/16 voxel.
 const HALF: f32 = 0.5 - 1.0 / 16.0;
@@ -274,6 +302,18 @@ pub(super) fn relax(
     threads: usize,
     ctl: &Control,
 ) -> Result<(), Canceled> {
+    let stages = stage_count(now.len(), graph.slabs.len() - 1, rounds, threads);
+    relax_in_stages(graph, now, rounds, stages, ctl)
+}
+
+/// [`relax`] cut into `stages` stages (at most `rounds`).
+fn relax_in_stages(
+    graph: &Graph,
+    now: &mut Vec<[f32; 4]>,
+    rounds: usize,
+    stages: usize,
+    ctl: &Control,
+) -> Result<(), Canceled> {
     let n = now.len();
     assert_eq!(graph.steps.len(), n, "a step sum per vertex");
     assert_eq!(graph.adj.len(), n, "neighbour slots per vertex");
@@ -293,9 +333,9 @@ pub(super) fn relax(
     now.push([0.0; 4]);
     let mut other = vec![[0.0f32; 4]; now.len()];
     let buffers = [Buffer(now.as_mut_ptr()), Buffer(other.as_mut_ptr())];
-    // Consecutive runs of steps, one a thread (a thread with less than a round would wait
-    // more than it works).
-    let stages = threads.clamp(1, rounds);
+    // Consecutive runs of steps (a stage with less than a round would wait more than it
+    // works).
+    let stages = stages.clamp(1, rounds);
     let cut = |k: usize| passes * k / stages;
     let shared = Pipeline {
         done: (0..stages).map(|_| AtomicUsize::new(0)).collect(),
@@ -510,16 +550,25 @@ mod tests {
             let rounds = 1 + case % 7;
             let mut want = start.clone();
             relax_in_passes(&quads, &cells, &mut want, rounds);
-            for threads in [1, 2, 3, 5] {
+            // Stages on as many threads, and more stages than threads (each thread then runs
+            // several, one after another).
+            for (stages, threads) in [(1, 1), (2, 2), (3, 3), (5, 5), (3, 1), (4, 2), (7, 2)] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
                 let mut got = start.clone();
-                relax(&graph, &mut got, rounds, threads, &Control::none()).unwrap();
+                pool.install(|| {
+                    relax_in_stages(&graph, &mut got, rounds, stages, &Control::none())
+                })
+                .unwrap();
                 assert_eq!(got.len(), n);
                 for (v, (g, w)) in got.iter().zip(&want).enumerate() {
                     for k in 0..3 {
                         assert_eq!(
                             g[k].to_bits(),
                             w[k].to_bits(),
-                            "case {case}, {threads} threads, vertex {v}, axis {k}"
+                            "case {case}, {stages} stages, {threads} threads, vertex {v}, axis {k}"
                         );
                     }
                 }
@@ -528,6 +577,21 @@ mod tests {
             }
         }
         assert!(saw_extra, "no vertex had more than SLOTS neighbours");
+    }
+
+    #[test]
+    fn stages_are_as_deep_as_the_cache_holds_and_a_multiple_of_the_threads() {
+        // igea-subdiv4 at 518³: 916,884 vertices in 519 slabs, 127 KB a slab: 4 steps a stage.
+        assert_eq!(stage_count(916_884, 519, 12, 2), 6);
+        assert_eq!(stage_count(916_884, 519, 12, 4), 8);
+        // At 262³: 8 steps a stage, 3 stages, rounded up to 4 for 2 threads.
+        assert_eq!(stage_count(229_022, 263, 12, 2), 4);
+        // Small nets: a stage a thread; never more stages than rounds, nor fewer than one.
+        assert_eq!(stage_count(200, 9, 12, 2), 2);
+        assert_eq!(stage_count(200, 9, 3, 8), 3);
+        assert_eq!(stage_count(0, 0, 0, 2), 1);
+        // Huge slabs: a round a stage.
+        assert_eq!(stage_count(1 << 30, 1024, 12, 2), 12);
     }
 
     #[test]
