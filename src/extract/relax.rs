@@ -93,7 +93,9 @@ impl Graph {
     pub(super) fn of(quads: &[[u32; 4]], cells: &[[u32; 3]], by_plane: bool) -> Graph {
         let n = cells.len();
         let pad = u32::try_from(n).expect("vertex numbers fit in u32");
-        let mut adj = vec![[pad; SLOTS]; n];
+        // Zeroed (fresh pages, no pass over them here): each part fills its own with `pad`,
+        // in parallel, where one thread filled them all before the parts began.
+        let mut adj = vec![[0u32; SLOTS]; n];
         let mut steps = vec![[0.0f32; 4]; n];
         // The vertices in one part per thread, each part reading all the quads for its own
         // vertices' corners.
@@ -119,6 +121,7 @@ impl Graph {
                     let b = quads.partition_point(|q| low(q) <= Some(xb));
                     mine = &quads[a..b.max(a)];
                 }
+                adj.fill([pad; SLOTS]);
                 part(mine, cells, lo, adj, steps)
             })
             .collect();
