@@ -178,8 +178,13 @@ impl<T: Voxel> Sparse<T> {
         let d = self.grid.dims;
         assert!(x < d[0] && y < d[1] && z < d[2], "voxel outside the grid");
         let at = [x / BRICK, y / BRICK, z / BRICK];
-        match self.bricks.get(&at) {
-            Some(b) => b[offset(x, y, z)],
+        self.value_in(at, self.brick(at), [x, y, z])
+    }
+
+    /// Voxel `v`'s value, in brick position `at` whose stored brick is `brick` (if any).
+    fn value_in(&self, at: [u32; 3], brick: Option<&[T; BRICK_VOXELS]>, v: [u32; 3]) -> T {
+        match brick {
+            Some(b) => b[offset(v[0], v[1], v[2])],
             None if self.is_tile(at) => self.tile_value,
             None => self.background,
         }
@@ -351,11 +356,7 @@ impl<T: Voxel> Reader<'_, T> {
         let d = s.grid.dims;
         assert!(x < d[0] && y < d[1] && z < d[2], "voxel outside the grid");
         let at = [x / BRICK, y / BRICK, z / BRICK];
-        match self.bricks.get(&at) {
-            Some(b) => b[offset(x, y, z)],
-            None if s.is_tile(at) => s.tile_value,
-            None => s.background,
-        }
+        s.value_in(at, self.bricks.get(&at).copied(), [x, y, z])
     }
 }
 
