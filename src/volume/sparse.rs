@@ -175,15 +175,22 @@ impl<T: Voxel> Sparse<T> {
     }
 
     pub fn get(&self, x: u32, y: u32, z: u32) -> T {
-        let d = self.grid.dims;
-        assert!(x < d[0] && y < d[1] && z < d[2], "voxel outside the grid");
-        let at = [x / BRICK, y / BRICK, z / BRICK];
-        self.value_in(at, self.brick(at), [x, y, z])
+        self.value_by([x, y, z], |at| self.brick(at))
     }
 
-    /// Voxel `v`'s value, in brick position `at` whose stored brick is `brick` (if any).
-    fn value_in(&self, at: [u32; 3], brick: Option<&[T; BRICK_VOXELS]>, v: [u32; 3]) -> T {
-        match brick {
+    /// Voxel `v`'s value, its stored brick (if any) found by `brick` from the brick position.
+    fn value_by<'a>(
+        &self,
+        v: [u32; 3],
+        brick: impl FnOnce([u32; 3]) -> Option<&'a [T; BRICK_VOXELS]>,
+    ) -> T
+    where
+        T: 'a,
+    {
+        let d = self.grid.dims;
+        assert!((0..3).all(|a| v[a] < d[a]), "voxel outside the grid");
+        let at = v.map(|c| c / BRICK);
+        match brick(at) {
             Some(b) => b[offset(v[0], v[1], v[2])],
             None if self.is_tile(at) => self.tile_value,
             None => self.background,
@@ -352,11 +359,8 @@ impl<T: Voxel> Sparse<T> {
 impl<T: Voxel> Reader<'_, T> {
     /// [`Sparse::get`].
     pub fn get(&self, x: u32, y: u32, z: u32) -> T {
-        let s = self.sparse;
-        let d = s.grid.dims;
-        assert!(x < d[0] && y < d[1] && z < d[2], "voxel outside the grid");
-        let at = [x / BRICK, y / BRICK, z / BRICK];
-        s.value_in(at, self.bricks.get(&at).copied(), [x, y, z])
+        self.sparse
+            .value_by([x, y, z], |at| self.bricks.get(&at).copied())
     }
 }
 
