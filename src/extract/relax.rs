@@ -180,7 +180,7 @@ fn part(
             for a in 0..3 {
                 // Wrapping: a neighbour's lattice point is at most one step away on each axis.
                 let d = c[(j + 1) % 4][a].wrapping_sub(c[j][a]);
-                debug_assert!(d.wrapping_add(1) <= 2, "a neighbour in the next cells");
+                assert!(d.wrapping_add(1) <= 2, "a neighbour in the next cells");
                 step[a] = step[a].wrapping_add(d as i8);
             }
         }

@@ -495,7 +495,8 @@ pub(super) fn net_in_runs(
         to += keep;
     }
     // The offsets from the shapes, each run's in parallel (one pass over fresh pages by
-    // both threads, where one thread took a seventh of the net's time).
+    // both threads, where one thread made them all in the loop above: the join took
+    // 0.0068–0.0072 s at igea 518³, now 0.0046–0.0051 s).
     let mut offsets = vec![[0.0f32; 4]; if valued { 0 } else { to }];
     if !valued {
         let parts = crate::split_lengths(&mut offsets, kept.iter().map(|&(_, keep)| keep));
