@@ -10,6 +10,7 @@ use std::sync::OnceLock;
 
 use super::cubes::sheets_for;
 use super::pinches::Joins;
+use super::surface_nets::Face;
 use crate::volume::BitVolume;
 
 /// For each block occupancy with no pinch joined: each internal face's sheet as 0..count (in
@@ -187,19 +188,42 @@ impl<'a> Slabs<'a> {
         }
     }
 
-    /// The vertex of lattice point `p` (in one of the last two slabs numbered) on the sheet
-    /// that holds internal face `face` of its block (a boundary face).
-    pub(super) fn vertex(&self, p: [u32; 3], face: usize) -> u32 {
-        let par = (p[0] & 1) as usize;
-        let i = p[1] as usize * self.stride + p[2] as usize;
-        let Block { base, set, flags } = self.blocks[par][i];
-        let r = if flags == 0 {
-            self.table[usize::from(set)].0[face]
-        } else {
-            compact(set, &sheets_for(set, flags)).0[face]
+    /// The quad of face `f`: the vertices of its four corners, counter-clockwise seen from
+    /// outside (from +a when `f.plus`). At corner (u + du, v + dv) the face is the block's
+    /// internal face across a between the octants with bits (1 − du, 1 − dv).
+    #[inline]
+    pub(super) fn quad(&self, f: &Face) -> [u32; 4] {
+        let mut p = [0; 3];
+        p[f.a] = f.k;
+        p[(f.a + 1) % 3] = f.u;
+        p[(f.a + 2) % 3] = f.v;
+        // A step along axis 0 is the other slab's table, along 1 a row, along 2 an entry.
+        let step = |axis: usize| match axis {
+            0 => (1, 0),
+            1 => (0, self.stride),
+            _ => (0, 1),
         };
-        debug_assert!(r != u8::MAX, "a boundary face of the block");
-        base + u32::from(r)
+        let ((pu, iu), (pv, iv)) = (step((f.a + 1) % 3), step((f.a + 2) % 3));
+        let (par, i) = (
+            (p[0] & 1) as usize,
+            p[1] as usize * self.stride + p[2] as usize,
+        );
+        let mut ring = [(0, 0), (1, 0), (1, 1), (0, 1)].map(|(du, dv)| {
+            let Block { base, set, flags } =
+                self.blocks[par ^ (pu * du) ^ (pv * dv)][i + iu * du + iv * dv];
+            let face = f.a * 4 + (1 - du) + 2 * (1 - dv);
+            let r = if flags == 0 {
+                self.table[usize::from(set)].0[face]
+            } else {
+                compact(set, &sheets_for(set, flags)).0[face]
+            };
+            debug_assert!(r != u8::MAX, "a boundary face of the block");
+            base + u32::from(r)
+        });
+        if !f.plus {
+            ring.reverse();
+        }
+        ring
     }
 
     fn number(&mut self, x: u32) {
@@ -226,10 +250,15 @@ impl<'a> Slabs<'a> {
             let mut carry = [0u64; 4];
             for w in 0..nw {
                 // Bit t: the voxel at z = 64w + t (up) and at z − 1 (lo).
+                let words: [u64; 4] = std::array::from_fn(|k| cols[k].get(w).copied().unwrap_or(0));
+                // Empty, and the voxels below them too (seven in ten words at igea-subdiv4
+                // 518³): no mixed block, and the carries stay zero.
+                if words.iter().chain(&carry).all(|&b| b == 0) {
+                    continue;
+                }
                 let mut up = [0u64; 4];
                 let mut lo = [0u64; 4];
-                for (k, col) in cols.iter().enumerate() {
-                    let word = col.get(w).copied().unwrap_or(0);
+                for (k, &word) in words.iter().enumerate() {
                     up[k] = word;
                     lo[k] = word << 1 | carry[k];
                     carry[k] = word >> 63;

@@ -183,9 +183,9 @@ impl<'a> Field<'a> {
 #[derive(Clone, Copy, Default)]
 pub(super) struct Face {
     pub(super) a: usize,
-    k: u32,
-    u: u32,
-    v: u32,
+    pub(super) k: u32,
+    pub(super) u: u32,
+    pub(super) v: u32,
     pub(super) plus: bool,
 }
 
@@ -591,6 +591,14 @@ fn run(
         if valued && sums.len() < slabs.count {
             sums.resize(slabs.count, [0.0; 4]);
         }
+        if !valued && faces.is_empty() && crossings.is_empty() {
+            // A bit volume's quads alone (surface nets): no crossing point to compute.
+            for (q, f) in quads[i..i + plane.len()].iter_mut().zip(&plane) {
+                *q = slabs.quad(f);
+            }
+            i += plane.len();
+            continue;
+        }
         for f in &plane {
             if !faces.is_empty() {
                 faces[i] = *f;
@@ -618,24 +626,15 @@ fn run(
             if !crossings.is_empty() {
                 crossings[i] = c;
             }
-            // Corners counter-clockwise seen from +a; at corner (u + du, v + dv) the face is the
-            // block's internal face across a between the octants with bits (1 − du, 1 − dv).
-            let mut ring = [(0, 0), (1, 0), (1, 1), (0, 1)].map(|(du, dv)| {
-                let id = slabs.vertex(
-                    f.point(du, dv),
-                    f.a * 4 + (1 - du as usize) + 2 * (1 - dv as usize),
-                );
-                if valued {
+            let ring = slabs.quad(f);
+            if valued {
+                for id in ring {
                     let sum = &mut sums[id as usize];
                     for k in 0..3 {
                         sum[k] += c[k];
                     }
                     sum[3] += 1.0;
                 }
-                id
-            });
-            if !f.plus {
-                ring.reverse();
             }
             quads[i] = ring;
             i += 1;
