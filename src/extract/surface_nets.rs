@@ -320,21 +320,24 @@ pub fn surface_nets(field: &Field<'_>, ctl: &Control) -> Result<TriMesh, Cancele
     // Freed first: the triangles take these pages, not fresh ones.
     drop((cells, sums));
     // Each quad split along its shorter diagonal (the first when they are equal).
-    let mut triangles = vec![[0u32; 3]; 2 * quads.len()];
-    triangles
+    // Not zeroed first: the pages kept from `cells` would be cleared by one thread.
+    let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(2 * quads.len());
+    triangles.spare_capacity_mut()[..2 * quads.len()]
         .par_chunks_mut(2)
         .zip(quads.par_iter())
         .for_each(|(pair, q)| {
             let p = q.map(|i| positions[i as usize]);
             let d2 = |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>();
-            if d2(p[0], p[2]) <= d2(p[1], p[3]) {
-                pair[0] = [q[0], q[1], q[2]];
-                pair[1] = [q[0], q[2], q[3]];
+            let split = if d2(p[0], p[2]) <= d2(p[1], p[3]) {
+                [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]
             } else {
-                pair[0] = [q[0], q[1], q[3]];
-                pair[1] = [q[1], q[2], q[3]];
-            }
+                [[q[0], q[1], q[3]], [q[1], q[2], q[3]]]
+            };
+            pair[0].write(split[0]);
+            pair[1].write(split[1]);
         });
+    // SAFETY: the first 2 · quads entries were written just above, a pair per quad.
+    unsafe { triangles.set_len(2 * quads.len()) };
     let out = TriMesh {
         positions,
         triangles,
@@ -419,8 +422,10 @@ pub(super) fn net_in_runs(
     if before[*cuts.last().expect("a cut")] < total {
         cuts.push(planes);
     }
-    // Each run fills its faces' quads (and faces and crossings) in place.
-    let mut quads = vec![[0u32; 4]; total];
+    // Each run fills its faces' quads (and faces and crossings) in place; the quads are not
+    // zeroed first (a block the allocator kept would be cleared by one thread, 15 MB at igea
+    // 518³).
+    let mut quads: Vec<[u32; 4]> = Vec::with_capacity(total);
     let mut faces = vec![Face::default(); if full { total } else { 0 }];
     let mut crossings = vec![[0.0f64; 3]; if full { total } else { 0 }];
     // Each run numbers its vertices into its own part of one array of lattice points (and of
@@ -441,7 +446,11 @@ pub(super) fn net_in_runs(
     let mut cells = vec![[0u32; 3]; room_total];
     let mut shapes = vec![0u32; if valued { 0 } else { room_total }];
     let mut jobs = Vec::new();
-    let (mut q_rest, mut f_rest, mut c_rest) = (&mut quads[..], &mut faces[..], &mut crossings[..]);
+    let (mut q_rest, mut f_rest, mut c_rest) = (
+        &mut quads.spare_capacity_mut()[..total],
+        &mut faces[..],
+        &mut crossings[..],
+    );
     let (mut p_rest, mut s_rest) = (&mut cells[..], &mut shapes[..]);
     for (w, &room) in cuts.windows(2).zip(&rooms) {
         let len = before[w[1]] - before[w[0]];
@@ -461,6 +470,10 @@ pub(super) fn net_in_runs(
             run(field, &joins, planes, upto, q, f, c, p, sh, &counter)
         })
         .collect::<Result<Vec<Run>, Canceled>>()?;
+    // SAFETY: the runs' parts of the spare capacity cover its first `total` entries (their
+    // lengths are the planes' face counts, summing to `total`), and each run wrote every entry
+    // of its part (`run` asserts it).
+    unsafe { quads.set_len(total) };
     let t3 = std::time::Instant::now();
     // Join the runs: run r's vertices from `shared` on are the first of run r + 1's.
     let mut starts = Vec::with_capacity(parts.len());
@@ -503,17 +516,27 @@ pub(super) fn net_in_runs(
     // The offsets from the shapes, each run's in parallel (one pass over fresh pages by
     // both threads, where one thread made them all in the loop above: the join took
     // 0.0068–0.0072 s at igea 518³, now 0.0046–0.0051 s).
-    let mut offsets = vec![[0.0f32; 4]; if valued { 0 } else { to }];
+    // Not zeroed first (a kept block would be cleared by one thread).
+    let mut offsets: Vec<[f32; 4]> = Vec::with_capacity(if valued { 0 } else { to });
     if !valued {
-        let parts = crate::split_lengths(&mut offsets, kept.iter().map(|&(_, keep)| keep));
+        let spare = &mut offsets.spare_capacity_mut()[..to];
+        let parts = crate::split_lengths(spare, kept.iter().map(|&(_, keep)| keep));
         parts
             .into_par_iter()
             .zip(kept)
             .for_each(|(out, (from, keep))| {
+                assert!(
+                    shapes[from..].len() >= keep,
+                    "a run's shapes hold its vertices"
+                );
                 for (o, &c) in out.iter_mut().zip(&shapes[from..from + keep]) {
-                    *o = super::slabs::shape_offset(c);
+                    o.write(super::slabs::shape_offset(c));
                 }
             });
+        // SAFETY: the parts cover the first `to` entries (their lengths are the runs' kept
+        // vertices, summing to `to`), and each entry of a part of length `keep` was written
+        // from one of its `keep` shapes just above.
+        unsafe { offsets.set_len(to) };
     }
     drop(shapes);
     cells.truncate(to);
@@ -569,7 +592,7 @@ fn run(
     joins: &super::pinches::Joins,
     planes: std::ops::Range<u32>,
     upto: u32,
-    quads: &mut [[u32; 4]],
+    quads: &mut [std::mem::MaybeUninit<[u32; 4]>],
     faces: &mut [Face],
     crossings: &mut [[f64; 3]],
     points: &mut [[u32; 3]],
@@ -594,7 +617,7 @@ fn run(
         if !valued && faces.is_empty() && crossings.is_empty() {
             // A bit volume's quads alone (surface nets): no crossing point to compute.
             for (q, f) in quads[i..i + plane.len()].iter_mut().zip(&plane) {
-                *q = slabs.quad(f);
+                q.write(slabs.quad(f));
             }
             i += plane.len();
             continue;
@@ -636,11 +659,12 @@ fn run(
                     sum[3] += 1.0;
                 }
             }
-            quads[i] = ring;
+            quads[i].write(ring);
             i += 1;
         }
     }
-    debug_assert_eq!(i, quads.len(), "the planes' faces fill the run");
+    // Every entry written (`net_in_runs` relies on it: the quads are not zeroed).
+    assert_eq!(i, quads.len(), "the planes' faces fill the run");
     slabs.reach(upto);
     if valued {
         sums.resize(slabs.count, [0.0; 4]);
