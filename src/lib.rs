@@ -54,6 +54,16 @@ pub(crate) fn split_lengths<T>(
         .collect()
 }
 
+/// `s` with every entry set to `v`, as an initialised slice (for arrays taken from a vector's
+/// spare capacity, so not zeroed first).
+pub(crate) fn fill_uninit<T: Copy>(s: &mut [std::mem::MaybeUninit<T>], v: T) -> &mut [T] {
+    for x in s.iter_mut() {
+        x.write(v);
+    }
+    // SAFETY: every entry was written just above, and `MaybeUninit<T>` has `T`'s layout.
+    unsafe { &mut *(s as *mut [std::mem::MaybeUninit<T>] as *mut [T]) }
+}
+
 pub use engine::Method;
 pub use grid::{Grid, GridLimits, GridSpec};
 pub use mesh::Mesh;
@@ -67,5 +77,16 @@ mod tests {
         let parts = super::split_lengths(&mut v, [3, 0, 4]);
         let got: Vec<Vec<u32>> = parts.iter().map(|p| p.to_vec()).collect();
         assert_eq!(got, vec![vec![0, 1, 2], vec![], vec![3, 4, 5, 6]]);
+    }
+
+    #[test]
+    fn fill_uninit_sets_every_entry_of_spare_capacity() {
+        let mut v: Vec<[u32; 2]> = Vec::with_capacity(7);
+        let got = super::fill_uninit(&mut v.spare_capacity_mut()[..5], [9, 4]);
+        got[1][0] = 1;
+        assert_eq!(got, &[[9, 4], [1, 4], [9, 4], [9, 4], [9, 4]]);
+        // SAFETY: the first five entries were written just above.
+        unsafe { v.set_len(5) };
+        assert_eq!(v, [[9, 4], [1, 4], [9, 4], [9, 4], [9, 4]]);
     }
 }

@@ -44,9 +44,11 @@ pub struct TriMesh {
 impl TriMesh {
     /// From lattice units (voxel (i, j, k) spans [i, i + 1] × …) to `grid`'s world coordinates.
     pub fn to_world(mut self, grid: &Grid) -> TriMesh {
-        for p in &mut self.positions {
-            *p = [0, 1, 2].map(|a| grid.origin[a] + p[a] * grid.voxel_size);
-        }
+        use rayon::prelude::*;
+        self.positions
+            .par_iter_mut()
+            .with_min_len(1 << 14)
+            .for_each(|p| *p = [0, 1, 2].map(|a| grid.origin[a] + p[a] * grid.voxel_size));
         self
     }
 }

@@ -93,15 +93,18 @@ impl Graph {
     pub(super) fn of(quads: &[[u32; 4]], cells: &[[u32; 3]], by_plane: bool) -> Graph {
         let n = cells.len();
         let pad = u32::try_from(n).expect("vertex numbers fit in u32");
-        // Zeroed (fresh pages, no pass over them here): each part fills its own with `pad`,
-        // in parallel, where one thread filled them all before the parts began.
-        let mut adj = vec![[0u32; SLOTS]; n];
-        let mut steps = vec![[0.0f32; 4]; n];
+        // Not zeroed (a block the allocator kept would be cleared by one thread): each part
+        // fills its own with `pad`, in parallel, and writes its steps.
+        let mut adj: Vec<[u32; SLOTS]> = Vec::with_capacity(n);
+        let mut steps: Vec<[f32; 4]> = Vec::with_capacity(n);
         // The vertices in one part per thread, each part reading all the quads for its own
         // vertices' corners.
         let parts = rayon::current_num_threads().clamp(1, n.max(1));
         let mut jobs = Vec::with_capacity(parts);
-        let (mut adj_rest, mut steps_rest) = (&mut adj[..], &mut steps[..]);
+        let (mut adj_rest, mut steps_rest) = (
+            &mut adj.spare_capacity_mut()[..n],
+            &mut steps.spare_capacity_mut()[..n],
+        );
         for r in 0..parts {
             let (lo, hi) = (n * r / parts, n * (r + 1) / parts);
             let (a, ar) = std::mem::take(&mut adj_rest).split_at_mut(hi - lo);
@@ -121,10 +124,16 @@ impl Graph {
                     let b = quads.partition_point(|q| low(q) <= Some(xb));
                     mine = &quads[a..b.max(a)];
                 }
-                adj.fill([pad; SLOTS]);
+                let adj = crate::fill_uninit(adj, [pad; SLOTS]);
                 part(mine, cells, lo, adj, steps)
             })
             .collect();
+        // SAFETY: the parts cover the first n entries of both; each part filled its entries
+        // of `adj` and wrote every one of its `steps` (`part` asserts their lengths agree).
+        unsafe {
+            adj.set_len(n);
+            steps.set_len(n);
+        }
         let extra = extras.concat();
         // The first vertex of each lattice slab (the wavefront's unit).
         let slab_count = cells.last().map_or(0, |c| c[0] as usize + 1);
@@ -155,7 +164,7 @@ fn part(
     cells: &[[u32; 3]],
     lo: usize,
     adj: &mut [[u32; SLOTS]],
-    steps: &mut [[f32; 4]],
+    steps: &mut [std::mem::MaybeUninit<[f32; 4]>],
 ) -> Vec<(u32, Vec<u32>)> {
     let hi = lo + adj.len();
     let mut sums = vec![[0i8; 4]; adj.len()];
@@ -185,14 +194,15 @@ fn part(
             }
         }
     }
+    assert_eq!(steps.len(), sums.len(), "a step for every vertex");
     for (out, s) in steps.iter_mut().zip(&sums) {
         assert!(s[3] > 0, "every vertex in a quad");
-        *out = [
+        out.write([
             f32::from(s[0]),
             f32::from(s[1]),
             f32::from(s[2]),
             1.0 / f32::from(s[3]),
-        ];
+        ]);
     }
     // By vertex, each vertex's in the order of its quads (a stable sort).
     more.sort_by_key(|&(v, _)| v);
