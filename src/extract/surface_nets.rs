@@ -462,6 +462,8 @@ pub(super) fn net_in_runs(
         (q_rest, f_rest, c_rest, p_rest, s_rest) = (qr, fr, cr, pr, shr);
         jobs.push((w[0] as u32..w[1] as u32, q, f, c, p, sh));
     }
+    // The runs' parts cover every quad (the `set_len` below relies on it).
+    assert!(q_rest.is_empty(), "the runs hold every face");
     let t2 = std::time::Instant::now();
     let parts = jobs
         .into_par_iter()
@@ -470,9 +472,8 @@ pub(super) fn net_in_runs(
             run(field, &joins, planes, upto, q, f, c, p, sh, &counter)
         })
         .collect::<Result<Vec<Run>, Canceled>>()?;
-    // SAFETY: the runs' parts of the spare capacity cover its first `total` entries (their
-    // lengths are the planes' face counts, summing to `total`), and each run wrote every entry
-    // of its part (`run` asserts it).
+    // SAFETY: the runs' parts of the spare capacity cover its first `total` entries (asserted
+    // above), and each run wrote every entry of its part (`run` asserts it).
     unsafe { quads.set_len(total) };
     let t3 = std::time::Instant::now();
     // Join the runs: run r's vertices from `shared` on are the first of run r + 1's.
