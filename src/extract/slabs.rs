@@ -193,10 +193,7 @@ impl<'a> Slabs<'a> {
     /// internal face across a between the octants with bits (1 − du, 1 − dv).
     #[inline]
     pub(super) fn quad(&self, f: &Face) -> [u32; 4] {
-        let mut p = [0; 3];
-        p[f.a] = f.k;
-        p[(f.a + 1) % 3] = f.u;
-        p[(f.a + 2) % 3] = f.v;
+        let p = f.point(0, 0);
         // A step along axis 0 is the other slab's table, along 1 a row, along 2 an entry.
         let step = |axis: usize| match axis {
             0 => (1, 0),

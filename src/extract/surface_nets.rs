@@ -183,14 +183,15 @@ impl<'a> Field<'a> {
 #[derive(Clone, Copy, Default)]
 pub(super) struct Face {
     pub(super) a: usize,
-    pub(super) k: u32,
-    pub(super) u: u32,
-    pub(super) v: u32,
+    k: u32,
+    u: u32,
+    v: u32,
     pub(super) plus: bool,
 }
 
 impl Face {
-    fn point(&self, du: u32, dv: u32) -> [u32; 3] {
+    /// Its corner (u + du, v + dv): a lattice point.
+    pub(super) fn point(&self, du: u32, dv: u32) -> [u32; 3] {
         let mut p = [0; 3];
         p[self.a] = self.k;
         p[(self.a + 1) % 3] = self.u + du;
@@ -526,17 +527,14 @@ pub(super) fn net_in_runs(
             .into_par_iter()
             .zip(kept)
             .for_each(|(out, (from, keep))| {
-                assert!(
-                    shapes[from..].len() >= keep,
-                    "a run's shapes hold its vertices"
-                );
                 for (o, &c) in out.iter_mut().zip(&shapes[from..from + keep]) {
                     o.write(super::slabs::shape_offset(c));
                 }
             });
         // SAFETY: the parts cover the first `to` entries (their lengths are the runs' kept
         // vertices, summing to `to`), and each entry of a part of length `keep` was written
-        // from one of its `keep` shapes just above.
+        // from one of the `keep` shapes of `shapes[from..from + keep]` (a slice of exactly that
+        // length, or a panic) just above.
         unsafe { offsets.set_len(to) };
     }
     drop(shapes);
@@ -615,49 +613,26 @@ fn run(
         if valued && sums.len() < slabs.count {
             sums.resize(slabs.count, [0.0; 4]);
         }
-        if !valued && faces.is_empty() && crossings.is_empty() {
-            // A bit volume's quads alone (surface nets): no crossing point to compute.
-            for (q, f) in quads[i..i + plane.len()].iter_mut().zip(&plane) {
-                q.write(slabs.quad(f));
-            }
-            i += plane.len();
-            continue;
-        }
         for f in &plane {
             if !faces.is_empty() {
                 faces[i] = *f;
             }
-            // The crossing point on the segment between the face's two voxel centres.
-            let mut c = [0.0; 3];
-            c[(f.a + 1) % 3] = f64::from(f.u) + 0.5;
-            c[(f.a + 2) % 3] = f64::from(f.v) + 0.5;
-            c[f.a] = f64::from(f.k);
-            if field.value.is_some() {
-                let inn = f.inside().map(i64::from);
-                let mut out = inn;
-                out[f.a] += if f.plus { 1 } else { -1 };
-                let (vi, vo) = (field.value(inn), field.value(out));
-                let t = if vo.is_infinite() {
-                    0.5
-                } else {
-                    let (a, b) = (vi.abs(), vo.abs());
-                    if a + b > 0.0 { a / (a + b) } else { 0.5 }
-                };
-                let t = t.clamp(1.0 / 64.0, 63.0 / 64.0);
-                let ci = f64::from(inn[f.a] as i32) + 0.5;
-                c[f.a] = ci + t * if f.plus { 1.0 } else { -1.0 };
-            }
-            if !crossings.is_empty() {
-                crossings[i] = c;
-            }
             let ring = slabs.quad(f);
-            if valued {
-                for id in ring {
-                    let sum = &mut sums[id as usize];
-                    for k in 0..3 {
-                        sum[k] += c[k];
+            // The crossing point, for the crossings asked for and a valued field's sums (a bit
+            // volume's surface nets needs neither).
+            if valued || !crossings.is_empty() {
+                let c = crossing(field, f);
+                if !crossings.is_empty() {
+                    crossings[i] = c;
+                }
+                if valued {
+                    for id in ring {
+                        let sum = &mut sums[id as usize];
+                        for k in 0..3 {
+                            sum[k] += c[k];
+                        }
+                        sum[3] += 1.0;
                     }
-                    sum[3] += 1.0;
                 }
             }
             quads[i].write(ring);
@@ -676,6 +651,32 @@ fn run(
         shared: slabs.last_start,
         count: slabs.count,
     })
+}
+
+/// The crossing point of face `f` on the segment between its two voxel centres: the face's
+/// centre for a bit volume, else where the two values interpolate to zero (the midpoint when
+/// the outside one is infinite), kept within [1/64, 63/64] of the segment.
+fn crossing(field: &Field<'_>, f: &Face) -> [f64; 3] {
+    let mut c = [0.0; 3];
+    c[(f.a + 1) % 3] = f64::from(f.u) + 0.5;
+    c[(f.a + 2) % 3] = f64::from(f.v) + 0.5;
+    c[f.a] = f64::from(f.k);
+    if field.value.is_some() {
+        let inn = f.inside().map(i64::from);
+        let mut out = inn;
+        out[f.a] += if f.plus { 1 } else { -1 };
+        let (vi, vo) = (field.value(inn), field.value(out));
+        let t = if vo.is_infinite() {
+            0.5
+        } else {
+            let (a, b) = (vi.abs(), vo.abs());
+            if a + b > 0.0 { a / (a + b) } else { 0.5 }
+        };
+        let t = t.clamp(1.0 / 64.0, 63.0 / 64.0);
+        let ci = f64::from(inn[f.a] as i32) + 0.5;
+        c[f.a] = ci + t * if f.plus { 1.0 } else { -1.0 };
+    }
+    c
 }
 
 /// Each vertex's corners of `quads` (of `n` vertices), as `4·quad + corner`: vertex v's are
