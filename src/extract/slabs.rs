@@ -114,6 +114,13 @@ fn compact_table() -> &'static [([u8; 12], u8)] {
     })
 }
 
+/// The sheet of internal face `face` of a block with joined half-edges (rare: out of line).
+#[cold]
+#[inline(never)]
+fn joined_sheet(set: u8, flags: u8, face: usize) -> u8 {
+    compact(set, &sheets_for(set, flags)).0[face]
+}
+
 /// A lattice point's first vertex, block occupancy and joined half-edges (one load per
 /// corner: the two slabs' tables are larger than a core's cache).
 #[derive(Clone, Copy, Default)]
@@ -191,7 +198,7 @@ impl<'a> Slabs<'a> {
     /// The quad of face `f`: the vertices of its four corners, counter-clockwise seen from
     /// outside (from +a when `f.plus`). At corner (u + du, v + dv) the face is the block's
     /// internal face across a between the octants with bits (1 − du, 1 − dv).
-    #[inline]
+    #[inline(always)]
     pub(super) fn quad(&self, f: &Face) -> [u32; 4] {
         let p = f.point(0, 0);
         // A step along axis 0 is the other slab's table, along 1 a row, along 2 an entry.
@@ -205,18 +212,30 @@ impl<'a> Slabs<'a> {
             (p[0] & 1) as usize,
             p[1] as usize * self.stride + p[2] as usize,
         );
-        let mut ring = [(0, 0), (1, 0), (1, 1), (0, 1)].map(|(du, dv)| {
-            let Block { base, set, flags } =
-                self.blocks[par ^ (pu * du) ^ (pv * dv)][i + iu * du + iv * dv];
+        // The four corners' blocks loaded first, then their sheets (no call per corner).
+        let corners = [(0, 0), (1, 0), (1, 1), (0, 1)];
+        let at = |(du, dv): (usize, usize)| {
+            self.blocks[par ^ (pu * du) ^ (pv * dv)][i + iu * du + iv * dv]
+        };
+        let blocks = [
+            at(corners[0]),
+            at(corners[1]),
+            at(corners[2]),
+            at(corners[3]),
+        ];
+        let mut ring = [0u32; 4];
+        for c in 0..4 {
+            let (du, dv) = corners[c];
+            let Block { base, set, flags } = blocks[c];
             let face = f.a * 4 + (1 - du) + 2 * (1 - dv);
             let r = if flags == 0 {
                 self.table[usize::from(set)].0[face]
             } else {
-                compact(set, &sheets_for(set, flags)).0[face]
+                joined_sheet(set, flags, face)
             };
             debug_assert!(r != u8::MAX, "a boundary face of the block");
-            base + u32::from(r)
-        });
+            ring[c] = base + u32::from(r);
+        }
         if !f.plus {
             ring.reverse();
         }

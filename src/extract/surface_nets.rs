@@ -231,7 +231,16 @@ fn word(c: &[u64], w: usize) -> u64 {
 }
 
 /// The faces whose lowest lattice x is `x`, appended to `out`.
+#[cfg(test)]
 pub(super) fn faces_at(bits: &BitVolume, x: u32, out: &mut Vec<Face>) {
+    for_faces_at(bits, x, |f| out.push(f));
+}
+
+/// Each face whose lowest lattice x is `x`, given to `emit` as it is found (in the order of
+/// [`faces_at`]). Inlined, so each of its calls of `emit` is compiled with the face's axis
+/// known (a quad's table steps folded to constants).
+#[inline(always)]
+pub(super) fn for_faces_at(bits: &BitVolume, x: u32, mut emit: impl FnMut(Face)) {
     let d = bits.dims();
     let wpc = bits.words_per_column();
     let col = |x: i64, y: i64| column_or_none(bits, x, y);
@@ -258,7 +267,7 @@ pub(super) fn faces_at(bits: &BitVolume, x: u32, out: &mut Vec<Face>) {
                     let plus = below >> (z - base) & 1 == 1;
                     let (u, v) = if a == 0 { (y, z) } else { (z, x) };
                     if (a == 0 && y < d[1]) || (a == 1 && x < d[0]) {
-                        out.push(Face {
+                        emit(Face {
                             a,
                             k: if a == 0 { x } else { y },
                             u,
@@ -275,7 +284,7 @@ pub(super) fn faces_at(bits: &BitVolume, x: u32, out: &mut Vec<Face>) {
                 while t != 0 {
                     let k = base + t.trailing_zeros();
                     t &= t - 1;
-                    out.push(Face {
+                    emit(Face {
                         a: 2,
                         k,
                         u: x,
@@ -285,7 +294,7 @@ pub(super) fn faces_at(bits: &BitVolume, x: u32, out: &mut Vec<Face>) {
                 }
                 // The top face of the last voxel.
                 if w + 1 == wpc && d[2].is_multiple_of(64) && cw >> 63 == 1 {
-                    out.push(Face {
+                    emit(Face {
                         a: 2,
                         k: d[2],
                         u: x,
@@ -601,19 +610,17 @@ fn run(
     let valued = field.value.is_some();
     let mut slabs = Slabs::new(&field.inside, joins, planes.start, !valued, points, shapes);
     let mut sums: Vec<[f64; 4]> = Vec::new();
-    let mut plane = Vec::new();
     let mut i = 0;
     for x in planes {
         counter.check()?;
-        plane.clear();
-        faces_at(&field.inside, x, &mut plane);
-        counter.add(plane.len() as u64);
         // The faces' corners are in lattice slabs x and x + 1.
         slabs.reach(x + 1);
         if valued && sums.len() < slabs.count {
             sums.resize(slabs.count, [0.0; 4]);
         }
-        for f in &plane {
+        let first = i;
+        for_faces_at(&field.inside, x, |face| {
+            let f = &face;
             if !faces.is_empty() {
                 faces[i] = *f;
             }
@@ -637,7 +644,8 @@ fn run(
             }
             quads[i].write(ring);
             i += 1;
-        }
+        });
+        counter.add((i - first) as u64);
     }
     // Every entry written (`net_in_runs` relies on it: the quads are not zeroed).
     assert_eq!(i, quads.len(), "the planes' faces fill the run");
