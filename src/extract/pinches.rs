@@ -9,6 +9,7 @@
 //! changes (at most one pass per pinched edge, in practice one or two).
 
 use std::collections::HashSet;
+use std::sync::OnceLock;
 
 use super::cubes::{SHEETS, block, face_index, sheets, sheets_for};
 use crate::volume::BitVolume;
@@ -35,6 +36,25 @@ fn around(set: u8, e: usize, side: u8) -> Option<[u8; 4]> {
     })
 }
 
+/// For each block occupancy, its pinched half-edges (bit e·2 + side: [`around`] is some).
+/// Most mixed blocks have none, and [`Joins::flags`] looks nothing up for them.
+fn pinched() -> &'static [u8; 256] {
+    static PINCHED: OnceLock<[u8; 256]> = OnceLock::new();
+    PINCHED.get_or_init(|| {
+        std::array::from_fn(|set| {
+            let mut m = 0;
+            for e in 0..3 {
+                for side in 0..2u8 {
+                    if around(set as u8, e, side).is_some() {
+                        m |= 1 << (e * 2 + usize::from(side));
+                    }
+                }
+            }
+            m
+        })
+    })
+}
+
 /// The face between octants `x` and `y` (one bit apart).
 fn face(x: u8, y: u8) -> usize {
     let a = (x ^ y).trailing_zeros() as usize;
@@ -43,23 +63,32 @@ fn face(x: u8, y: u8) -> usize {
 
 impl Joins {
     /// The joined half-edges of the block at `p` with occupancy `set` (bit e·2 + side).
+    /// Inlined: a block with no pinched edge (nearly every one) or no edge joined at all is
+    /// answered by one table lookup; the rest are looked up out of line.
+    #[inline]
     pub(super) fn flags(&self, p: [u32; 3], set: u8) -> u8 {
-        if self.0.is_empty() {
+        let half_edges = pinched()[usize::from(set)];
+        if half_edges == 0 || self.0.is_empty() {
             return 0;
         }
+        self.looked_up(p, half_edges)
+    }
+
+    /// [`Joins::flags`] of the block at `p` with pinched half-edges `half_edges`: each looked
+    /// up.
+    #[inline(never)]
+    fn looked_up(&self, p: [u32; 3], mut half_edges: u8) -> u8 {
         let mut flags = 0;
-        for e in 0..3 {
-            for side in 0..2u8 {
-                if around(set, e, side).is_none() {
-                    continue;
-                }
-                let mut lo = p;
-                if side == 0 {
-                    lo[e] -= 1;
-                }
-                if self.0.contains(&(lo, e as u8)) {
-                    flags |= 1 << (e * 2 + usize::from(side));
-                }
+        while half_edges != 0 {
+            let bit = half_edges.trailing_zeros() as usize;
+            half_edges &= half_edges - 1;
+            let (e, side) = (bit / 2, bit % 2);
+            let mut lo = p;
+            if side == 0 {
+                lo[e] -= 1;
+            }
+            if self.0.contains(&(lo, e as u8)) {
+                flags |= 1 << bit;
             }
         }
         flags
