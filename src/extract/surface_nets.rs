@@ -237,8 +237,9 @@ pub(super) fn faces_at(bits: &BitVolume, x: u32, out: &mut Vec<Face>) {
 }
 
 /// Each face whose lowest lattice x is `x`, given to `emit` as it is found (in the order of
-/// [`faces_at`]). Inlined, so each of its calls of `emit` is compiled with the face's axis
-/// known (a quad's table steps folded to constants).
+/// [`faces_at`]), so a run makes each face's quad at once instead of first collecting the
+/// plane's faces into an array. (`emit` stays one function: the face's axis is not folded into
+/// its code.)
 #[inline(always)]
 pub(super) fn for_faces_at(bits: &BitVolume, x: u32, mut emit: impl FnMut(Face)) {
     let d = bits.dims();
