@@ -114,11 +114,11 @@ fn compact_table() -> &'static [([u8; 12], u8)] {
     })
 }
 
-/// The sheet of internal face `face` of a block with joined half-edges (rare: out of line).
+/// [`compact`] numbering of a block with joined half-edges (rare: out of line).
 #[cold]
 #[inline(never)]
-fn joined_sheet(set: u8, flags: u8, face: usize) -> u8 {
-    compact(set, &sheets_for(set, flags)).0[face]
+fn joined(set: u8, flags: u8) -> ([u8; 12], u8) {
+    compact(set, &sheets_for(set, flags))
 }
 
 /// A lattice point's first vertex, block occupancy and joined half-edges (one load per
@@ -228,11 +228,7 @@ impl<'a> Slabs<'a> {
             let (du, dv) = corners[c];
             let Block { base, set, flags } = blocks[c];
             let face = f.a * 4 + (1 - du) + 2 * (1 - dv);
-            let r = if flags == 0 {
-                self.table[usize::from(set)].0[face]
-            } else {
-                joined_sheet(set, flags, face)
-            };
+            let r = self.numbering(set, flags).0[face];
             debug_assert!(r != u8::MAX, "a boundary face of the block");
             ring[c] = base + u32::from(r);
         }
@@ -240,6 +236,17 @@ impl<'a> Slabs<'a> {
             ring.reverse();
         }
         ring
+    }
+
+    /// The [`compact`] numbering of a block's sheets: from the table when no half-edge is
+    /// joined (nearly always), else computed.
+    #[inline(always)]
+    fn numbering(&self, set: u8, flags: u8) -> ([u8; 12], u8) {
+        if flags == 0 {
+            self.table[usize::from(set)]
+        } else {
+            joined(set, flags)
+        }
     }
 
     fn number(&mut self, x: u32) {
@@ -296,11 +303,7 @@ impl<'a> Slabs<'a> {
                     }
                     let z = 64 * w as u32 + t;
                     let flags = self.joins.flags([x, y, z], set);
-                    let n = if flags == 0 {
-                        self.table[usize::from(set)].1
-                    } else {
-                        compact(set, &sheets_for(set, flags)).1
-                    };
+                    let n = self.numbering(set, flags).1;
                     let first = self.count;
                     let code = u32::from(set) | u32::from(flags) << 8;
                     for sheet in 0..usize::from(n) {

@@ -230,16 +230,16 @@ fn word(c: &[u64], w: usize) -> u64 {
     c.get(w).copied().unwrap_or(0)
 }
 
-/// The faces whose lowest lattice x is `x`, appended to `out`.
+/// The faces whose lowest lattice x is `x`, appended to `out` (the tests' view of
+/// [`for_faces_at`]).
 #[cfg(test)]
 pub(super) fn faces_at(bits: &BitVolume, x: u32, out: &mut Vec<Face>) {
     for_faces_at(bits, x, |f| out.push(f));
 }
 
-/// Each face whose lowest lattice x is `x`, given to `emit` as it is found (in the order of
-/// [`faces_at`]), so a run makes each face's quad at once instead of first collecting the
-/// plane's faces into an array. (`emit` stays one function: the face's axis is not folded into
-/// its code.)
+/// Each face whose lowest lattice x is `x`, given to `emit` as it is found — row by row (y),
+/// word by word along z, and in each word the faces across x, then y, then z — so a run makes
+/// each face's quad at once instead of first collecting the plane's faces into an array.
 #[inline(always)]
 pub(super) fn for_faces_at(bits: &BitVolume, x: u32, mut emit: impl FnMut(Face)) {
     let d = bits.dims();
@@ -620,16 +620,15 @@ fn run(
             sums.resize(slabs.count, [0.0; 4]);
         }
         let first = i;
-        for_faces_at(&field.inside, x, |face| {
-            let f = &face;
+        for_faces_at(&field.inside, x, |f| {
             if !faces.is_empty() {
-                faces[i] = *f;
+                faces[i] = f;
             }
-            let ring = slabs.quad(f);
+            let ring = slabs.quad(&f);
             // The crossing point, for the crossings asked for and a valued field's sums (a bit
             // volume's surface nets needs neither).
             if valued || !crossings.is_empty() {
-                let c = crossing(field, f);
+                let c = crossing(field, &f);
                 if !crossings.is_empty() {
                     crossings[i] = c;
                 }
