@@ -84,7 +84,9 @@ pub enum Wrap {
 }
 
 /// The filter between texels (glTF's `magFilter`; voxels average over areas larger than a
-/// texel only through the sampling of `engine::colour`, so there is no minification filter).
+/// texel only through the sampling of `engine::colour`, so there is no minification filter:
+/// mipmaps, as `minFilter` may ask, blended a texture atlas's islands and were less accurate on
+/// `Fox.glb`, docs/methods.md, "Colour and material").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Filter {
     #[default]
