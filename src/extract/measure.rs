@@ -63,6 +63,32 @@ impl<'a> Bins<'a> {
         self.nearest_in(p, reach)
     }
 
+    /// Whether some triangle lies within `bound` of `p`: such a triangle meets a cell within
+    /// `reach` = ⌈bound⌉ (at least 1) of p's. p's own cell is looked at first.
+    fn any_within(&self, p: [f64; 3], bound: f64, reach: i64) -> bool {
+        debug_assert!(bound <= reach as f64);
+        let c = p.map(|x| x.floor() as i64);
+        // Compared as `nearest` reports distances (square roots), so the answer is its.
+        let near = |d: [i64; 3]| {
+            self.cells
+                .get(&[c[0] + d[0], c[1] + d[1], c[2] + d[2]])
+                .is_some_and(|ts| {
+                    ts.iter()
+                        .any(|&t| distance2(p, &self.tri(t)).sqrt() <= bound)
+                })
+        };
+        if near([0, 0, 0]) {
+            return true;
+        }
+        let r = -reach..=reach;
+        r.clone().any(|dx| {
+            r.clone().any(|dy| {
+                r.clone()
+                    .any(|dz| [dx, dy, dz] != [0, 0, 0] && near([dx, dy, dz]))
+            })
+        })
+    }
+
     fn nearest_in(&self, p: [f64; 3], reach: i64) -> Option<(u32, f64)> {
         let c = p.map(|x| x.floor() as i64);
         let mut best: Option<(u32, f64)> = None;
@@ -114,12 +140,20 @@ pub fn samples(m: &TriMesh, step: f64) -> Vec<[f64; 3]> {
 }
 
 /// The largest distance from a sample of `a` to `b` (∞ when some sample has no triangle of
-/// `b` within `reach` cells).
+/// `b` within `reach` cells). A sample with a triangle of `b` no farther than the largest
+/// distance so far cannot raise it, so its nearest triangle is not sought (the answer is the
+/// same: it only skips work).
 pub fn one_sided(a: &TriMesh, b: &Bins<'_>, step: f64, reach: i64) -> f64 {
-    samples(a, step)
-        .iter()
-        .map(|&p| b.nearest(p, reach).map_or(f64::INFINITY, |(_, d)| d))
-        .fold(0.0, f64::max)
+    let mut worst = 0.0f64;
+    for p in samples(a, step) {
+        let r = (worst.ceil() as i64).max(1);
+        if r <= reach && b.any_within(p, worst, r) {
+            continue;
+        }
+        let d = b.nearest(p, reach).map_or(f64::INFINITY, |(_, d)| d);
+        worst = worst.max(d);
+    }
+    worst
 }
 
 /// Two-sided Hausdorff distance between `a` and `b`, sampled every `step`.
@@ -360,18 +394,26 @@ pub fn self_intersections(m: &TriMesh) -> usize {
     crossing_pairs(m).len()
 }
 
-/// The pairs of triangles [`self_intersections`] counts (lower index first, in no order).
+/// The pairs of triangles [`self_intersections`] counts (lower index first, in no order). A
+/// pair whose bounding boxes share cells is tested once, in the first of them (the cell at the
+/// larger of the two boxes' low corners, axis by axis).
 pub fn crossing_pairs(m: &TriMesh) -> Vec<(u32, u32)> {
     let bins = Bins::new(m);
-    let mut seen = std::collections::HashSet::new();
+    let lows: Vec<[i64; 3]> = (0..m.triangles.len() as u32)
+        .map(|t| {
+            let p = bins.tri(t);
+            [0, 1, 2].map(|a| p[0][a].min(p[1][a]).min(p[2][a]).floor() as i64)
+        })
+        .collect();
     let mut pairs = vec![];
-    for ts in bins.cells.values() {
+    for (cell, ts) in &bins.cells {
         for (i, &a) in ts.iter().enumerate() {
             for &b in &ts[i + 1..] {
-                let (ta, tb) = (m.triangles[a as usize], m.triangles[b as usize]);
-                if !seen.insert((a.min(b), a.max(b))) {
+                let (la, lb) = (lows[a as usize], lows[b as usize]);
+                if [0, 1, 2].map(|k| la[k].max(lb[k])) != *cell {
                     continue;
                 }
+                let (ta, tb) = (m.triangles[a as usize], m.triangles[b as usize]);
                 if triangles_cross(ta, bins.tri(a), tb, bins.tri(b)) {
                     pairs.push((a.min(b), a.max(b)));
                 }
