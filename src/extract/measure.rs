@@ -31,13 +31,19 @@ pub struct Bins<'a> {
     cells: Map<[i64; 3], Vec<u32>>,
 }
 
+/// The cells a triangle's bounding box meets: its low and high corners (inclusive).
+fn box_cells(p: &[[f64; 3]; 3]) -> ([i64; 3], [i64; 3]) {
+    (
+        [0, 1, 2].map(|a| p[0][a].min(p[1][a]).min(p[2][a]).floor() as i64),
+        [0, 1, 2].map(|a| p[0][a].max(p[1][a]).max(p[2][a]).floor() as i64),
+    )
+}
+
 impl<'a> Bins<'a> {
     pub fn new(m: &'a TriMesh) -> Bins<'a> {
         let mut cells: Map<[i64; 3], Vec<u32>> = Map::default();
         for (i, t) in m.triangles.iter().enumerate() {
-            let p = t.map(|v| m.positions[v as usize]);
-            let lo = [0, 1, 2].map(|a| p[0][a].min(p[1][a]).min(p[2][a]).floor() as i64);
-            let hi = [0, 1, 2].map(|a| p[0][a].max(p[1][a]).max(p[2][a]).floor() as i64);
+            let (lo, hi) = box_cells(&t.map(|v| m.positions[v as usize]));
             for x in lo[0]..=hi[0] {
                 for y in lo[1]..=hi[1] {
                     for z in lo[2]..=hi[2] {
@@ -63,47 +69,38 @@ impl<'a> Bins<'a> {
         self.nearest_in(p, reach)
     }
 
+    /// The cells within `reach` of cell `c` that hold triangles, with them (x, then y, then
+    /// z).
+    fn around(&self, c: [i64; 3], reach: i64) -> impl Iterator<Item = ([i64; 3], &[u32])> + '_ {
+        let r = move || -reach..=reach;
+        r().flat_map(move |dx| {
+            r().flat_map(move |dy| r().map(move |dz| [c[0] + dx, c[1] + dy, c[2] + dz]))
+        })
+        .filter_map(|k| self.cells.get(&k).map(|ts| (k, ts.as_slice())))
+    }
+
     /// Whether some triangle lies within `bound` of `p`: such a triangle meets a cell within
     /// `reach` = ⌈bound⌉ (at least 1) of p's. p's own cell is looked at first.
     fn any_within(&self, p: [f64; 3], bound: f64, reach: i64) -> bool {
         debug_assert!(bound <= reach as f64);
         let c = p.map(|x| x.floor() as i64);
         // Compared as `nearest` reports distances (square roots), so the answer is its.
-        let near = |d: [i64; 3]| {
-            self.cells
-                .get(&[c[0] + d[0], c[1] + d[1], c[2] + d[2]])
-                .is_some_and(|ts| {
-                    ts.iter()
-                        .any(|&t| distance2(p, &self.tri(t)).sqrt() <= bound)
-                })
+        let hit = |ts: &[u32]| {
+            ts.iter()
+                .any(|&t| distance2(p, &self.tri(t)).sqrt() <= bound)
         };
-        if near([0, 0, 0]) {
-            return true;
-        }
-        let r = -reach..=reach;
-        r.clone().any(|dx| {
-            r.clone().any(|dy| {
-                r.clone()
-                    .any(|dz| [dx, dy, dz] != [0, 0, 0] && near([dx, dy, dz]))
-            })
-        })
+        self.cells.get(&c).is_some_and(|ts| hit(ts))
+            || self.around(c, reach).any(|(k, ts)| k != c && hit(ts))
     }
 
     fn nearest_in(&self, p: [f64; 3], reach: i64) -> Option<(u32, f64)> {
         let c = p.map(|x| x.floor() as i64);
         let mut best: Option<(u32, f64)> = None;
-        for dx in -reach..=reach {
-            for dy in -reach..=reach {
-                for dz in -reach..=reach {
-                    let Some(ts) = self.cells.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else {
-                        continue;
-                    };
-                    for &t in ts {
-                        let d = distance2(p, &self.tri(t));
-                        if best.is_none_or(|b| d < b.1) {
-                            best = Some((t, d));
-                        }
-                    }
+        for (_, ts) in self.around(c, reach) {
+            for &t in ts {
+                let d = distance2(p, &self.tri(t));
+                if best.is_none_or(|b| d < b.1) {
+                    best = Some((t, d));
                 }
             }
         }
@@ -400,10 +397,7 @@ pub fn self_intersections(m: &TriMesh) -> usize {
 pub fn crossing_pairs(m: &TriMesh) -> Vec<(u32, u32)> {
     let bins = Bins::new(m);
     let lows: Vec<[i64; 3]> = (0..m.triangles.len() as u32)
-        .map(|t| {
-            let p = bins.tri(t);
-            [0, 1, 2].map(|a| p[0][a].min(p[1][a]).min(p[2][a]).floor() as i64)
-        })
+        .map(|t| box_cells(&bins.tri(t)).0)
         .collect();
     let mut pairs = vec![];
     for (cell, ts) in &bins.cells {
